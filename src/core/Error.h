@@ -1,0 +1,44 @@
+#pragma once
+/// @file Error.h
+/// @brief Typed exceptions for user-facing failures. The CLI maps them to exit codes:
+///        InputError/IoError -> 1 (bad input or failed job), UsageError -> 2.
+#include <sstream>
+#include <stdexcept>
+#include <string>
+
+namespace splatwarp {
+
+/// @brief Base class of every splatwarp error; the message is meant for the user.
+class Error : public std::runtime_error {
+public:
+    using std::runtime_error::runtime_error;
+};
+
+/// @brief The input (file, spec, parameter value) is malformed or inconsistent.
+class InputError : public Error {
+public:
+    using Error::Error;
+};
+
+/// @brief A file could not be opened, read or written.
+class IoError : public Error {
+public:
+    using Error::Error;
+};
+
+/// @brief The command line was wrong in a way only found after parsing (exit code 2).
+class UsageError : public Error {
+public:
+    using Error::Error;
+};
+
+/// @brief Build a message from streamable parts: `throw InputError(msg(path, ": bad count ", n));`
+template <typename... Args>
+std::string msg(const Args&... args)
+{
+    std::ostringstream os;
+    (os << ... << args);
+    return os.str();
+}
+
+} // namespace splatwarp

@@ -1,0 +1,59 @@
+#include "core/GaussianCloud.h"
+
+#include <algorithm>
+#include <cmath>
+
+#include "core/Error.h"
+
+namespace splatwarp {
+
+void GaussianCloud::resize(std::size_t n, int degree)
+{
+    if (degree < 0 || degree > 3) throw InputError(msg("SH degree ", degree, " is outside 0..3"));
+    shDegree = degree;
+    means.assign(3 * n, 0.0f);
+    rotations.assign(4 * n, 0.0f);
+    for (std::size_t i = 0; i < n; ++i) rotations[4 * i] = 1.0f;
+    logScales.assign(3 * n, 0.0f);
+    opacities.assign(n, 0.0f);
+    sh.assign(n * std::size_t(shStride()), 0.0f);
+}
+
+void GaussianCloud::append(const GaussianCloud& o, std::size_t i)
+{
+    means.insert(means.end(), o.means.begin() + 3 * i, o.means.begin() + 3 * i + 3);
+    rotations.insert(rotations.end(), o.rotations.begin() + 4 * i, o.rotations.begin() + 4 * i + 4);
+    logScales.insert(logScales.end(), o.logScales.begin() + 3 * i, o.logScales.begin() + 3 * i + 3);
+    opacities.push_back(o.opacities[i]);
+    sh.insert(sh.end(), o.shOf(i), o.shOf(i) + o.shStride());
+}
+
+void GaussianCloud::checkConsistent() const
+{
+    if (shDegree < 0 || shDegree > 3) throw InputError(msg("SH degree ", shDegree, " is outside 0..3"));
+    const std::size_t n = size();
+    if (means.size() != 3 * n || rotations.size() != 4 * n || logScales.size() != 3 * n ||
+        sh.size() != n * std::size_t(shStride()))
+        throw InputError("GaussianCloud arrays have inconsistent sizes");
+}
+
+Vec3f GaussianCloud::scale(std::size_t i) const
+{
+    return {std::exp(logScales[3 * i]), std::exp(logScales[3 * i + 1]), std::exp(logScales[3 * i + 2])};
+}
+
+void centreBounds(const GaussianCloud& g, Vec3f& lo, Vec3f& hi)
+{
+    lo = hi = Vec3f(0, 0, 0);
+    if (g.empty()) return;
+    lo = hi = g.mean(0);
+    for (std::size_t i = 1; i < g.size(); ++i) {
+        const Vec3f p = g.mean(i);
+        for (int a = 0; a < 3; ++a) {
+            lo[a] = std::min(lo[a], p[a]);
+            hi[a] = std::max(hi[a], p[a]);
+        }
+    }
+}
+
+} // namespace splatwarp

@@ -1,0 +1,61 @@
+#pragma once
+/// @file GaussianCloud.h
+/// @brief A 3D Gaussian Splatting model as a structure of arrays, with raw (pre-activation)
+///        parameters exactly as 3DGS stores them.
+#include <cstddef>
+#include <vector>
+
+#include "core/SmallMath.h"
+
+namespace splatwarp {
+
+/// @brief Number of SH coefficients per colour channel for a degree: (d+1)^2.
+inline int shCoeffCount(int degree) { return (degree + 1) * (degree + 1); }
+
+/// @brief 3DGS model, structure of arrays. N = size().
+/// @note  Activations as in 3DGS: scale = exp(logScale), opacity = sigmoid(logitOpacity),
+///        the quaternion is normalised on use (never silently rewritten on load).
+struct GaussianCloud {
+    int shDegree = 0;                ///< 0..3
+    std::vector<float> means;        ///< [N,3] centres
+    std::vector<float> rotations;    ///< [N,4] quaternion w,x,y,z (raw, possibly unnormalised)
+    std::vector<float> logScales;    ///< [N,3] log of the per-axis standard deviation
+    std::vector<float> opacities;    ///< [N]   logit of alpha
+    std::vector<float> sh;           ///< [N,K,3] K = (shDegree+1)^2; coefficient 0 is f_dc; RGB interleaved
+
+    std::size_t size() const { return opacities.size(); }
+    bool empty() const { return opacities.empty(); }
+    int shCoeffs() const { return shCoeffCount(shDegree); }
+    /// @brief Floats of SH per Gaussian: K*3.
+    int shStride() const { return shCoeffs() * 3; }
+
+    /// @brief Resize every array for n Gaussians of the given SH degree (new entries zero,
+    ///        rotations identity).
+    void resize(std::size_t n, int degree);
+    /// @brief Append Gaussian i of another cloud of the same SH degree.
+    void append(const GaussianCloud& other, std::size_t i);
+    /// @brief Throws InputError if array sizes disagree or the degree is outside 0..3.
+    void checkConsistent() const;
+
+    Vec3f mean(std::size_t i) const { return {means[3 * i], means[3 * i + 1], means[3 * i + 2]}; }
+    void setMean(std::size_t i, const Vec3f& p) { means[3 * i] = p.x; means[3 * i + 1] = p.y; means[3 * i + 2] = p.z; }
+    Quatf rotation(std::size_t i) const
+    {
+        return {rotations[4 * i], rotations[4 * i + 1], rotations[4 * i + 2], rotations[4 * i + 3]};
+    }
+    void setRotation(std::size_t i, const Quatf& q)
+    {
+        rotations[4 * i] = q.w; rotations[4 * i + 1] = q.x; rotations[4 * i + 2] = q.y; rotations[4 * i + 3] = q.z;
+    }
+    /// @brief Activated scale (standard deviations) exp(logScale).
+    Vec3f scale(std::size_t i) const;
+    /// @brief Activated opacity sigmoid(logit).
+    float alpha(std::size_t i) const { return sigmoid(opacities[i]); }
+    float* shOf(std::size_t i) { return sh.data() + i * std::size_t(shStride()); }
+    const float* shOf(std::size_t i) const { return sh.data() + i * std::size_t(shStride()); }
+};
+
+/// @brief Axis-aligned bounding box of the centres (min, max). Empty cloud gives zeros.
+void centreBounds(const GaussianCloud& g, Vec3f& lo, Vec3f& hi);
+
+} // namespace splatwarp

@@ -1,0 +1,56 @@
+#pragma once
+/// @file TestSupport.h
+/// @brief Shared test helpers: data paths (skip when ../shared/data is missing), temp dirs,
+///        running the CLI.
+#include <gtest/gtest.h>
+
+#include <cstdio>
+#include <cstdlib>
+#include <filesystem>
+#include <string>
+
+namespace splatwarp::test {
+
+/// @brief Path of a file under ../shared/data, or "" when the data folder is missing.
+inline std::string dataPath(const std::string& rel)
+{
+    const std::filesystem::path p = std::filesystem::path(SPLATWARP_DATA_DIR) / rel;
+    return std::filesystem::exists(p) ? p.string() : std::string();
+}
+
+/// Skip the current test with a message when a shared data file is missing.
+#define SPLATWARP_REQUIRE_DATA(var, rel)                                                                 \
+    const std::string var = ::splatwarp::test::dataPath(rel);                                         \
+    if (var.empty()) GTEST_SKIP() << "../shared/data/" << (rel) << " not present; skipping"
+
+/// @brief A fresh empty directory per test, removed at the end.
+class TempDir {
+public:
+    TempDir()
+    {
+        const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
+        mPath = std::filesystem::temp_directory_path() /
+                (std::string("splatwarp-") + (info ? info->test_suite_name() : "t") + "-" +
+                 (info ? info->name() : "x") + "-" + std::to_string(std::rand()));
+        std::filesystem::remove_all(mPath);
+        std::filesystem::create_directories(mPath);
+    }
+    ~TempDir() { std::filesystem::remove_all(mPath); }
+    std::string file(const std::string& name) const { return (mPath / name).string(); }
+    const std::filesystem::path& path() const { return mPath; }
+
+private:
+    std::filesystem::path mPath;
+};
+
+/// @brief Run the splatwarp CLI with arguments (shell syntax); returns the exit code. Output
+///        goes to the given file when set.
+inline int runCli(const std::string& args, const std::string& outputFile = "")
+{
+    std::string cmd = std::string(SPLATWARP_CLI) + " " + args;
+    cmd += outputFile.empty() ? " >/dev/null 2>&1" : " >" + outputFile + " 2>&1";
+    const int rc = std::system(cmd.c_str());
+    return WIFEXITED(rc) ? WEXITSTATUS(rc) : -1;
+}
+
+} // namespace splatwarp::test

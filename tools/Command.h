@@ -1,0 +1,23 @@
+#pragma once
+/// @file Command.h
+/// @brief Subcommand registry: each tools/Cmd*.cpp registers itself with a static
+///        CommandRegistrar, so adding a command never touches main.cpp.
+#include <CLI/CLI.hpp>
+#include <functional>
+#include <string>
+
+namespace splatwarp::cli {
+
+/// @brief Adds a subcommand to the app; `order` fixes its place in --help.
+struct CommandRegistrar {
+    CommandRegistrar(int order, std::function<void(CLI::App&)> setup);
+};
+
+/// @brief Options every computing command shares (set by main before callbacks run).
+struct GlobalOptions {
+    bool quiet = false;
+    int threads = 0; ///< 0 = all cores
+};
+GlobalOptions& globalOptions();
+
+} // namespace splatwarp::cli
