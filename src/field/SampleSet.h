@@ -1,0 +1,33 @@
+#pragma once
+/// @file SampleSet.h
+/// @brief The flat-array view of a sampled radiance field that vdb/SampleGrid hands to the
+///        optimiser (src/, kernels/), so the maths never needs OpenVDB types.
+///        M = sample count, C = active cell count, K = (shDegree+1)^2, N = Gaussian count.
+#include <cstddef>
+#include <cstdint>
+#include <vector>
+
+namespace splatwarp {
+
+struct SampleSet {
+    int shDegree = 0;          ///< degree of the target SH features
+    int samplesPerAxis = 4;    ///< n: each active cell holds n^3 samples
+    float cellSize = 0.0f;     ///< h: cell edge in world units (rest space)
+    float spacing = 0.0f;      ///< h/n: rest sample spacing
+
+    std::vector<float> restPositions;   ///< [M,3] rest-space sample positions
+    std::vector<float> warpedPositions; ///< [M,3] positions after the deformation (= rest when none)
+    std::vector<float> targetF;         ///< [M,K,3] target radial SH features F* (rotated to the warped frame)
+    std::vector<float> targetO;         ///< [M]     target opacity feature O*
+    std::vector<std::int32_t> sampleCell; ///< [M] index of the sample's cell
+    /// [C,9] row-major dimensionless deformation gradient F_k of each cell (identity at rest).
+    /// The paper's A_k = h * F_k, so its low-pass term (lambda/n^2) A_k A_k^T = lambda (h/n)^2 F_k F_k^T.
+    std::vector<float> cellGradient;
+    std::vector<std::uint8_t> cellSkip; ///< [C] 1: zero target here and in every neighbour cell (skipped)
+
+    std::size_t sampleCount() const { return targetO.size(); }
+    std::size_t cellCount() const { return cellSkip.size(); }
+    int featureStride() const { return 3 * (shDegree + 1) * (shDegree + 1); }
+};
+
+} // namespace splatwarp
