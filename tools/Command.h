@@ -20,4 +20,9 @@ struct GlobalOptions {
 };
 GlobalOptions& globalOptions();
 
+/// @brief The `bench` parent command (created on first use): each benchmark registers
+///        `bench NAME` with `benchCommand(app)->add_subcommand(...)` from a CommandRegistrar
+///        of order >= 1000.
+CLI::App* benchCommand(CLI::App& app);
+
 } // namespace splatwarp::cli

@@ -37,6 +37,14 @@ GlobalOptions& globalOptions()
     return g;
 }
 
+CLI::App* benchCommand(CLI::App& app)
+{
+    for (CLI::App* sub : app.get_subcommands([](CLI::App* a) { return a->get_name() == "bench"; })) return sub;
+    CLI::App* bench = app.add_subcommand("bench", "Benchmarks (times and throughput; results belong in README)");
+    bench->require_subcommand(1);
+    return bench;
+}
+
 } // namespace splatwarp::cli
 
 int main(int argc, char** argv)
