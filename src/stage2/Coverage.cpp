@@ -12,7 +12,8 @@ void Coverage::build(const float* lo, const float* hi, std::size_t g, const floa
                      bool threaded)
 {
     GaussianBins bins;
-    bins.build(lo, hi, g, GaussianBins::suggestCellSize(lo, hi, g), threaded);
+    // Half the typical box: fewer candidates per sample for ~4x more bin entries (measured faster).
+    bins.build(lo, hi, g, 0.5f * GaussianBins::suggestCellSize(lo, hi, g), threaded);
     auto inside = [&](std::uint32_t i, const float* p) {
         return p[0] >= lo[3 * i] && p[0] <= hi[3 * i] && p[1] >= lo[3 * i + 1] && p[1] <= hi[3 * i + 1] &&
                p[2] >= lo[3 * i + 2] && p[2] <= hi[3 * i + 2];

@@ -154,7 +154,7 @@ StageTwoReport optimiseStageTwo(GaussianCloud& cloud, const SampleSet& samples, 
         // its learning rate): opacity and scale grow the ellipsoid, rotation turns it, the mean
         // moves. Then a relative margin on top.
         const int steps = std::max(1, std::min(options.rebuildEvery, options.iterations - iteration));
-        const double move = double(steps) * double(positionRate(iteration)) * std::sqrt(3.0);
+        const double move = double(steps) * double(positionRate(iteration)); // per axis
         forEach(g, 256, threaded, [&](std::size_t k) {
             const std::size_t i = mov[k];
             GaussianParams<double> p = paramsOf(cloud, i);
