@@ -12,7 +12,7 @@
 #include "core/Progress.h"
 #include "field/FeatureField.h"
 #include "samples/SampleModels.h"
-#include "sh/SphericalHarmonics.h"
+#include "field/RigidMotion.h"
 #include "stage2/StageTwo.h"
 
 namespace splatwarp::cli {
@@ -65,13 +65,10 @@ SampleSet benchSamples(const GaussianCloud& rest, const GaussianCloud& target, i
                                  int(std::floor(p.z / s.cellSize))}];
     }
     s.warpedPositions = s.restPositions;
-    const std::size_t m = s.restPositions.size() / 3;
-    s.targetF.resize(m * std::size_t(s.featureStride()));
-    s.targetO.resize(m);
     FeatureOptions fo;
     fo.cutoff = o.cutoff;
     fo.filterVariance = o.lowPassFilter ? o.lambdaLpf * s.spacing * s.spacing : 0.0f;
-    evaluateFeatures(target, s.restPositions.data(), m, fo, s.targetF.data(), s.targetO.data());
+    evaluateSampleTargets(target, s, fo);
     return s;
 }
 
@@ -84,19 +81,12 @@ const CommandRegistrar reg(1020, [](CLI::App& app) {
     sub->add_flag("--serial", [args](std::int64_t) { args->options.threaded = false; }, "Single thread");
     sub->callback([args] {
         const GaussianCloud rest = makeSample("stripes");
-        GaussianCloud target = rest;
         const double angle = 10.0 * M_PI / 180.0;
         Mat3d rot = Mat3d::identity();
         rot.m[0][0] = rot.m[1][1] = std::cos(angle);
         rot.m[0][1] = -std::sin(angle);
         rot.m[1][0] = std::sin(angle);
-        for (std::size_t i = 0; i < rest.size(); ++i) {
-            target.setMean(i, Vec3f(rot * Vec3d(rest.mean(i))));
-            const Quatd q{rest.rotations[4 * i], rest.rotations[4 * i + 1], rest.rotations[4 * i + 2], rest.rotations[4 * i + 3]};
-            const Quatd nq = matrixToQuat(rot * quatToMatrix(q));
-            target.setRotation(i, Quatf{float(nq.w), float(nq.x), float(nq.y), float(nq.z)});
-        }
-        rotateCloudSh(target, rot);
+        const GaussianCloud target = rigidlyMoved(rest, rot, Vec3d(0, 0, 0));
         Stopwatch sw;
         std::vector<std::int32_t> cells;
         const SampleSet s = benchSamples(rest, target, args->samplesPerAxis, args->options, cells);

@@ -134,3 +134,17 @@ TEST(StageTwo, EvalCallbackAndValidation)
     std::vector<std::uint8_t> shortMask(3, 1);
     EXPECT_THROW(optimiseStageTwo(cloud, p.samples, shortMask, p.cells, o), InputError);
 }
+
+TEST(StageTwo, NothingMovingLeavesModelAndEnergy)
+{
+    StageTwoOptions o;
+    o.iterations = 5;
+    Problem p = makeProblem(o, 20);
+    p.moving.assign(p.moving.size(), 0);
+    GaussianCloud cloud = p.start;
+    const StageTwoReport r = optimiseStageTwo(cloud, p.samples, p.moving, p.cells, o);
+    EXPECT_TRUE(sameCloud(cloud, p.start));
+    EXPECT_EQ(r.movingGaussians, 0u);
+    EXPECT_EQ(r.energies.front().total, r.energies.back().total);
+    EXPECT_GT(r.energies.front().total, 0.0);
+}

@@ -2,31 +2,17 @@
 /// @file StageTwoTestProblem.h
 /// @brief A synthetic Stage II problem without VDB: a lattice of cells (n^3 samples each)
 ///        around a small random cloud, targets = features of a known target cloud (the cloud
-///        moved and rotated rigidly), every cell gradient identity.
+///        moved and rotated rigidly, see rigidlyMoved()), every cell gradient identity.
 #include <cmath>
 #include <vector>
 
 #include "field/FeatureField.h"
 #include "field/FieldTestModels.h"
 #include "field/SampleSet.h"
-#include "sh/SphericalHarmonics.h"
+#include "field/RigidMotion.h"
 #include "stage2/StageTwoOptions.h"
 
 namespace splatwarp::test {
-
-/// @brief The cloud moved rigidly: x -> R x + t, rotations and SH rotated with it.
-inline GaussianCloud rigidlyMoved(const GaussianCloud& g, const Mat3d& rot, const Vec3d& t)
-{
-    GaussianCloud moved = g;
-    for (std::size_t i = 0; i < g.size(); ++i) {
-        moved.setMean(i, Vec3f(rot * Vec3d(g.mean(i)) + t));
-        const Quatd q{g.rotations[4 * i], g.rotations[4 * i + 1], g.rotations[4 * i + 2], g.rotations[4 * i + 3]};
-        const Quatd nq = matrixToQuat(rot * quatToMatrix(q));
-        moved.setRotation(i, Quatf{float(nq.w), float(nq.x), float(nq.y), float(nq.z)});
-    }
-    rotateCloudSh(moved, rot);
-    return moved;
-}
 
 /// @brief Cells of edge h covering [-half, half]^3 (cellsPerAxis per axis), n^3 samples per
 ///        cell; targets from `target` with the isotropic rest filter lambda*spacing^2; cells
@@ -55,12 +41,10 @@ inline SampleSet latticeSampleSet(const GaussianCloud& target, int cellsPerAxis,
             }
     s.warpedPositions = s.restPositions;
     const std::size_t m = s.restPositions.size() / 3;
-    s.targetF.resize(m * std::size_t(s.featureStride()));
-    s.targetO.resize(m);
     FeatureOptions fo;
     fo.cutoff = o.cutoff;
     fo.filterVariance = o.lowPassFilter ? o.lambdaLpf * s.spacing * s.spacing : 0.0f;
-    evaluateFeatures(target, s.restPositions.data(), m, fo, s.targetF.data(), s.targetO.data());
+    evaluateSampleTargets(target, s, fo);
     const std::size_t cells = std::size_t(c) * std::size_t(c) * std::size_t(c);
     s.cellGradient.assign(9 * cells, 0.0f);
     for (std::size_t k = 0; k < cells; ++k) s.cellGradient[9 * k] = s.cellGradient[9 * k + 4] = s.cellGradient[9 * k + 8] = 1.0f;
