@@ -1,6 +1,7 @@
 #include "render/Rasterizer.h"
 
 #include <algorithm>
+#include <cmath>
 #include <cstdint>
 #include <cstring>
 #include <tbb/blocked_range.h>
@@ -27,7 +28,8 @@ struct TileEntry {
 struct ScreenSplat {
     ProjectedSplat p;
     Vec3f colour;
-    int x0 = 0, y0 = 0, x1 = -1, y1 = -1; ///< pixel range; empty when x1 < x0
+    int x0 = 0, y0 = 0, x1 = -1, y1 = -1; ///< 3-sigma pixel range (assigns tiles); empty when x1 < x0
+    int ax0 = 0, ay0 = 0, ax1 = -1, ay1 = -1; ///< pixels where alpha can reach the cutoff
 };
 
 template <typename Body>
@@ -51,17 +53,23 @@ struct ProjectOp {
             ScreenSplat& s = out[i];
             const Vec3f mean = cloud.mean(i);
             const Mat3f cov = gaussianCovariance(cloud.rotation(i), cloud.scale(i));
-            if (!projectSplat(view, mean, cov, cloud.alpha(i), s.p)) continue;
-            if (!splatPixelRange(s.p, view.width, view.height, s.x0, s.y0, s.x1, s.y1)) {
+            // Splats that never reach the alpha cutoff get no tiles at all.
+            if (!projectSplat(view, mean, cov, cloud.alpha(i), s.p) || s.p.cutoffX <= 0.0f ||
+                !splatPixelRange(s.p, view.width, view.height, s.x0, s.y0, s.x1, s.y1)) {
                 s.x1 = s.x0 - 1;
                 continue;
             }
+            s.ax0 = int(std::ceil(s.p.u - s.p.cutoffX - 0.5f));
+            s.ax1 = int(std::floor(s.p.u + s.p.cutoffX - 0.5f));
+            s.ay0 = int(std::ceil(s.p.v - s.p.cutoffY - 0.5f));
+            s.ay1 = int(std::floor(s.p.v + s.p.cutoffY - 0.5f));
             s.colour = splatColour(view, cloud.shDegree, cloud.shOf(i), mean);
         }
     }
 };
 
-/// Composite one tile's pixels front to back.
+/// Composite one tile front to back, splat by splat over the pixels each one can reach; every
+/// pixel still sees its splats in (depth, index) order, so this equals a per-pixel loop.
 struct CompositeOp {
     const std::vector<ScreenSplat>& splats;
     const std::vector<TileEntry>& entries;
@@ -71,33 +79,49 @@ struct CompositeOp {
     Image& image;
     void operator()(std::size_t beginTile, std::size_t endTile) const
     {
-        std::vector<const ScreenSplat*> local;
+        constexpr int kPixels = kSplatTileSize * kSplatTileSize;
+        float transmittance[kPixels];
+        Vec3f colour[kPixels];
+        bool done[kPixels];
         for (std::size_t tile = beginTile; tile < endTile; ++tile) {
-            local.clear();
-            for (std::size_t e = tileStart[tile]; e < tileStart[tile + 1]; ++e) local.push_back(&splats[entries[e].splat]);
-            const int tx = int(tile % std::size_t(tilesX)), ty = int(tile / std::size_t(tilesX));
-            const int xEnd = std::min(image.width, (tx + 1) * kSplatTileSize);
-            const int yEnd = std::min(image.height, (ty + 1) * kSplatTileSize);
-            for (int y = ty * kSplatTileSize; y < yEnd; ++y)
-                for (int x = tx * kSplatTileSize; x < xEnd; ++x) compositePixel(local, x, y);
+            const int tx0 = int(tile % std::size_t(tilesX)) * kSplatTileSize;
+            const int ty0 = int(tile / std::size_t(tilesX)) * kSplatTileSize;
+            const int tx1 = std::min(image.width, tx0 + kSplatTileSize) - 1;
+            const int ty1 = std::min(image.height, ty0 + kSplatTileSize) - 1;
+            int active = (tx1 - tx0 + 1) * (ty1 - ty0 + 1);
+            for (int k = 0; k < kPixels; ++k) {
+                transmittance[k] = 1.0f;
+                colour[k] = Vec3f(0.0f, 0.0f, 0.0f);
+                done[k] = false;
+            }
+            for (std::size_t e = tileStart[tile]; e < tileStart[tile + 1] && active > 0; ++e) {
+                const ScreenSplat& s = splats[entries[e].splat];
+                const int x0 = std::max(tx0, s.ax0), x1 = std::min(tx1, s.ax1);
+                const int y0 = std::max(ty0, s.ay0), y1 = std::min(ty1, s.ay1);
+                for (int y = y0; y <= y1; ++y)
+                    for (int x = x0; x <= x1; ++x) {
+                        const int k = (y - ty0) * kSplatTileSize + (x - tx0);
+                        if (done[k]) continue;
+                        const float alpha = splatAlpha(s.p, float(x) + 0.5f, float(y) + 0.5f);
+                        if (alpha == 0.0f) continue;
+                        const float next = transmittance[k] * (1.0f - alpha);
+                        // As 3DGS: stop before the splat that would make the pixel (almost) opaque.
+                        if (next < kSplatMinTransmittance) {
+                            done[k] = true;
+                            --active;
+                            continue;
+                        }
+                        colour[k] += s.colour * (alpha * transmittance[k]);
+                        transmittance[k] = next;
+                    }
+            }
+            for (int y = ty0; y <= ty1; ++y)
+                for (int x = tx0; x <= tx1; ++x) {
+                    const int k = (y - ty0) * kSplatTileSize + (x - tx0);
+                    for (int c = 0; c < 3; ++c) image.at(x, y, c) = colour[k][c] + transmittance[k] * background[c];
+                    image.at(x, y, 3) = 1.0f - transmittance[k];
+                }
         }
-    }
-    void compositePixel(const std::vector<const ScreenSplat*>& list, int x, int y) const
-    {
-        const float px = float(x) + 0.5f, py = float(y) + 0.5f;
-        float transmittance = 1.0f;
-        Vec3f colour(0.0f, 0.0f, 0.0f);
-        for (const ScreenSplat* s : list) {
-            const float alpha = splatAlpha(s->p, px, py);
-            if (alpha == 0.0f) continue;
-            const float next = transmittance * (1.0f - alpha);
-            // As 3DGS: stop before the splat that would make the pixel (almost) fully opaque.
-            if (next < kSplatMinTransmittance) break;
-            colour += s->colour * (alpha * transmittance);
-            transmittance = next;
-        }
-        for (int c = 0; c < 3; ++c) image.at(x, y, c) = colour[c] + transmittance * background[c];
-        image.at(x, y, 3) = 1.0f - transmittance;
     }
 };
 

@@ -47,6 +47,9 @@ struct ProjectedSplat {
     float depth = 0;                        ///< camera-space z of the mean (sort key)
     float radius = 0;                       ///< kSplatExtentSigmas * sqrt(largest eigenvalue), pixels
     float opacity = 0;                      ///< activated opacity
+    /// Half extents (pixels) of the box outside which alpha < kSplatMinAlpha: a pure speed-up for
+    /// per-pixel loops (the alpha test would reject those pixels anyway); 0 when it never reaches it.
+    float cutoffX = 0, cutoffY = 0;
 };
 
 /// @brief EWA projection J W Sigma W^T J^T (+ kSplatDilation on the diagonal) of one Gaussian.
@@ -85,6 +88,11 @@ SPLATWARP_HOST_DEVICE bool projectSplat(const PinholeView& view, const Vec3f& me
     const float lambdaMax = mid + std::sqrt(std::fmax(0.0f, mid * mid - det));
     out.radius = kSplatExtentSigmas * std::sqrt(lambdaMax);
     out.opacity = opacity;
+    // The alpha >= cutoff ellipse (Mahalanobis radius m) has the box m sqrt(a) x m sqrt(c); the small
+    // margin keeps float rounding at its edge from dropping a pixel the alpha test would keep.
+    const float m = extentRadius(opacity, kSplatMinAlpha);
+    out.cutoffX = m > 0.0f ? m * std::sqrt(a) * 1.0001f + 1e-3f : 0.0f;
+    out.cutoffY = m > 0.0f ? m * std::sqrt(c) * 1.0001f + 1e-3f : 0.0f;
     return true;
 }
 
