@@ -7,19 +7,13 @@
 #include "core/AtomicFile.h"
 #include "core/Error.h"
 #include "image/ImageIO.h"
+#include "image/ImageTestUtil.h"
 #include "support/TestSupport.h"
 
 namespace splatwarp {
 namespace {
 
-Image randomImage(int w, int h, int channels, unsigned seed)
-{
-    std::mt19937 gen(seed);
-    std::uniform_real_distribution<float> u(0.0f, 1.0f);
-    Image img(w, h, channels);
-    for (float& v : img.pixels) v = u(gen);
-    return img;
-}
+using test::randomImage;
 
 TEST(ImageIOTest, SrgbCurveRoundTripsAndMatchesKnownPoints)
 {

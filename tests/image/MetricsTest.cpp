@@ -4,19 +4,13 @@
 #include <random>
 
 #include "core/Error.h"
+#include "image/ImageTestUtil.h"
 #include "image/Metrics.h"
 
 namespace splatwarp {
 namespace {
 
-Image randomImage(int w, int h, int channels, unsigned seed)
-{
-    std::mt19937 gen(seed);
-    std::uniform_real_distribution<float> u(0.0f, 1.0f);
-    Image img(w, h, channels);
-    for (float& v : img.pixels) v = u(gen);
-    return img;
-}
+using test::randomImage;
 
 /// SSIM straight from the definition: weighted statistics of every 11x11 window (Gaussian
 /// weights, sigma 1.5, normalised), in double.

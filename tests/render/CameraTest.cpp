@@ -6,6 +6,7 @@
 #include "core/AtomicFile.h"
 #include "core/Error.h"
 #include "render/Camera.h"
+#include "render/RenderTestUtil.h"
 #include "samples/SampleModels.h"
 #include "support/TestSupport.h"
 
@@ -120,9 +121,7 @@ TEST(CameraTest, MalformedFilesNameTheProblem)
 
 TEST(CameraTest, OrbitCamerasFrameTheModel)
 {
-    SampleOptions so;
-    so.count = 2000;
-    const GaussianCloud g = makeSample("stripes", so); // 4 x 1 x 1 bar along x
+    const GaussianCloud g = test::smallSample("stripes", 2000); // 4 x 1 x 1 bar along x
     OrbitOptions o;
     o.views = 4;
     o.width = 64;

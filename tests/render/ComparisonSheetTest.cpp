@@ -3,6 +3,7 @@
 #include "core/Error.h"
 #include "image/BitmapFont.h"
 #include "render/ComparisonSheet.h"
+#include "render/RenderTestUtil.h"
 #include "samples/SampleModels.h"
 
 namespace splatwarp {
@@ -31,15 +32,8 @@ TEST(BitmapFontTest, GlyphsAndTextWidth)
 
 TEST(ComparisonSheetTest, LayoutAndCells)
 {
-    SampleOptions so;
-    so.count = 1500;
-    const GaussianCloud stripes = makeSample("stripes", so);
-    const GaussianCloud ring = makeSample("ring", so);
-    OrbitOptions oo;
-    oo.views = 2;
-    oo.width = 40;
-    oo.height = 30;
-    const auto cams = orbitCameras(stripes, oo);
+    const GaussianCloud stripes = test::smallSample("stripes", 1500), ring = test::smallSample("ring", 1500);
+    const auto cams = test::smallOrbit(stripes, 2, 40, 30);
     ComparisonSheetOptions o;
     const Image sheet = renderComparisonSheet({&stripes, &ring}, {"rest", "ring"}, cams, o);
     const int band = kGlyphHeight * o.labelScale + 2 * o.padding;

@@ -7,6 +7,7 @@
 
 #include "image/Metrics.h"
 #include "render/Rasterizer.h"
+#include "render/RenderTestUtil.h"
 #include "samples/SampleModels.h"
 #include "sh/SphericalHarmonics.h"
 
@@ -212,15 +213,9 @@ TEST(RasterizerTest, NearPlaneCullsAndOpaqueStackTerminates)
 
 TEST(RasterizerTest, MatchesNaiveDoubleReference)
 {
-    SampleOptions so;
-    so.count = 3000;
-    const GaussianCloud g = makeSample("stripes", so);
-    OrbitOptions oo;
-    oo.views = 3;
-    oo.width = 56;
-    oo.height = 40;
+    const GaussianCloud g = test::smallSample("stripes", 3000);
     double worstMax = 0, worstMean = 0;
-    for (const Camera& cam : orbitCameras(g, oo)) {
+    for (const Camera& cam : test::smallOrbit(g, 3, 56, 40)) {
         RenderOptions ro;
         ro.background = Vec3f(0.1f, 0.2f, 0.3f);
         const Image img = renderGaussians(g, cam, ro);
@@ -244,14 +239,8 @@ TEST(RasterizerTest, MatchesNaiveDoubleReference)
 
 TEST(RasterizerTest, SerialAndThreadedAreIdentical)
 {
-    SampleOptions so;
-    so.count = 4000;
-    const GaussianCloud g = makeSample("stripes", so);
-    OrbitOptions oo;
-    oo.views = 1;
-    oo.width = 96;
-    oo.height = 64;
-    const Camera cam = orbitCameras(g, oo)[0];
+    const GaussianCloud g = test::smallSample("stripes", 4000);
+    const Camera cam = test::smallOrbit(g, 1, 96, 64)[0];
     RenderOptions serial;
     serial.threaded = false;
     const Image a = renderGaussians(g, cam, serial), b = renderGaussians(g, cam);
@@ -265,9 +254,7 @@ TEST(RasterizerTest, SerialAndThreadedAreIdentical)
 
 TEST(RasterizerTest, RotatedModelEqualsInverselyRotatedCamera)
 {
-    SampleOptions so;
-    so.count = 6000;
-    const GaussianCloud g = makeSample("stripes", so);
+    const GaussianCloud g = test::smallSample("stripes", 6000);
     // A fixed "random" rotation: axis (1, 2, 3) normalised, 0.7 rad.
     const double angle = 0.7;
     const Vec3d axis = Vec3d(1, 2, 3) / std::sqrt(14.0);
@@ -286,13 +273,8 @@ TEST(RasterizerTest, RotatedModelEqualsInverselyRotatedCamera)
         if (rotateSh) rotateCloudSh(r, q);
         return r;
     };
-    OrbitOptions oo;
-    oo.views = 2;
-    oo.width = 80;
-    oo.height = 64;
-    oo.elevationDeg = 35;
     const GaussianCloud withSh = rotated(true), withoutSh = rotated(false);
-    for (const Camera& cam : orbitCameras(g, oo)) {
+    for (const Camera& cam : test::smallOrbit(g, 2, 80, 64, 35.0)) {
         Camera moved = cam; // x_cam = R Q^T (Q x) + t
         moved.rotation = cam.rotation * q.transposed();
         const Image original = renderGaussians(g, cam);
