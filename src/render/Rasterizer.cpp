@@ -1,12 +1,12 @@
 #include "render/Rasterizer.h"
 
 #include <algorithm>
+#include <atomic>
 #include <cmath>
 #include <cstdint>
 #include <cstring>
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
-#include <tbb/parallel_sort.h>
 #include <vector>
 
 #include "core/Error.h"
@@ -16,13 +16,10 @@ namespace splatwarp {
 
 namespace {
 
-/// One (tile, splat) pair; sorting by (key, splat) orders each tile's splats front to back
-/// with ties broken by index, a total order, so the result does not depend on the sort.
-struct TileEntry {
-    std::uint64_t key; ///< tile << 32 | depth bits (positive floats order like their bits)
-    std::uint32_t splat;
-    bool operator<(const TileEntry& o) const { return key < o.key || (key == o.key && splat < o.splat); }
-};
+/// Sort key of a splat within a tile: depth bits (positive floats order like their bits) above the
+/// splat index. Sorting these orders each tile front to back with ties broken by index, a total
+/// order, so the result depends neither on the sort nor on the order the entries were filled.
+using TileKey = std::uint64_t;
 
 /// A splat prepared for compositing.
 struct ScreenSplat {
@@ -72,7 +69,7 @@ struct ProjectOp {
 /// pixel still sees its splats in (depth, index) order, so this equals a per-pixel loop.
 struct CompositeOp {
     const std::vector<ScreenSplat>& splats;
-    const std::vector<TileEntry>& entries;
+    const std::vector<TileKey>& keys;
     const std::vector<std::size_t>& tileStart;
     int tilesX;
     Vec3f background;
@@ -95,7 +92,7 @@ struct CompositeOp {
                 done[k] = false;
             }
             for (std::size_t e = tileStart[tile]; e < tileStart[tile + 1] && active > 0; ++e) {
-                const ScreenSplat& s = splats[entries[e].splat];
+                const ScreenSplat& s = splats[std::uint32_t(keys[e])]; // low 32 bits: splat index
                 const int x0 = std::max(tx0, s.ax0), x1 = std::min(tx1, s.ax1);
                 const int y0 = std::max(ty0, s.ay0), y1 = std::min(ty1, s.ay1);
                 for (int y = y0; y <= y1; ++y)
@@ -139,42 +136,41 @@ Image renderGaussians(const GaussianCloud& cloud, const Camera& camera, const Re
     std::vector<ScreenSplat> splats(n);
     forRange(n, threaded, 1024, ProjectOp{cloud, view, splats});
 
-    // Tiles touched per splat, then (tile, depth) entries at prefix-sum offsets.
+    // Bucket the splats by tile (counting pass, prefix sum, fill), then sort every tile's bucket.
     const int tilesX = (view.width + kSplatTileSize - 1) / kSplatTileSize;
     const int tilesY = (view.height + kSplatTileSize - 1) / kSplatTileSize;
-    std::vector<std::size_t> offset(n + 1, 0);
-    for (std::size_t i = 0; i < n; ++i) {
-        const ScreenSplat& s = splats[i];
-        const std::size_t count = s.x1 < s.x0 ? 0
-                                              : std::size_t(s.x1 / kSplatTileSize - s.x0 / kSplatTileSize + 1) *
-                                                    std::size_t(s.y1 / kSplatTileSize - s.y0 / kSplatTileSize + 1);
-        offset[i + 1] = offset[i] + count;
+    const std::size_t tiles = std::size_t(tilesX) * std::size_t(tilesY);
+    const auto forEachTile = [&](const ScreenSplat& s, const auto& f) {
+        if (s.x1 < s.x0) return;
+        for (int ty = s.y0 / kSplatTileSize; ty <= s.y1 / kSplatTileSize; ++ty)
+            for (int tx = s.x0 / kSplatTileSize; tx <= s.x1 / kSplatTileSize; ++tx) f(std::size_t(ty) * tilesX + tx);
+    };
+    std::vector<std::atomic<std::size_t>> cursor(tiles);
+    forRange(n, threaded, 1024, [&](std::size_t begin, std::size_t end) {
+        for (std::size_t i = begin; i < end; ++i)
+            forEachTile(splats[i], [&](std::size_t t) { cursor[t].fetch_add(1, std::memory_order_relaxed); });
+    });
+    std::vector<std::size_t> tileStart(tiles + 1, 0);
+    for (std::size_t t = 0; t < tiles; ++t) {
+        tileStart[t + 1] = tileStart[t] + cursor[t].load(std::memory_order_relaxed);
+        cursor[t].store(tileStart[t], std::memory_order_relaxed);
     }
-    std::vector<TileEntry> entries(offset[n]);
+    std::vector<TileKey> keys(tileStart[tiles]);
     forRange(n, threaded, 1024, [&](std::size_t begin, std::size_t end) {
         for (std::size_t i = begin; i < end; ++i) {
-            const ScreenSplat& s = splats[i];
-            if (s.x1 < s.x0) continue;
             std::uint32_t depthBits;
-            std::memcpy(&depthBits, &s.p.depth, sizeof(depthBits));
-            std::size_t e = offset[i];
-            for (int ty = s.y0 / kSplatTileSize; ty <= s.y1 / kSplatTileSize; ++ty)
-                for (int tx = s.x0 / kSplatTileSize; tx <= s.x1 / kSplatTileSize; ++tx)
-                    entries[e++] = {(std::uint64_t(ty * tilesX + tx) << 32) | depthBits, std::uint32_t(i)};
+            std::memcpy(&depthBits, &splats[i].p.depth, sizeof(depthBits));
+            const TileKey key = (TileKey(depthBits) << 32) | TileKey(i);
+            forEachTile(splats[i], [&](std::size_t t) { keys[cursor[t].fetch_add(1, std::memory_order_relaxed)] = key; });
         }
     });
-    if (threaded)
-        tbb::parallel_sort(entries.begin(), entries.end());
-    else
-        std::sort(entries.begin(), entries.end());
-
-    const std::size_t tiles = std::size_t(tilesX) * std::size_t(tilesY);
-    std::vector<std::size_t> tileStart(tiles + 1, 0);
-    for (const TileEntry& e : entries) ++tileStart[(e.key >> 32) + 1];
-    for (std::size_t t = 0; t < tiles; ++t) tileStart[t + 1] += tileStart[t];
+    forRange(tiles, threaded, 4, [&](std::size_t begin, std::size_t end) {
+        for (std::size_t t = begin; t < end; ++t)
+            std::sort(keys.begin() + std::ptrdiff_t(tileStart[t]), keys.begin() + std::ptrdiff_t(tileStart[t + 1]));
+    });
 
     Image image(view.width, view.height, 4);
-    forRange(tiles, threaded, 1, CompositeOp{splats, entries, tileStart, tilesX, options.background, image});
+    forRange(tiles, threaded, 1, CompositeOp{splats, keys, tileStart, tilesX, options.background, image});
     return image;
 }
 

@@ -50,6 +50,8 @@ struct ProjectedSplat {
     /// Half extents (pixels) of the box outside which alpha < kSplatMinAlpha: a pure speed-up for
     /// per-pixel loops (the alpha test would reject those pixels anyway); 0 when it never reaches it.
     float cutoffX = 0, cutoffY = 0;
+    /// Exponent below which alpha < kSplatMinAlpha: ln(kSplatMinAlpha / opacity), skips the exp.
+    float minPower = 0;
 };
 
 /// @brief EWA projection J W Sigma W^T J^T (+ kSplatDilation on the diagonal) of one Gaussian.
@@ -63,8 +65,9 @@ SPLATWARP_HOST_DEVICE bool projectSplat(const PinholeView& view, const Vec3f& me
     const float limX = kSplatFrustumSlack * 0.5f * float(view.width) / view.fx;
     const float limY = kSplatFrustumSlack * 0.5f * float(view.height) / view.fy;
     const float invZ = 1.0f / t.z;
-    const float txz = std::fmin(limX, std::fmax(-limX, t.x * invZ));
-    const float tyz = std::fmin(limY, std::fmax(-limY, t.y * invZ));
+    // Plain comparisons rather than fmin/fmax: no NaN handling needed, and they inline everywhere.
+    const float txz = t.x * invZ < -limX ? -limX : (t.x * invZ > limX ? limX : t.x * invZ);
+    const float tyz = t.y * invZ < -limY ? -limY : (t.y * invZ > limY ? limY : t.y * invZ);
     // Rows of J W (2 x 3): the Jacobian of the perspective map at t, times the view rotation.
     Vec3f jw0, jw1;
     for (int c = 0; c < 3; ++c) {
@@ -85,7 +88,8 @@ SPLATWARP_HOST_DEVICE bool projectSplat(const PinholeView& view, const Vec3f& me
     out.conicC = a * invDet;
     out.depth = t.z;
     const float mid = 0.5f * (a + c);
-    const float lambdaMax = mid + std::sqrt(std::fmax(0.0f, mid * mid - det));
+    const float disc = mid * mid - det;
+    const float lambdaMax = mid + std::sqrt(disc > 0.0f ? disc : 0.0f);
     out.radius = kSplatExtentSigmas * std::sqrt(lambdaMax);
     out.opacity = opacity;
     // The alpha >= cutoff ellipse (Mahalanobis radius m) has the box m sqrt(a) x m sqrt(c); the small
@@ -93,6 +97,8 @@ SPLATWARP_HOST_DEVICE bool projectSplat(const PinholeView& view, const Vec3f& me
     const float m = extentRadius(opacity, kSplatMinAlpha);
     out.cutoffX = m > 0.0f ? m * std::sqrt(a) * 1.0001f + 1e-3f : 0.0f;
     out.cutoffY = m > 0.0f ? m * std::sqrt(c) * 1.0001f + 1e-3f : 0.0f;
+    // Slightly below the exact bound, so rounding never rejects what the final alpha test keeps.
+    out.minPower = m > 0.0f ? -0.5f * m * m * 1.0001f : 0.0f;
     return true;
 }
 
@@ -119,8 +125,10 @@ SPLATWARP_HOST_DEVICE float splatAlpha(const ProjectedSplat& s, float px, float 
 {
     const float dx = px - s.u, dy = py - s.v;
     const float power = -0.5f * (s.conicA * dx * dx + s.conicC * dy * dy) - s.conicB * dx * dy;
-    if (power > 0.0f) return 0.0f; // only from rounding of a near-singular conic
-    const float alpha = std::fmin(kSplatMaxAlpha, s.opacity * std::exp(power));
+    // power > 0 only comes from rounding of a near-singular conic.
+    if (power > 0.0f || power < s.minPower) return 0.0f;
+    const float value = s.opacity * std::exp(power);
+    const float alpha = value < kSplatMaxAlpha ? value : kSplatMaxAlpha;
     return alpha < kSplatMinAlpha ? 0.0f : alpha;
 }
 
