@@ -1,0 +1,48 @@
+#pragma once
+/// @file ImageIO.h
+/// @brief PNG (8-bit sRGB, libpng) and OpenEXR (linear half/float RGBA) image files, written
+///        atomically.
+#include <string>
+
+#include "image/Image.h"
+
+namespace splatwarp {
+
+/// @brief How PNG values map to Image values.
+enum class PngValues {
+    Linear, ///< decode sRGB on read / encode linear -> sRGB on write (renders)
+    Encoded ///< the stored 8-bit values / 255 as they are (metrics on displayed images)
+};
+
+/// @brief Options for writePng().
+struct PngWriteOptions {
+    PngValues values = PngValues::Linear;
+    /// Keep the alpha channel of a 4-channel image (straight alpha). Default off: renders are already
+    /// composited over their background, and RGB is what every viewer shows as rendered.
+    bool alpha = false;
+};
+
+/// @brief Write an 8-bit PNG (RGB, or RGBA with options.alpha) atomically.
+/// @throws InputError for an image without 3 or 4 channels; IoError when the file cannot be written.
+void writePng(const std::string& path, const Image& image, const PngWriteOptions& options = {});
+/// @brief Read any PNG as RGB (or RGBA when the file has alpha), values in [0, 1].
+/// @throws IoError/InputError naming the file.
+Image readPng(const std::string& path, PngValues values = PngValues::Linear);
+
+/// @brief Pixel type of EXR channels.
+enum class ExrPixelType { Half, Float };
+
+/// @brief Write a linear OpenEXR (RGB, or RGBA for 4 channels; ZIP compression) atomically.
+/// @note  EXR consumers treat RGB as premultiplied by alpha: that holds for renders over the
+///        default black background.
+void writeExr(const std::string& path, const Image& image, ExrPixelType type = ExrPixelType::Half);
+/// @brief Read the R, G, B (and A when present) channels of an OpenEXR file as float.
+Image readExr(const std::string& path);
+
+/// @brief Write .png (linear -> sRGB) or .exr (half) chosen by the extension (case-insensitive).
+/// @throws InputError for any other extension.
+void writeImage(const std::string& path, const Image& image);
+/// @brief True when the path ends in .png or .exr (case-insensitive).
+bool isImagePath(const std::string& path);
+
+} // namespace splatwarp
