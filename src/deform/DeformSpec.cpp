@@ -118,11 +118,23 @@ DeformSpec parseDeformSpec(const std::string& jsonText, const std::string& sourc
     DeformSpec spec;
     spec.source = sourceName;
     const Where top{sourceName + ": "};
+    // Follow the parse so a syntax error (NaN, overflowing numbers ...) can name the handle it is in.
+    std::string key;
+    bool inHandles = false;
+    int handle = -1;
+    auto follow = [&](int depth, json::parse_event_t ev, json& parsed) {
+        if (depth == 1 && ev == json::parse_event_t::key) key = parsed.get<std::string>();
+        if (depth == 1 && ev == json::parse_event_t::array_start) inHandles = key == "handles";
+        if (depth == 1 && ev == json::parse_event_t::array_end) inHandles = false;
+        if (depth == 2 && inHandles && ev == json::parse_event_t::object_start) ++handle;
+        return true;
+    };
     json root;
     try {
-        root = json::parse(jsonText);
+        root = json::parse(jsonText, follow);
     } catch (const json::exception& e) {
-        top.fail(msg("invalid JSON: ", e.what()));
+        const std::string where = inHandles && handle >= 0 ? msg("handle ", handle, ": ") : std::string();
+        top.fail(msg(where, "invalid JSON (NaN/Infinity and overflowing numbers are not allowed): ", e.what()));
     }
     checkKeys(root, {"version", "units", "graph", "handles"}, "the spec", top);
     if (!root.contains("version")) top.fail("missing \"version\" (expected 1)");
