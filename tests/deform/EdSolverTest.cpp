@@ -24,6 +24,14 @@ DeformSpec specFile(const std::string& name)
     return s;
 }
 
+/// Tight convergence for the tests that compare solutions to 1e-6 or better.
+EdOptions tight()
+{
+    EdOptions o;
+    o.relativeStep = 1e-9;
+    return o;
+}
+
 double maxDiff(const NodeTransforms& a, const NodeTransforms& b)
 {
     double m = 0.0;
@@ -96,11 +104,11 @@ TEST(EdSolver, SolvingTwiceFromRestEqualsOnceAndWarmStartAgrees)
 {
     const DeformSpec spec = specFile("twist.json");
     const DeformationGraph g = DeformationGraph::build(bar(), spec.graph);
-    const Deformation a = solveDeformation(g, bar(), spec);
-    const Deformation b = solveDeformation(g, bar(), spec);
+    const Deformation a = solveDeformation(g, bar(), spec, tight());
+    const Deformation b = solveDeformation(g, bar(), spec, tight());
     EXPECT_EQ(maxDiff(a.transforms, b.transforms), 0.0);
     // Re-solving from the previous solution stays there (no drift) up to the convergence tolerance.
-    const Deformation c = solveDeformation(g, bar(), spec, EdOptions{}, &a.transforms);
+    const Deformation c = solveDeformation(g, bar(), spec, tight(), &a.transforms);
     EXPECT_LT(maxDiff(a.transforms, c.transforms), 1e-6);
     EXPECT_TRUE(c.report.solver.converged);
     EXPECT_LE(c.report.solver.iterations, 2);
@@ -109,7 +117,7 @@ TEST(EdSolver, SolvingTwiceFromRestEqualsOnceAndWarmStartAgrees)
 TEST(EdSolver, RigidHandleOnAllNodesGivesTheRigidMotion)
 {
     const DeformSpec spec = specFile("rigid.json");
-    const Deformation d = solveDeformation(bar(), spec);
+    const Deformation d = solveDeformation(bar(), spec, tight());
     EXPECT_EQ(d.report.targetNodes, d.graph.nodeCount());
     // Every node gets the same rotation: 45 degrees about (1,1,0)/sqrt(2).
     const double s = std::sin(M_PI / 8), c = std::cos(M_PI / 8), h = std::sqrt(0.5);
