@@ -154,7 +154,7 @@ StageOneResult applyStageOne(const GaussianCloud& rest, const StageOneRig& rig, 
                 const double stretch = std::max(dot(ra, s * ra), o.minStretch);
                 res.deformed.logScales[3 * i + std::size_t(a)] = float(double(rest.logScales[3 * i + std::size_t(a)]) + std::log(stretch));
             }
-            if (degree > 0) ShRotation(r).apply(degree, res.deformed.shOf(i));
+            if (degree > 0) ShRotation(r, degree).apply(degree, res.deformed.shOf(i));
         }
     };
     if (o.threaded)
