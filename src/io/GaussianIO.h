@@ -13,17 +13,26 @@ namespace splatwarp {
 struct ReadOptions {
     /// Drop Gaussians with NaN/Inf values (and report how many) instead of refusing the file.
     bool dropInvalid = false;
+    /// Keep Gaussians with NaN/Inf values as read and only count them (for `info`); wins over
+    /// dropInvalid. Default false: such files are refused.
+    bool keepInvalid = false;
 };
 
 /// @brief What a read found besides the Gaussians.
 struct ReadReport {
     std::string format;               ///< "ply-binary-le", "ply-binary-be", "ply-ascii", "splat", "ply-compressed"
     std::size_t dropped = 0;          ///< Gaussians dropped by dropInvalid
+    std::size_t invalidValues = 0;    ///< NaN/Inf values found (before any drop)
+    std::size_t invalidGaussians = 0; ///< Gaussians holding at least one of them
     std::vector<std::string> notes;   ///< e.g. ignored extra properties
 };
 
-/// @brief Read any supported file, detected from its content (not its extension).
-/// @throws InputError naming the file and what is wrong; IoError when it cannot be read.
+/// @brief Read any supported file, detected from its content (not its extension): PLY (graphdeco
+///        layout by property name, or SuperSplat compressed) when it starts with "ply", else
+///        `.splat` when its size is a multiple of 32 bytes.
+/// @throws InputError naming the file and what is wrong (a Gaussian with NaN/Inf is named with
+///         its index and property unless options say to drop or keep it); IoError when it
+///         cannot be read.
 GaussianCloud readGaussians(const std::string& path, const ReadOptions& options = {}, ReadReport* report = nullptr);
 
 /// @brief Write graphdeco 3DGS PLY (binary little-endian, normals = 0, float32) atomically.
@@ -32,5 +41,9 @@ void writePly(const std::string& path, const GaussianCloud& cloud);
 
 /// @brief The graphdeco property names in file order for a given SH degree.
 std::vector<std::string> graphdecoPropertyNames(int shDegree);
+
+/// @brief Graphdeco name of SH coefficient j (0 = f_dc) of colour channel c for a degree:
+///        f_dc_c, or f_rest_{c*K'+j-1} with K' = (degree+1)^2 - 1.
+std::string shPropertyName(int shDegree, int j, int c);
 
 } // namespace splatwarp

@@ -1,0 +1,130 @@
+#include "io/CloudStats.h"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_reduce.h>
+#include <vector>
+
+namespace splatwarp {
+
+namespace {
+
+// Partial result of the per-Gaussian reduction (parallel_reduce body).
+struct StatsOp {
+    const GaussianCloud& g;
+    double lo[3], hi[3];
+    double opMin, opMax, opSum = 0;
+    std::size_t opCount = 0;
+    double qMin, qMax;
+    double sMin, sMax;
+    std::size_t invalid = 0;
+
+    explicit StatsOp(const GaussianCloud& cloud) : g(cloud) { clear(); }
+    StatsOp(StatsOp& o, tbb::split) : g(o.g) { clear(); }
+
+    void clear()
+    {
+        const double inf = std::numeric_limits<double>::infinity();
+        for (int a = 0; a < 3; ++a) lo[a] = inf, hi[a] = -inf;
+        opMin = qMin = sMin = inf;
+        opMax = qMax = sMax = -inf;
+    }
+
+    void operator()(const tbb::blocked_range<std::size_t>& r)
+    {
+        for (std::size_t i = r.begin(); i != r.end(); ++i) {
+            bool centreOk = true;
+            for (int a = 0; a < 3; ++a) centreOk = centreOk && std::isfinite(g.means[3 * i + a]);
+            if (centreOk)
+                for (int a = 0; a < 3; ++a) {
+                    lo[a] = std::min(lo[a], double(g.means[3 * i + a]));
+                    hi[a] = std::max(hi[a], double(g.means[3 * i + a]));
+                }
+            const double o = g.opacities[i];
+            if (std::isfinite(o)) {
+                const double alpha = 1.0 / (1.0 + std::exp(-o));
+                opMin = std::min(opMin, alpha);
+                opMax = std::max(opMax, alpha);
+                opSum += alpha;
+                ++opCount;
+            }
+            double q2 = 0;
+            for (int a = 0; a < 4; ++a) q2 += double(g.rotations[4 * i + a]) * g.rotations[4 * i + a];
+            if (std::isfinite(q2)) {
+                qMin = std::min(qMin, std::sqrt(q2));
+                qMax = std::max(qMax, std::sqrt(q2));
+            }
+            for (int a = 0; a < 3; ++a) {
+                const double s = std::exp(double(g.logScales[3 * i + a]));
+                if (!std::isfinite(g.logScales[3 * i + a])) continue;
+                sMin = std::min(sMin, s);
+                sMax = std::max(sMax, s);
+            }
+            const auto countBad = [&](const float* v, std::size_t n) {
+                for (std::size_t j = 0; j < n; ++j) invalid += std::isfinite(v[j]) ? 0 : 1;
+            };
+            countBad(&g.means[3 * i], 3);
+            countBad(&g.rotations[4 * i], 4);
+            countBad(&g.logScales[3 * i], 3);
+            countBad(&g.opacities[i], 1);
+            countBad(g.shOf(i), std::size_t(g.shStride()));
+        }
+    }
+
+    void join(const StatsOp& o)
+    {
+        for (int a = 0; a < 3; ++a) lo[a] = std::min(lo[a], o.lo[a]), hi[a] = std::max(hi[a], o.hi[a]);
+        opMin = std::min(opMin, o.opMin);
+        opMax = std::max(opMax, o.opMax);
+        opSum += o.opSum;
+        opCount += o.opCount;
+        qMin = std::min(qMin, o.qMin);
+        qMax = std::max(qMax, o.qMax);
+        sMin = std::min(sMin, o.sMin);
+        sMax = std::max(sMax, o.sMax);
+        invalid += o.invalid;
+    }
+};
+
+// Replace the +-inf "nothing seen" identity by 0.
+double orZero(double v) { return std::isfinite(v) ? v : 0.0; }
+
+} // namespace
+
+CloudStats computeCloudStats(const GaussianCloud& g, bool threaded)
+{
+    CloudStats s;
+    s.count = g.size();
+    s.shDegree = g.shDegree;
+    StatsOp op(g);
+    const tbb::blocked_range<std::size_t> all(0, g.size(), 4096);
+    if (threaded) tbb::parallel_reduce(all, op);
+    else op(all);
+
+    s.bboxMin = Vec3d(orZero(op.lo[0]), orZero(op.lo[1]), orZero(op.lo[2]));
+    s.bboxMax = Vec3d(orZero(op.hi[0]), orZero(op.hi[1]), orZero(op.hi[2]));
+    s.opacityMin = orZero(op.opMin);
+    s.opacityMax = orZero(op.opMax);
+    s.opacityMean = op.opCount ? op.opSum / double(op.opCount) : 0.0;
+    s.quatNormMin = orZero(op.qMin);
+    s.quatNormMax = orZero(op.qMax);
+    s.scaleMin = orZero(op.sMin);
+    s.scaleMax = orZero(op.sMax);
+    s.invalidValues = op.invalid;
+
+    // Median of the finite activated scales (lower median for an even count).
+    std::vector<float> logs;
+    logs.reserve(g.logScales.size());
+    for (float v : g.logScales)
+        if (std::isfinite(v)) logs.push_back(v);
+    if (!logs.empty()) {
+        auto mid = logs.begin() + std::ptrdiff_t((logs.size() - 1) / 2);
+        std::nth_element(logs.begin(), mid, logs.end());
+        s.scaleMedian = std::exp(double(*mid)); // exp is monotonic: median of exp = exp of median
+    }
+    return s;
+}
+
+} // namespace splatwarp

@@ -1,0 +1,27 @@
+#pragma once
+/// @file CloudStats.h
+/// @brief Summary statistics of a Gaussian cloud (what `splatwarp info` prints).
+#include <cstddef>
+
+#include "core/GaussianCloud.h"
+
+namespace splatwarp {
+
+/// @brief Statistics over the finite values of a cloud; activated quantities as in 3DGS.
+/// @note  Every field is 0 for an empty cloud (or when no finite value exists).
+struct CloudStats {
+    std::size_t count = 0;
+    int shDegree = 0;
+    Vec3d bboxMin{0, 0, 0}, bboxMax{0, 0, 0};    ///< bounding box of the finite centres
+    double opacityMin = 0, opacityMean = 0, opacityMax = 0; ///< sigmoid(logit) over Gaussians
+    double scaleMin = 0, scaleMedian = 0, scaleMax = 0;     ///< exp(logScale) over all 3N axes
+    double quatNormMin = 0, quatNormMax = 0;     ///< |q| of the raw quaternions
+    std::size_t invalidValues = 0;               ///< NaN/Inf values anywhere in the cloud
+};
+
+/// @brief Compute the statistics (double precision accumulation).
+/// @param threaded run the per-Gaussian reduction with oneTBB (same result as serial up to the
+///        order of the opacity sum).
+CloudStats computeCloudStats(const GaussianCloud& g, bool threaded = true);
+
+} // namespace splatwarp

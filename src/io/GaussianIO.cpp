@@ -1,0 +1,105 @@
+/// readGaussians(): read the file, detect the format from its content, apply the NaN/Inf policy.
+#include <cerrno>
+#include <cmath>
+#include <cstring>
+#include <fstream>
+#include <sstream>
+
+#include "core/Error.h"
+#include "io/FormatReaders.h"
+
+namespace splatwarp {
+
+namespace {
+
+std::string readWholeFile(const std::string& path)
+{
+    std::ifstream in(path, std::ios::binary);
+    if (!in) throw IoError(msg(path, ": cannot open: ", std::strerror(errno)));
+    std::ostringstream ss;
+    ss << in.rdbuf();
+    if (in.bad()) throw IoError(msg(path, ": read failed"));
+    return ss.str();
+}
+
+// Number of non-finite values of Gaussian i; `first` receives the name of the first one.
+int countInvalid(const GaussianCloud& g, std::size_t i, std::string* first)
+{
+    int bad = 0;
+    const auto check = [&](float v, const auto& name) {
+        if (std::isfinite(v)) return;
+        if (bad++ == 0 && first) *first = msg(name(), "' is ", v);
+    };
+    static const char* const xyz[] = {"x", "y", "z"};
+    for (int a = 0; a < 3; ++a) check(g.means[3 * i + a], [&] { return std::string(xyz[a]); });
+    const float* sh = g.shOf(i);
+    for (int j = 0; j < g.shCoeffs(); ++j)
+        for (int c = 0; c < 3; ++c) check(sh[3 * j + c], [&] { return shPropertyName(g.shDegree, j, c); });
+    check(g.opacities[i], [] { return std::string("opacity"); });
+    for (int a = 0; a < 3; ++a) check(g.logScales[3 * i + a], [&] { return "scale_" + std::to_string(a); });
+    for (int a = 0; a < 4; ++a) check(g.rotations[4 * i + a], [&] { return "rot_" + std::to_string(a); });
+    return bad;
+}
+
+void applyInvalidPolicy(const std::string& path, GaussianCloud& g, const ReadOptions& options, ReadReport& report)
+{
+    std::size_t firstBad = g.size();
+    std::string firstName;
+    std::vector<char> bad(g.size(), 0);
+    for (std::size_t i = 0; i < g.size(); ++i) {
+        std::string name;
+        const int n = countInvalid(g, i, firstBad == g.size() ? &name : nullptr);
+        if (n == 0) continue;
+        if (firstBad == g.size()) {
+            firstBad = i;
+            firstName = name;
+        }
+        bad[i] = 1;
+        report.invalidValues += std::size_t(n);
+        ++report.invalidGaussians;
+    }
+    if (report.invalidGaussians == 0 || options.keepInvalid) return;
+    if (!options.dropInvalid)
+        throw InputError(msg(path, ": Gaussian ", firstBad, ": property '", firstName, " (", report.invalidGaussians,
+                             " Gaussians hold ", report.invalidValues,
+                             " NaN/Inf values; --drop-invalid / ReadOptions::dropInvalid drops them)"));
+    GaussianCloud kept;
+    kept.shDegree = g.shDegree;
+    for (std::size_t i = 0; i < g.size(); ++i)
+        if (!bad[i]) kept.append(g, i);
+    report.dropped = report.invalidGaussians;
+    report.notes.push_back(msg("dropped ", report.dropped, " Gaussians with NaN/Inf values"));
+    g = std::move(kept);
+}
+
+} // namespace
+
+std::string shPropertyName(int shDegree, int j, int c)
+{
+    if (j == 0) return "f_dc_" + std::to_string(c);
+    return "f_rest_" + std::to_string(c * (shCoeffCount(shDegree) - 1) + j - 1);
+}
+
+GaussianCloud readGaussians(const std::string& path, const ReadOptions& options, ReadReport* report)
+{
+    const std::string data = readWholeFile(path);
+    if (data.empty()) throw InputError(msg(path, ": empty file"));
+    ReadReport local;
+    GaussianCloud g;
+    if (hasPlyMagic(data)) {
+        const PlyHeader header = parsePlyHeader(path, data);
+        const PlyBody body(path, data, header);
+        g = isCompressedPly(header) ? readCompressedPly(path, header, body, local)
+                                    : readGraphdecoPly(path, header, body, local);
+    } else if (data.size() % kSplatRecordBytes == 0) {
+        g = readSplat(path, data, local);
+    } else {
+        throw InputError(msg(path, ": not a Gaussian file: no 'ply' magic line, and its size (", data.size(),
+                             " bytes) is not a multiple of ", kSplatRecordBytes, " as a .splat would be"));
+    }
+    applyInvalidPolicy(path, g, options, local);
+    if (report) *report = std::move(local);
+    return g;
+}
+
+} // namespace splatwarp
