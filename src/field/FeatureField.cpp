@@ -1,0 +1,103 @@
+#include "field/FeatureField.h"
+
+#include <tbb/blocked_range.h>
+#include <tbb/enumerable_thread_specific.h>
+#include <tbb/parallel_for.h>
+
+#include <algorithm>
+
+#include "core/Error.h"
+
+namespace splatwarp {
+namespace {
+
+struct Counters {
+    std::uint64_t tested = 0, contributing = 0;
+};
+
+} // namespace
+
+std::vector<PreparedGaussian> prepareCloud(const GaussianCloud& cloud, double filterVariance, double cutoff,
+                                           bool threaded)
+{
+    cloud.checkConsistent();
+    std::vector<PreparedGaussian> out(cloud.size());
+    auto op = [&](const tbb::blocked_range<std::size_t>& r) {
+        for (std::size_t i = r.begin(); i != r.end(); ++i) out[i] = prepareGaussian(cloud, i, filterVariance, cutoff);
+    };
+    const tbb::blocked_range<std::size_t> all(0, cloud.size(), 1024);
+    threaded ? tbb::parallel_for(all, op) : op(all);
+    return out;
+}
+
+void binPreparedGaussians(const std::vector<PreparedGaussian>& gaussians, float cellSize, bool threaded,
+                          GaussianBins& bins)
+{
+    const std::size_t n = gaussians.size();
+    std::vector<float> lo(3 * n), hi(3 * n);
+    for (std::size_t i = 0; i < n; ++i)
+        for (int k = 0; k < 3; ++k) {
+            lo[3 * i + k] = gaussians[i].mean[k] - gaussians[i].halfExtent[k];
+            hi[3 * i + k] = gaussians[i].mean[k] + gaussians[i].halfExtent[k];
+        }
+    if (cellSize <= 0.0f) cellSize = GaussianBins::suggestCellSize(lo.data(), hi.data(), n);
+    bins.build(lo.data(), hi.data(), n, cellSize, threaded);
+}
+
+void evaluatePreparedFeatures(const std::vector<PreparedGaussian>& gaussians, const float* sh, int shStride,
+                              const GaussianBins& bins, const float* points, std::size_t m, float cutoff,
+                              bool threaded, float* features, float* opacity, FeatureStats* stats)
+{
+    tbb::enumerable_thread_specific<Counters> counters;
+    auto op = [&](const tbb::blocked_range<std::size_t>& r) {
+        Counters& c = counters.local();
+        for (std::size_t p = r.begin(); p != r.end(); ++p) {
+            const Vec3f x(points[3 * p], points[3 * p + 1], points[3 * p + 2]);
+            float* f = features ? features + p * std::size_t(shStride) : nullptr;
+            if (f) std::fill(f, f + shStride, 0.0f);
+            float o = 0.0f;
+            const std::uint32_t* cand = nullptr;
+            const std::size_t count = bins.candidates(x, &cand);
+            c.tested += count;
+            for (std::size_t k = 0; k < count; ++k) {
+                const std::uint32_t i = cand[k];
+                const PreparedGaussian& g = gaussians[i];
+                const float w = g.weight(x - g.mean, cutoff);
+                if (w == 0.0f) continue;
+                ++c.contributing;
+                o += w;
+                if (f) {
+                    const float* h = sh + std::size_t(i) * std::size_t(shStride);
+                    for (int s = 0; s < shStride; ++s) f[s] += w * h[s];
+                }
+            }
+            if (opacity) opacity[p] = o;
+        }
+    };
+    const tbb::blocked_range<std::size_t> all(0, m, 256);
+    threaded ? tbb::parallel_for(all, op) : op(all);
+    if (stats) {
+        for (const Counters& c : counters) {
+            stats->pairsTested += c.tested;
+            stats->pairsContributing += c.contributing;
+        }
+        stats->binEntries = bins.entryCount();
+        stats->binCellSize = bins.cellSize();
+    }
+}
+
+void evaluateFeatures(const GaussianCloud& cloud, const float* points, std::size_t m, const FeatureOptions& options,
+                      float* features, float* opacity, FeatureStats* stats)
+{
+    if (!(options.cutoff > 0.0f)) throw InputError(msg("feature cutoff ", options.cutoff, " must be positive"));
+    if (options.filterVariance < 0.0f)
+        throw InputError(msg("low-pass filter variance ", options.filterVariance, " must not be negative"));
+    const std::vector<PreparedGaussian> prepared =
+        prepareCloud(cloud, options.filterVariance, options.cutoff, options.threaded);
+    GaussianBins bins;
+    binPreparedGaussians(prepared, 0.0f, options.threaded, bins);
+    evaluatePreparedFeatures(prepared, cloud.sh.data(), cloud.shStride(), bins, points, m, options.cutoff,
+                             options.threaded, features, opacity, stats);
+}
+
+} // namespace splatwarp

@@ -1,0 +1,35 @@
+#pragma once
+/// @file FieldError.h
+/// @brief Field fidelity of a deformed model at held-out points (DESIGN.md "Evaluation"):
+///        compares the deformed model's features at warped points x = phi(X) with the rest
+///        model's features at the rest points X (SH rotated by the local rotation R_p).
+#include <cstddef>
+
+#include "core/GaussianCloud.h"
+#include "field/FeatureField.h"
+
+namespace splatwarp {
+
+/// @brief Relative L1 errors. Every ratio is normalised by the TOTAL rest sum (sum O_rest(X) for
+///        opacity, sum |F_rest(X)|_1 for colour), so inside + outside = total.
+struct FieldErrorReport {
+    double opacity = 0.0;        ///< sum |O_def(x) - O_rest(X)| / sum O_rest(X)
+    double color = 0.0;          ///< sum |F_def(x) - R_p F_rest(X)|_1 / sum |F_rest(X)|_1
+    double opacityInside = 0.0;  ///< the opacity sum restricted to points with O_rest(X) > 0
+    double colorInside = 0.0;
+    double opacityOutside = 0.0; ///< restricted to O_rest(X) = 0: leakage into empty space
+    double colorOutside = 0.0;
+    std::size_t points = 0, insidePoints = 0, outsidePoints = 0;
+};
+
+/// @brief Held-out field error of a deformed model.
+/// @param rest, deformed  models (same SH degree)
+/// @param restPoints      [P,3] X
+/// @param warpedPoints    [P,3] x = phi(X)
+/// @param rotations       [P,9] row-major R_p rotating the rest SH to the warped frame; null = identity
+/// @param options         cutoff and filter for both evaluations
+FieldErrorReport fieldError(const GaussianCloud& rest, const GaussianCloud& deformed, const float* restPoints,
+                            const float* warpedPoints, const float* rotations, std::size_t p,
+                            const FeatureOptions& options = {});
+
+} // namespace splatwarp
