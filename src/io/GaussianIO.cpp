@@ -2,6 +2,7 @@
 #include <cerrno>
 #include <cmath>
 #include <cstring>
+#include <filesystem>
 #include <fstream>
 #include <sstream>
 
@@ -14,6 +15,8 @@ namespace {
 
 std::string readWholeFile(const std::string& path)
 {
+    std::error_code ec;
+    if (std::filesystem::is_directory(path, ec)) throw IoError(msg(path, ": is a directory, not a file"));
     std::ifstream in(path, std::ios::binary);
     if (!in) throw IoError(msg(path, ": cannot open: ", std::strerror(errno)));
     std::ostringstream ss;

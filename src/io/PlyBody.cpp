@@ -113,6 +113,7 @@ PlyBody::PlyBody(const std::string& path, const std::string& data, const PlyHead
             PlyElementValues& v = mElements[ei];
             v.mElement = &e;
             const std::size_t np = e.properties.size();
+            if (np == 0) continue; // no values to read, whatever the count says
             // Every value takes at least 2 bytes ("0 "): refuse impossible counts before allocating.
             if (np > 0 && e.count > bodyBytes / (2 * np))
                 throw InputError(msg(path, ": element '", e.name, "' declares ", e.count, " records of ", np,
