@@ -5,6 +5,7 @@
 #include "VdbExport.h"
 #include "core/Error.h"
 #include "core/Progress.h"
+#include "deform/DeformSpec.h"
 #include "io/GaussianIO.h"
 
 namespace splatwarp::cli {
@@ -44,7 +45,9 @@ const CommandRegistrar reg(40, [](CLI::App& app) {
         SampleGrid grid(cloud, args->grid);
         args->vdb.source = args->input;
         if (!args->spec.empty()) {
-            throw UsageError("--spec: the deformation solver is not merged yet"); // TODO(vdbgrid): stage1
+            const Deformation deformation = solveDeformation(cloud, loadDeformSpec(args->spec));
+            progress(msg("solved the deformation of ", args->spec, " (", deformation.graph.nodeCount(), " nodes)"));
+            warpSamples(grid.samples(), deformation);
             args->vdb.spec = args->spec;
             args->vdb.stretch = true;
         }

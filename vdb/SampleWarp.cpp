@@ -71,6 +71,11 @@ void warpSamples(SampleSet& samples, const DeformationGraph& graph, const NodeTr
     computeCellGradients(samples, threaded);
 }
 
+void warpSamples(SampleSet& samples, const Deformation& deformation, bool threaded)
+{
+    warpSamples(samples, deformation.graph, deformation.transforms, threaded);
+}
+
 void computeCellGradients(SampleSet& samples, bool threaded)
 {
     const int n = samples.samplesPerAxis;

@@ -4,6 +4,7 @@
 ///        Sec. 3.2.1/3.2.3): sample positions skinned, target SH rotated by the local rotation,
 ///        target opacity unchanged, and the per-cell deformation gradient F_k. Works on the flat
 ///        SampleSet only (no OpenVDB).
+#include "deform/Deformation.h"
 #include "deform/DeformationGraph.h"
 #include "deform/NodeTransforms.h"
 #include "field/SampleSet.h"
@@ -20,6 +21,9 @@ Mat3d polarRotation(const Mat3d& m);
 ///          targetO unchanged; cellGradient = computeCellGradients(). Call once on rest targets.
 void warpSamples(SampleSet& samples, const DeformationGraph& graph, const NodeTransforms& transforms,
                  bool threaded = true);
+
+/// @brief warpSamples() with a solved deformation (solveDeformation(), e.g. from a spec).
+void warpSamples(SampleSet& samples, const Deformation& deformation, bool threaded = true);
 
 /// @brief F_k for every cell: least-squares affine fit of the warped positions of the cell's 8
 ///        corner samples against their rest offsets from the corners' centroid,

@@ -161,6 +161,14 @@ TEST(VdbExport, CliToVdbAndExternalTools)
     const VdbFileData data = readVdbFile(dir.file("out.vdb"));
     EXPECT_NE(data.find("sh_3"), nullptr);
     EXPECT_EQ(data.metadata.at("source"), dir.file("in.ply"));
+    EXPECT_EQ(data.find("stretch"), nullptr);
+    const std::string spec = std::string(SPLATWARP_SOURCE_DIR) + "/samples/specs/bend.json";
+    ASSERT_EQ(test::runCli("-q to-vdb " + dir.file("in.ply") + " -o " + dir.file("bend.vdb") + " --cells 12 --spec " + spec), 0);
+    const VdbFileData bend = readVdbFile(dir.file("bend.vdb"));
+    EXPECT_EQ(bend.metadata.at("spec"), spec);
+    ASSERT_NE(bend.find("stretch"), nullptr);
+    EXPECT_EQ(bend.find("stretch")->coords.size(), bend.find("active")->coords.size());
+    EXPECT_EQ(test::runCli("to-vdb " + dir.file("in.ply") + " -o " + dir.file("x.vdb") + " --spec " + dir.file("none.json")), 1);
     EXPECT_EQ(test::runCli("to-vdb " + dir.file("nothing.ply") + " -o " + dir.file("x.vdb")), 1);
     EXPECT_EQ(test::runCli("to-vdb " + dir.file("in.ply") + " -o " + dir.file("x.vdb") + " --samples-per-cell 1"), 2);
     EXPECT_FALSE(std::filesystem::exists(dir.file("x.vdb")));
