@@ -2,6 +2,8 @@
 
 #include <Eigen/SVD>
 #include <openvdb/openvdb.h>
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_reduce.h>
 
 #include "SampleGridImpl.h"
 #include "VdbLibrary.h"
@@ -22,19 +24,62 @@ openvdb::math::Transform::Ptr latticeTransform(double voxel)
     return t;
 }
 
-/// Global lattice coordinate of each sample, and a visitor over all of them.
-template <typename Visit>
-void forEachSample(const SampleGrid& grid, const Visit& visit)
+template <typename GridT>
+typename GridT::Ptr makeGrid(const std::string& name, openvdb::math::Transform::Ptr transform, openvdb::GridClass cls)
 {
-    const SampleSet& set = grid.samples();
-    const int n = set.samplesPerAxis;
-    const std::vector<std::int32_t>& cells = grid.cellCoords();
-    std::size_t s = 0;
-    for (std::size_t c = 0; c < set.cellCount(); ++c)
-        for (int a = 0; a < n; ++a)
-            for (int b = 0; b < n; ++b)
-                for (int cc = 0; cc < n; ++cc, ++s)
-                    visit(s, openvdb::Coord(cells[3 * c] * n + a, cells[3 * c + 1] * n + b, cells[3 * c + 2] * n + cc));
+    typename GridT::Ptr g = GridT::create();
+    g->setName(name);
+    g->setTransform(transform);
+    g->setGridClass(cls);
+    return g;
+}
+
+/// Lattice coordinate of sample (a,b,c) of a cell: (i n + a, j n + b, k n + c).
+openvdb::Coord sampleCoord(const std::int32_t* cell, int n, int a, int b, int c)
+{
+    return openvdb::Coord(cell[0] * n + a, cell[1] * n + b, cell[2] * n + c);
+}
+
+/// Per-thread trees of sample values, merged (tbb::parallel_reduce body over cells).
+/// value(s, v) returns whether sample s gets a voxel and sets its value.
+template <typename TreeT, typename ValueFn>
+struct FillSamplesOp {
+    const SampleGrid& grid;
+    const ValueFn& value;
+    TreeT tree;
+
+    FillSamplesOp(const SampleGrid& g, const ValueFn& f) : grid(g), value(f) {}
+    FillSamplesOp(FillSamplesOp& o, tbb::split) : grid(o.grid), value(o.value) {}
+    void operator()(const tbb::blocked_range<std::size_t>& r)
+    {
+        const int n = grid.samples().samplesPerAxis;
+        openvdb::tree::ValueAccessor<TreeT> acc(tree);
+        typename TreeT::ValueType v;
+        for (std::size_t c = r.begin(); c != r.end(); ++c) {
+            std::size_t s = c * std::size_t(n * n * n);
+            for (int a = 0; a < n; ++a)
+                for (int b = 0; b < n; ++b)
+                    for (int cc = 0; cc < n; ++cc, ++s)
+                        if (value(s, v)) acc.setValue(sampleCoord(&grid.cellCoords()[3 * c], n, a, b, cc), v);
+        }
+    }
+    void join(FillSamplesOp& o) { tree.merge(o.tree); }
+};
+
+/// A grid on the sample lattice filled in parallel (cells are disjoint, so merges never collide).
+template <typename GridT, typename ValueFn>
+typename GridT::Ptr latticeGrid(const SampleGrid& grid, const std::string& name, openvdb::math::Transform::Ptr transform,
+                                openvdb::GridClass cls, bool threaded, const ValueFn& value)
+{
+    FillSamplesOp<typename GridT::TreeType, ValueFn> op(grid, value);
+    const tbb::blocked_range<std::size_t> cells(0, grid.samples().cellCount(), 256);
+    if (threaded)
+        tbb::parallel_reduce(cells, op);
+    else
+        op(cells);
+    typename GridT::Ptr g = makeGrid<GridT>(name, transform, cls);
+    g->setTree(std::make_shared<typename GridT::TreeType>(std::move(op.tree)));
+    return g;
 }
 
 void addMetadata(openvdb::MetaMap& meta, const SampleGrid& grid, const VdbExportOptions& options)
@@ -49,16 +94,6 @@ void addMetadata(openvdb::MetaMap& meta, const SampleGrid& grid, const VdbExport
     meta.insertMeta("cutoff", openvdb::FloatMetadata(grid.options().cutoff));
     meta.insertMeta("lambda_lpf", openvdb::FloatMetadata(grid.options().lambdaLpf));
     if (!options.spec.empty()) meta.insertMeta("spec", openvdb::StringMetadata(options.spec));
-}
-
-template <typename GridT>
-typename GridT::Ptr makeGrid(const std::string& name, openvdb::math::Transform::Ptr transform, openvdb::GridClass cls)
-{
-    typename GridT::Ptr g = GridT::create();
-    g->setName(name);
-    g->setTransform(transform);
-    g->setGridClass(cls);
-    return g;
 }
 
 /// Largest singular value of a row-major 3x3.
@@ -83,21 +118,15 @@ void writeSampleGridVdb(const std::string& path, const SampleGrid& grid, const V
     openvdb::math::Transform::Ptr cellXf = latticeTransform(set.cellSize);
 
     openvdb::GridPtrVec grids;
-    auto density = makeGrid<openvdb::FloatGrid>("density", sampleXf, openvdb::GRID_FOG_VOLUME);
-    auto color = makeGrid<openvdb::Vec3SGrid>("color", sampleXf, openvdb::GRID_UNKNOWN);
-    {
-        openvdb::FloatGrid::Accessor da = density->getAccessor();
-        openvdb::Vec3SGrid::Accessor ca = color->getAccessor();
-        forEachSample(grid, [&](std::size_t s, const openvdb::Coord& ijk) {
-            const float o = set.targetO[s];
-            da.setValue(ijk, o);
-            if (o > 0.0f) {
-                const float* f = &set.targetF[s * stride];
-                ca.setValue(ijk, openvdb::Vec3s(float(0.5 + kShC0 * f[0] / o), float(0.5 + kShC0 * f[1] / o),
-                                                float(0.5 + kShC0 * f[2] / o)));
-            }
-        });
-    }
+    auto density = latticeGrid<openvdb::FloatGrid>(grid, "density", sampleXf, openvdb::GRID_FOG_VOLUME, options.threaded,
+                                                  [&](std::size_t s, float& v) { v = set.targetO[s]; return true; });
+    auto color = latticeGrid<openvdb::Vec3SGrid>(grid, "color", sampleXf, openvdb::GRID_UNKNOWN, options.threaded, [&](std::size_t s, openvdb::Vec3s& v) {
+        const float o = set.targetO[s];
+        if (!(o > 0.0f)) return false; // colour is undefined where there is no density
+        const float* f = &set.targetF[s * stride];
+        for (int ch = 0; ch < 3; ++ch) v[ch] = float(0.5 + kShC0 * f[ch] / o);
+        return true;
+    });
     grids.push_back(density);
     grids.push_back(color);
 
@@ -112,13 +141,12 @@ void writeSampleGridVdb(const std::string& path, const SampleGrid& grid, const V
 
     if (options.shGrids) {
         for (std::size_t kk = 0; kk < k; ++kk) {
-            auto sh = makeGrid<openvdb::Vec3SGrid>("sh_" + std::to_string(kk), sampleXf, openvdb::GRID_UNKNOWN);
-            openvdb::Vec3SGrid::Accessor acc = sh->getAccessor();
-            forEachSample(grid, [&](std::size_t s, const openvdb::Coord& ijk) {
-                const float* f = &set.targetF[s * stride + 3 * kk];
-                acc.setValue(ijk, openvdb::Vec3s(f[0], f[1], f[2]));
-            });
-            grids.push_back(sh);
+            grids.push_back(latticeGrid<openvdb::Vec3SGrid>(grid, "sh_" + std::to_string(kk), sampleXf, openvdb::GRID_UNKNOWN, options.threaded,
+                                                           [&](std::size_t s, openvdb::Vec3s& v) {
+                                                               const float* f = &set.targetF[s * stride + 3 * kk];
+                                                               v = openvdb::Vec3s(f[0], f[1], f[2]);
+                                                               return true;
+                                                           }));
         }
     }
     if (options.stretch) {
@@ -135,7 +163,7 @@ void writeSampleGridVdb(const std::string& path, const SampleGrid& grid, const V
     addMetadata(fileMeta, grid, options);
     for (openvdb::GridBase::Ptr& g : grids) {
         addMetadata(*g, grid, options);
-        g->setSaveFloatAsHalf(options.half);
+        if (g->isType<openvdb::FloatGrid>() || g->isType<openvdb::Vec3SGrid>()) g->setSaveFloatAsHalf(options.half);
     }
 
     AtomicFile out(path);

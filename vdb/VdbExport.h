@@ -18,6 +18,7 @@ struct VdbExportOptions {
     bool stretch = false;  ///< `stretch` FloatGrid per cell: largest singular value of F_k (warped grids)
     std::string source;    ///< source file recorded in the metadata
     std::string spec;      ///< deformation spec recorded in the metadata ("" = none)
+    bool threaded = true;  ///< build the sample grids with oneTBB (the file is identical either way)
 };
 
 /// @brief Write the grids of a sample grid atomically, ZIP-compressed.

@@ -193,3 +193,23 @@ TEST(VdbExport, CliToVdbAndExternalTools)
         std::cout << "pyopenvdb not importable; skipped that check\n";
     }
 }
+
+TEST(VdbExport, SerialAndThreadedWriteTheSameFile)
+{
+    test::TempDir dir;
+    const SampleGrid grid = smallGrid(makeSample("stripes", {700, 8}));
+    VdbExportOptions eo;
+    eo.shGrids = true;
+    writeSampleGridVdb(dir.file("a.vdb"), grid, eo);
+    eo.threaded = false;
+    writeSampleGridVdb(dir.file("b.vdb"), grid, eo);
+    // Not byte-compared: every .vdb file carries a random UUID.
+    const VdbFileData a = readVdbFile(dir.file("a.vdb")), b = readVdbFile(dir.file("b.vdb"));
+    ASSERT_EQ(a.grids.size(), b.grids.size());
+    for (std::size_t g = 0; g < a.grids.size(); ++g) {
+        EXPECT_EQ(a.grids[g].name, b.grids[g].name);
+        EXPECT_EQ(a.grids[g].coords, b.grids[g].coords);
+        EXPECT_EQ(a.grids[g].values, b.grids[g].values);
+        EXPECT_FALSE(a.grids[g].coords.empty());
+    }
+}
