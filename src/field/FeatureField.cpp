@@ -101,3 +101,17 @@ void evaluateFeatures(const GaussianCloud& cloud, const float* points, std::size
 }
 
 } // namespace splatwarp
+
+namespace splatwarp {
+
+void evaluateSampleTargets(const GaussianCloud& cloud, SampleSet& samples, const FeatureOptions& options)
+{
+    if (samples.shDegree != cloud.shDegree)
+        throw InputError(msg("sample set SH degree ", samples.shDegree, " differs from the model's ", cloud.shDegree));
+    const std::size_t m = samples.restPositions.size() / 3;
+    samples.targetF.resize(m * std::size_t(samples.featureStride()));
+    samples.targetO.resize(m);
+    evaluateFeatures(cloud, samples.restPositions.data(), m, options, samples.targetF.data(), samples.targetO.data());
+}
+
+} // namespace splatwarp

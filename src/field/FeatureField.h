@@ -13,6 +13,7 @@
 #include "field/GaussianBins.h"
 #include "field/GaussianKernel.h"
 #include "field/PreparedGaussian.h"
+#include "field/SampleSet.h"
 
 namespace splatwarp {
 
@@ -41,6 +42,10 @@ struct FeatureStats {
 ///       agree bit for bit.
 void evaluateFeatures(const GaussianCloud& cloud, const float* points, std::size_t m, const FeatureOptions& options,
                       float* features, float* opacity, FeatureStats* stats = nullptr);
+
+/// @brief Rest targets of a sample set: targetF, targetO = the cloud's features at the rest
+///        positions (resized here), with the options' (isotropic rest) filter.
+void evaluateSampleTargets(const GaussianCloud& cloud, SampleSet& samples, const FeatureOptions& options);
 
 /// @brief Prepare every Gaussian of a cloud with an isotropic filter (see prepareGaussian()).
 std::vector<PreparedGaussian> prepareCloud(const GaussianCloud& cloud, double filterVariance, double cutoff,

@@ -36,64 +36,86 @@ SPLATWARP_HOST_DEVICE Mat3<T> filteredCovariance(const Quat<T>& q, const Vec3<T>
     return gaussianCovariance(q, s) + filter;
 }
 
-/// @brief The float kernel of one Gaussian for feature evaluation.
-struct PreparedGaussian {
-    Vec3f mean;
+/// @brief The kernel of one Gaussian for feature evaluation (float on the CPU path; double in
+///        gradient tests).
+template <typename T>
+struct BasicPreparedGaussian {
+    Vec3<T> mean;
     /// L^-1 (lower triangular, row-major 00, 10, 11, 20, 21, 22) of the Cholesky factor cov = L L^T:
     /// d^T cov^-1 d = |L^-1 d|^2, a sum of squares, which keeps float accuracy for elongated
     /// Gaussians where the expanded quadratic form cancels badly.
-    float invL[6] = {0, 0, 0, 0, 0, 0};
-    float alpha = 0.0f;                ///< activated opacity
-    float radius2 = 0.0f;              ///< squared Mahalanobis radius where alpha*G = cutoff (0: never contributes)
-    Vec3f halfExtent;                  ///< exact AABB half extent of the cutoff ellipsoid (slightly padded)
+    T invL[6] = {0, 0, 0, 0, 0, 0};
+    T alpha = 0;      ///< activated opacity
+    T radius2 = -1;   ///< squared Mahalanobis radius where alpha*G = cutoff, padded (< 0: never contributes)
+    Vec3<T> halfExtent = Vec3<T>(-1, -1, -1); ///< exact AABB half extent of the cutoff ellipsoid, padded
 
-    /// @brief Quadratic form d^T inv d.
-    SPLATWARP_HOST_DEVICE float mahalanobis2(const Vec3f& d) const
+    /// @brief Convert from another precision.
+    template <typename U>
+    static BasicPreparedGaussian from(const BasicPreparedGaussian<U>& o)
     {
-        const float a = invL[0] * d.x;
-        const float b = invL[1] * d.x + invL[2] * d.y;
-        const float c = invL[3] * d.x + invL[4] * d.y + invL[5] * d.z;
-        return a * a + b * b + c * c;
+        BasicPreparedGaussian g;
+        g.mean = Vec3<T>(o.mean);
+        for (int k = 0; k < 6; ++k) g.invL[k] = T(o.invL[k]);
+        g.alpha = T(o.alpha);
+        g.radius2 = T(o.radius2);
+        g.halfExtent = Vec3<T>(o.halfExtent);
+        return g;
+    }
+    /// @brief u = L^-1 d (so d^T cov^-1 d = |u|^2).
+    SPLATWARP_HOST_DEVICE Vec3<T> whiten(const Vec3<T>& d) const
+    {
+        return {invL[0] * d.x, invL[1] * d.x + invL[2] * d.y, invL[3] * d.x + invL[4] * d.y + invL[5] * d.z};
+    }
+    /// @brief cov^-1 d = L^-T u.
+    SPLATWARP_HOST_DEVICE Vec3<T> applyInverse(const Vec3<T>& u) const
+    {
+        return {invL[0] * u.x + invL[1] * u.y + invL[3] * u.z, invL[2] * u.y + invL[4] * u.z, invL[5] * u.z};
     }
     /// @brief alpha*G at offset d = x - mean when it reaches the cutoff, else 0. The AABB and
-    ///        radius tests only prune; the decision is alpha*G >= cutoff.
-    SPLATWARP_HOST_DEVICE float weight(const Vec3f& d, float cutoff) const
+    ///        radius tests only prune; the decision is alpha*G >= cutoff. When ad is given and
+    ///        the pair counts, *ad = cov^-1 d (for the backward pass).
+    SPLATWARP_HOST_DEVICE T weight(const Vec3<T>& d, T cutoff, Vec3<T>* ad = nullptr) const
     {
-        if (std::fabs(d.x) > halfExtent.x || std::fabs(d.y) > halfExtent.y || std::fabs(d.z) > halfExtent.z) return 0.0f;
-        const float q = mahalanobis2(d);
-        if (!(q <= radius2)) return 0.0f;
-        const float w = alpha * std::exp(-0.5f * q);
-        return w >= cutoff ? w : 0.0f;
+        if (std::fabs(d.x) > halfExtent.x || std::fabs(d.y) > halfExtent.y || std::fabs(d.z) > halfExtent.z) return T(0);
+        const Vec3<T> u = whiten(d);
+        const T q = dot(u, u);
+        if (!(q <= radius2)) return T(0);
+        const T w = alpha * std::exp(T(-0.5) * q);
+        if (!(w >= cutoff)) return T(0);
+        if (ad) *ad = applyInverse(u);
+        return w;
     }
 };
+using PreparedGaussian = BasicPreparedGaussian<float>;
 
-/// Relative padding of the pruning bounds, so float rounding never prunes a pair whose
-/// alpha*G is (just) above the cutoff.
+/// Relative padding of the pruning bounds, so rounding never prunes a pair whose alpha*G is
+/// (just) above the cutoff.
 constexpr double kPrunePad = 1e-3;
 
-/// @brief Prepare a Gaussian from its centre, filtered covariance (double) and alpha.
-inline PreparedGaussian prepareGaussian(const Vec3f& mean, const Mat3d& cov, double alpha, double cutoff)
+/// @brief Prepare a Gaussian from its centre, filtered covariance and alpha.
+template <typename T>
+BasicPreparedGaussian<T> prepareGaussian(const Vec3<T>& mean, const Mat3<T>& cov, T alpha, T cutoff)
 {
-    PreparedGaussian g;
+    BasicPreparedGaussian<T> g;
     g.mean = mean;
-    g.alpha = float(alpha);
+    g.alpha = alpha;
     // Cholesky cov = L L^T, then invert the triangular L.
-    const double l00 = std::sqrt(cov.m[0][0]);
-    const double l10 = cov.m[1][0] / l00, l20 = cov.m[2][0] / l00;
-    const double l11 = std::sqrt(std::max(cov.m[1][1] - l10 * l10, 0.0));
-    const double l21 = (cov.m[2][1] - l20 * l10) / l11;
-    const double l22 = std::sqrt(std::max(cov.m[2][2] - l20 * l20 - l21 * l21, 0.0));
-    const double i00 = 1 / l00, i11 = 1 / l11, i22 = 1 / l22;
-    const double i10 = -l10 * i00 / l11;
-    const double i21 = -l21 * i11 / l22;
-    const double i20 = -(l20 * i00 + l21 * i10) / l22;
-    g.invL[0] = float(i00); g.invL[1] = float(i10); g.invL[2] = float(i11);
-    g.invL[3] = float(i20); g.invL[4] = float(i21); g.invL[5] = float(i22);
-    const double r = extentRadius(alpha, cutoff);
-    g.radius2 = r > 0 ? float(r * r * (1 + kPrunePad) + kPrunePad) : -1.0f;
-    const Vec3d h = ellipsoidHalfExtent(cov, r * (1 + kPrunePad));
-    g.halfExtent = Vec3f(h);
-    if (r <= 0) g.halfExtent = Vec3f(-1, -1, -1);
+    const T l00 = std::sqrt(cov.m[0][0]);
+    const T l10 = cov.m[1][0] / l00, l20 = cov.m[2][0] / l00;
+    const T l11 = std::sqrt(std::max(cov.m[1][1] - l10 * l10, T(0)));
+    const T l21 = (cov.m[2][1] - l20 * l10) / l11;
+    const T l22 = std::sqrt(std::max(cov.m[2][2] - l20 * l20 - l21 * l21, T(0)));
+    const T i00 = 1 / l00, i11 = 1 / l11, i22 = 1 / l22;
+    const T i10 = -l10 * i00 / l11;
+    const T i21 = -l21 * i11 / l22;
+    const T i20 = -(l20 * i00 + l21 * i10) / l22;
+    g.invL[0] = i00; g.invL[1] = i10; g.invL[2] = i11;
+    g.invL[3] = i20; g.invL[4] = i21; g.invL[5] = i22;
+    const T r = extentRadius(alpha, cutoff);
+    if (r > 0) {
+        g.radius2 = r * r * T(1 + kPrunePad) + T(kPrunePad);
+        g.halfExtent = ellipsoidHalfExtent(cov, r * T(1 + kPrunePad));
+    }
     return g;
 }
 
@@ -104,7 +126,7 @@ inline PreparedGaussian prepareGaussian(const GaussianCloud& cloud, std::size_t 
     const Mat3d cov = filteredCovariance(Quatd{cloud.rotations[4 * i], cloud.rotations[4 * i + 1],
                                                cloud.rotations[4 * i + 2], cloud.rotations[4 * i + 3]},
                                          Vec3d(cloud.scale(i)), filter);
-    return prepareGaussian(cloud.mean(i), cov, double(cloud.alpha(i)), cutoff);
+    return PreparedGaussian::from(prepareGaussian(Vec3d(cloud.mean(i)), cov, sigmoid(double(cloud.opacities[i])), cutoff));
 }
 
 } // namespace splatwarp

@@ -4,7 +4,7 @@
 
 #include "field/FieldError.h"
 #include "field/FieldTestModels.h"
-#include "sh/SphericalHarmonics.h"
+#include "field/RigidMotion.h"
 
 using namespace splatwarp;
 using namespace splatwarp::test;
@@ -27,14 +27,7 @@ TEST(FieldError, RigidMotionIsNearZeroAndMismatchIsNot)
     const GaussianCloud g = randomCloud(300, 2, 7);
     const Mat3d rot = quatToMatrix(Quatd{0.8, 0.3, -0.4, 0.2});
     const Vec3d t(0.5, -1.0, 2.0);
-    GaussianCloud moved = g;
-    for (std::size_t i = 0; i < g.size(); ++i) {
-        moved.setMean(i, Vec3f(rot * Vec3d(g.mean(i)) + t));
-        const Quatd q{g.rotations[4 * i], g.rotations[4 * i + 1], g.rotations[4 * i + 2], g.rotations[4 * i + 3]};
-        const Quatd nq = matrixToQuat(rot * quatToMatrix(q));
-        moved.setRotation(i, Quatf{float(nq.w), float(nq.x), float(nq.y), float(nq.z)});
-    }
-    rotateCloudSh(moved, rot);
+    const GaussianCloud moved = rigidlyMoved(g, rot, t);
     const std::vector<float> rest = randomPoints(3000, 8, 1.4f);
     std::vector<float> warped(rest.size()), rots(9 * (rest.size() / 3));
     for (std::size_t p = 0; p < rest.size() / 3; ++p) {

@@ -1,0 +1,51 @@
+#pragma once
+/// @file StageTwo.h
+/// @brief Stage II: fit the moving Gaussians to the warped sampled field (DESIGN.md "Stage II",
+///        paper Sec. 3.2). E = sum_j |F*_j - F(x_j)|_1 + lambda1 sum_j |O*_j - O(x_j)|
+///        + lambda2 sum_{j: O*_j = 0} |O*_j - O(x_j)| over the samples not skipped, minimised by
+///        Adam with analytic gradients.
+#include <cstdint>
+#include <functional>
+#include <vector>
+
+#include "core/GaussianCloud.h"
+#include "field/SampleSet.h"
+#include "stage2/StageTwoOptions.h"
+
+namespace splatwarp {
+
+/// @brief Energy at one iteration (before that iteration's step; the last entry is after the
+///        final step). Terms are weighted, so total = color + opacity + boundary.
+struct StageTwoEnergy {
+    int iteration = 0;
+    double total = 0, color = 0, opacity = 0, boundary = 0;
+};
+
+/// @brief What a Stage II run did.
+struct StageTwoReport {
+    std::vector<StageTwoEnergy> energies;
+    std::size_t movingGaussians = 0;
+    std::size_t samplesUsed = 0;    ///< samples in cells not skipped
+    std::size_t samplesSkipped = 0;
+    std::vector<std::uint64_t> pairsPerIteration; ///< counted (alpha*G >= cutoff) moving pairs per forward pass
+    std::uint64_t coveragePairs = 0;              ///< candidate pairs of the last coverage
+    int coverageRebuilds = 0;
+    float sceneExtent = 0;                        ///< multiplies the position learning rate
+    // Time per phase in milliseconds.
+    double msSetup = 0, msCoverage = 0, msForward = 0, msBackward = 0, msUpdate = 0, msTotal = 0;
+};
+
+/// @brief Run Stage II.
+/// @param cloud         in: the Stage I result; out: the fitted model (static Gaussians bit-exact)
+/// @param samples       the warped sampled field (targets, warped positions, cells)
+/// @param moving        [N] 1: optimise this Gaussian; 0: keep it (it still contributes)
+/// @param gaussianCell  [N] rest cell of each Gaussian (index into samples' cells) for its
+///                      low-pass filter; -1: no filter for that Gaussian
+/// @param onEval        called with (iteration, cloud) after every evalEvery-th step (0: never)
+/// @throws InputError when array sizes disagree or the SH degrees differ
+StageTwoReport optimiseStageTwo(GaussianCloud& cloud, const SampleSet& samples, const std::vector<std::uint8_t>& moving,
+                                const std::vector<std::int32_t>& gaussianCell, const StageTwoOptions& options,
+                                const std::function<void(int, const GaussianCloud&)>& onEval = {},
+                                int evalEvery = 0);
+
+} // namespace splatwarp

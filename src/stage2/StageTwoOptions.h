@@ -1,0 +1,40 @@
+#pragma once
+/// @file StageTwoOptions.h
+/// @brief Every parameter of the Stage II optimiser with its documented default; shared by the
+///        CLI, the JSON spec and the tests (DESIGN.md "Stage II", paper Sec. 3.2).
+#include "field/GaussianKernel.h"
+
+namespace splatwarp {
+
+struct StageTwoOptions {
+    int iterations = 100;          ///< Adam steps (paper: 100 is about as good as 1000)
+    float lambdaOpacity = 1.0f;    ///< lambda1: weight of sum |O* - O|
+    float boundaryWeight = 99.0f;  ///< lambda2: extra weight where O* = 0 (keeps Gaussians out of empty space)
+    bool lowPassFilter = true;     ///< adaptive anisotropic low-pass filter (--no-lpf turns it off)
+    float lambdaLpf = 0.2f;        ///< filter strength: Sigma' += lambdaLpf * spacing^2 * F_k F_k^T (Mip-Splatting's 3D filter value)
+    int rebuildEvery = 10;         ///< rebuild the coverage (which Gaussians touch which samples) every this many steps
+    /// Coverage boxes are the extents a Gaussian can reach before the next rebuild (each Adam
+    /// step changes a parameter by about its learning rate) grown by this extra fraction, so
+    /// Gaussians growing, turning or moving between rebuilds keep their samples.
+    float coveragePad = 0.1f;
+    float cutoff = kDefaultCutoff; ///< a pair counts only where alpha*G >= cutoff
+
+    // Learning rates (3DGS / the authors' values; positions are scaled by the scene extent, the
+    // largest edge of the warped samples' bounding box, since those values assume unit scenes).
+    float lrPositionStart = 3.2e-4f; ///< position, decayed exponentially to lrPositionEnd over the run
+    float lrPositionEnd = 6.4e-6f;
+    float lrRotation = 2e-3f;        ///< raw quaternion
+    float lrLogScale = 5e-3f;
+    float lrOpacity = 0.1f;          ///< logit opacity
+    float lrSh = 1e-4f;              ///< every SH coefficient
+
+    // Adam
+    float beta1 = 0.9f;
+    float beta2 = 0.999f;
+    float epsilon = 1e-15f;
+
+    int reportEvery = 10;  ///< record the energy at iteration 0 and every this many iterations
+    bool threaded = true;  ///< oneTBB (results identical for any thread count)
+};
+
+} // namespace splatwarp
