@@ -20,9 +20,13 @@ struct Where {
     [[noreturn]] void fail(const std::string& what) const { throw InputError(prefix + what); }
 };
 
-void checkKeys(const json& obj, const std::set<std::string>& allowed, const std::string& what, const Where& w)
+/// obj must be an object with only `allowed` keys and every `required` one.
+void checkKeys(const json& obj, const std::set<std::string>& allowed, const std::string& what, const Where& w,
+               const std::vector<std::string>& required = {})
 {
     if (!obj.is_object()) w.fail(msg(what, " must be a JSON object"));
+    for (const std::string& r : required)
+        if (!obj.contains(r)) w.fail(msg(what, " needs \"", r, "\""));
     for (auto it = obj.begin(); it != obj.end(); ++it)
         if (!allowed.count(it.key())) {
             std::string list;
@@ -61,8 +65,7 @@ HandleSpec parseHandle(const json& h, const Where& w)
     if (selections != 1) w.fail("needs exactly one selection: \"box\", \"sphere\" or \"nodes\"");
     if (h.contains("box")) {
         const json& b = h["box"];
-        checkKeys(b, {"min", "max"}, "\"box\"", w);
-        if (!b.contains("min") || !b.contains("max")) w.fail("\"box\" needs \"min\" and \"max\"");
+        checkKeys(b, {"min", "max"}, "\"box\"", w, {"min", "max"});
         s.select = HandleSpec::Select::Box;
         s.boxMin = vec3(b["min"], "box.min", w);
         s.boxMax = vec3(b["max"], "box.max", w);
@@ -70,8 +73,7 @@ HandleSpec parseHandle(const json& h, const Where& w)
             if (s.boxMin[a] > s.boxMax[a]) w.fail(msg("box.min[", a, "] > box.max[", a, "]"));
     } else if (h.contains("sphere")) {
         const json& b = h["sphere"];
-        checkKeys(b, {"center", "radius"}, "\"sphere\"", w);
-        if (!b.contains("center") || !b.contains("radius")) w.fail("\"sphere\" needs \"center\" and \"radius\"");
+        checkKeys(b, {"center", "radius"}, "\"sphere\"", w, {"center", "radius"});
         s.select = HandleSpec::Select::Sphere;
         s.centre = vec3(b["center"], "sphere.center", w);
         s.radius = number(b["radius"], "sphere.radius", w);
@@ -95,8 +97,7 @@ HandleSpec parseHandle(const json& h, const Where& w)
     }
     if (h.contains("rotate")) {
         const json& r = h["rotate"];
-        checkKeys(r, {"axis", "degrees"}, "\"rotate\"", w);
-        if (!r.contains("axis") || !r.contains("degrees")) w.fail("\"rotate\" needs \"axis\" and \"degrees\"");
+        checkKeys(r, {"axis", "degrees"}, "\"rotate\"", w, {"axis", "degrees"});
         s.axis = vec3(r["axis"], "rotate.axis", w);
         const double len = length(s.axis);
         if (!(len > 1e-12)) w.fail("rotate.axis is the zero vector");

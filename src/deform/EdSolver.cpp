@@ -4,6 +4,8 @@
 #include <Eigen/Sparse>
 #include <algorithm>
 #include <cmath>
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
 #include <unordered_map>
 
 #include "core/Error.h"
@@ -162,9 +164,19 @@ public:
         mHat.resize(f);
         mW.resize(f);
         mY.resize(f);
+        mEdgePos.resize(f);
+        mProd.resize(f);
+        mRhsPart.resize(f);
         for (std::size_t fi = 0; fi < f; ++fi) {
-            mHat[fi].resize(mSet[fi].size());
-            mW[fi].resize(mSet[fi].size());
+            const std::size_t m = mSet[fi].size();
+            mHat[fi].resize(m);
+            mW[fi].resize(m);
+            mProd[fi].resize(m * m);
+            mRhsPart[fi].resize(m);
+            for (std::int32_t k : p.graph.neighbours(std::size_t(p.freeNodes[fi]))) {
+                const int fk = p.freeIndex[std::size_t(k)];
+                mEdgePos[fi].push_back(fk < 0 ? 0 : std::size_t(std::find(mSet[fi].begin(), mSet[fi].end(), fk) - mSet[fi].begin()));
+            }
         }
     }
 
@@ -175,32 +187,15 @@ public:
         const EdOptions& o = p.options;
         const std::size_t f = p.freeNodes.size();
         const std::size_t n = p.g.size();
+
+        // 1. Node-local blocks of each free node j (parallel): H_AA, g_A from E_rot and from its
+        //    out-edges (j,k), and H_{A_j, t_m} for m in {j} + free neighbours.
+        forEachFree([&](std::size_t fi) { assembleNode(s, fi); });
+
+        // 2. The translation blocks and right-hand side (serial: scalar diagonal updates only).
         for (M3& b : mBlocks) b.setZero();
         Eigen::VectorXd rhs = Eigen::VectorXd::Zero(Eigen::Index(3 * f)); // -g_t, then Schur-corrected
-        auto addRhs = [&](int fi, const V3& v) { rhs.segment<3>(3 * fi) -= v; };
-
-        for (std::size_t fi = 0; fi < f; ++fi) {
-            const std::size_t j = std::size_t(p.freeNodes[fi]);
-            Mat9& haa = mHaa[fi];
-            Vec9& ga = mGa[fi];
-            haa.setZero();
-            ga.setZero();
-            for (Mat93& h : mHat[fi]) h.setZero();
-            // E_rot: columns c_i of A (variables 3i..3i+2).
-            double r[6];
-            rotResiduals(s.A[j], r);
-            Eigen::Matrix<double, 6, 9> jr = Eigen::Matrix<double, 6, 9>::Zero();
-            const V3 c[3] = {s.A[j].col(0), s.A[j].col(1), s.A[j].col(2)};
-            const int pairs[3][2] = {{0, 1}, {0, 2}, {1, 2}};
-            for (int q = 0; q < 3; ++q) {
-                jr.block<1, 3>(q, 3 * pairs[q][0]) = c[pairs[q][1]].transpose();
-                jr.block<1, 3>(q, 3 * pairs[q][1]) = c[pairs[q][0]].transpose();
-                jr.block<1, 3>(3 + q, 3 * q) = 2.0 * c[q].transpose();
-            }
-            const Eigen::Map<const Eigen::Matrix<double, 6, 1>> rv(r);
-            haa.noalias() += o.rotWeight * jr.transpose() * jr;
-            ga.noalias() += o.rotWeight * jr.transpose() * rv;
-        }
+        auto addDiag = [&](std::size_t blockId, double w) { mBlocks[blockId].diagonal().array() += w; };
         for (std::size_t j = 0; j < n; ++j) {
             const int fj = p.freeIndex[j];
             const auto& nb = p.graph.neighbours(j);
@@ -208,59 +203,39 @@ public:
                 const std::size_t k = std::size_t(nb[e]);
                 const int fk = p.freeIndex[k];
                 if (fj < 0 && fk < 0) continue;
-                const V3 d = p.g[k] - p.g[j];
-                const V3 r = regResidual(p, s, j, k);
-                const double w = o.regWeight;
+                const V3 wr = o.regWeight * regResidual(p, s, j, k); // d r / d t_j = I, d r / d t_k = -I
                 if (fj >= 0) {
-                    // r_a = sum_b A[a][b] d_b: d r_a / d A[a][b] (variable 3b+a) = d_b.
-                    Mat9& haa = mHaa[std::size_t(fj)];
-                    Vec9& ga = mGa[std::size_t(fj)];
-                    const M3 ddT = w * d * d.transpose();
-                    for (int b = 0; b < 3; ++b)
-                        for (int cc = 0; cc < 3; ++cc)
-                            for (int a = 0; a < 3; ++a) haa(3 * b + a, 3 * cc + a) += ddT(b, cc);
-                    for (int b = 0; b < 3; ++b)
-                        for (int a = 0; a < 3; ++a) ga(3 * b + a) += w * d(b) * r(a);
-                    // A_j x t_j (d r / d t_j = I) and A_j x t_k (d r / d t_k = -I).
-                    std::vector<Mat93>& hat = mHat[std::size_t(fj)];
-                    const std::vector<int>& set = mSet[std::size_t(fj)];
-                    for (int b = 0; b < 3; ++b)
-                        for (int a = 0; a < 3; ++a) hat[0](3 * b + a, a) += w * d(b);
-                    mBlocks[std::size_t(mDiag[std::size_t(fj)])].diagonal().array() += w;
-                    addRhs(fj, w * r);
-                    if (fk >= 0) {
-                        const std::size_t pos = std::size_t(std::find(set.begin(), set.end(), fk) - set.begin());
-                        for (int b = 0; b < 3; ++b)
-                            for (int a = 0; a < 3; ++a) hat[pos](3 * b + a, a) -= w * d(b);
-                        const std::size_t m = set.size();
-                        mBlocks[std::size_t(mPairBlocks[std::size_t(fj)][pos])].diagonal().array() -= w;      // (j,k)
-                        mBlocks[std::size_t(mPairBlocks[std::size_t(fj)][pos * m])].diagonal().array() -= w;  // (k,j)
-                    }
+                    addDiag(std::size_t(mDiag[std::size_t(fj)]), o.regWeight);
+                    rhs.segment<3>(3 * fj) -= wr;
                 }
                 if (fk >= 0) {
-                    mBlocks[std::size_t(mDiag[std::size_t(fk)])].diagonal().array() += w;
-                    addRhs(fk, -w * r);
+                    addDiag(std::size_t(mDiag[std::size_t(fk)]), o.regWeight);
+                    rhs.segment<3>(3 * fk) += wr;
+                }
+                if (fj >= 0 && fk >= 0) {
+                    const std::size_t m = mSet[std::size_t(fj)].size(), pos = mEdgePos[std::size_t(fj)][e];
+                    addDiag(std::size_t(mPairBlocks[std::size_t(fj)][pos]), -o.regWeight);     // (j,k)
+                    addDiag(std::size_t(mPairBlocks[std::size_t(fj)][pos * m]), -o.regWeight); // (k,j)
                 }
             }
             if (fj >= 0 && p.hasTarget[j]) {
-                mBlocks[std::size_t(mDiag[std::size_t(fj)])].diagonal().array() += o.conWeight;
-                addRhs(fj, o.conWeight * (p.g[j] + s.t[j] - p.target[j]));
+                addDiag(std::size_t(mDiag[std::size_t(fj)]), o.conWeight);
+                rhs.segment<3>(3 * fj) -= o.conWeight * (p.g[j] + s.t[j] - p.target[j]);
             }
         }
-        // Eliminate A: S = H_tt - H_tA H_AA^-1 H_At, rhs = -g_t + H_tA H_AA^-1 g_A.
+        for (std::size_t fi = 0; fi < f; ++fi) addDiag(std::size_t(mDiag[fi]), kDamping);
+
+        // 3. Eliminate A (parallel per node, then a serial scatter):
+        //    S = H_tt - H_tA H_AA^-1 H_At, rhs = -g_t + H_tA H_AA^-1 g_A.
+        std::vector<std::uint8_t> ok(f, 1);
+        forEachFree([&](std::size_t fi) { ok[fi] = eliminateNode(fi) ? 1 : 0; });
+        if (std::find(ok.begin(), ok.end(), std::uint8_t(0)) != ok.end()) return false;
         for (std::size_t fi = 0; fi < f; ++fi) {
-            mHaa[fi].diagonal().array() += kDamping;
-            mBlocks[std::size_t(mDiag[fi])].diagonal().array() += kDamping;
-            const Eigen::LLT<Mat9> llt(mHaa[fi]);
-            if (llt.info() != Eigen::Success) return false;
             const std::vector<int>& set = mSet[fi];
             const std::size_t m = set.size();
-            for (std::size_t a = 0; a < m; ++a) mW[fi][a] = llt.solve(mHat[fi][a]);
-            mY[fi] = llt.solve(mGa[fi]);
             for (std::size_t a = 0; a < m; ++a) {
-                rhs.segment<3>(3 * set[a]) += mHat[fi][a].transpose() * mY[fi];
-                for (std::size_t b = 0; b < m; ++b)
-                    mBlocks[std::size_t(mPairBlocks[fi][a * m + b])].noalias() -= mHat[fi][a].transpose() * mW[fi][b];
+                rhs.segment<3>(3 * set[a]) += mRhsPart[fi][a];
+                for (std::size_t b = 0; b < m; ++b) mBlocks[std::size_t(mPairBlocks[fi][a * m + b])] -= mProd[fi][a * m + b];
             }
         }
         double* values = mS.valuePtr();
@@ -285,6 +260,81 @@ public:
     }
 
 private:
+    template <typename F>
+    void forEachFree(const F& fn) const
+    {
+        const std::size_t f = mP.freeNodes.size();
+        if (mP.options.threaded)
+            tbb::parallel_for(tbb::blocked_range<std::size_t>(0, f, 16), [&](const tbb::blocked_range<std::size_t>& r) {
+                for (std::size_t fi = r.begin(); fi != r.end(); ++fi) fn(fi);
+            });
+        else
+            for (std::size_t fi = 0; fi < f; ++fi) fn(fi);
+    }
+
+    /// H_AA, g_A and H_At of free node fi from E_rot and its out-edges.
+    void assembleNode(const State& s, std::size_t fi)
+    {
+        const Problem& p = mP;
+        const EdOptions& o = p.options;
+        const std::size_t j = std::size_t(p.freeNodes[fi]);
+        Mat9& haa = mHaa[fi];
+        Vec9& ga = mGa[fi];
+        std::vector<Mat93>& hat = mHat[fi];
+        for (Mat93& h : hat) h.setZero();
+        // E_rot: columns c_i of A are variables 3i..3i+2.
+        double r[6];
+        rotResiduals(s.A[j], r);
+        Eigen::Matrix<double, 6, 9> jr = Eigen::Matrix<double, 6, 9>::Zero();
+        const V3 c[3] = {s.A[j].col(0), s.A[j].col(1), s.A[j].col(2)};
+        const int pairs[3][2] = {{0, 1}, {0, 2}, {1, 2}};
+        for (int q = 0; q < 3; ++q) {
+            jr.block<1, 3>(q, 3 * pairs[q][0]) = c[pairs[q][1]].transpose();
+            jr.block<1, 3>(q, 3 * pairs[q][1]) = c[pairs[q][0]].transpose();
+            jr.block<1, 3>(3 + q, 3 * q) = 2.0 * c[q].transpose();
+        }
+        const Eigen::Map<const Eigen::Matrix<double, 6, 1>> rv(r);
+        haa.noalias() = o.rotWeight * jr.transpose() * jr;
+        ga.noalias() = o.rotWeight * jr.transpose() * rv;
+        haa.diagonal().array() += kDamping;
+        // E_reg over out-edges: r_a = sum_b A[a][b] d_b + ..., so d r_a / d A[a][b] (variable 3b+a) = d_b.
+        const auto& nb = p.graph.neighbours(j);
+        for (std::size_t e = 0; e < nb.size(); ++e) {
+            const std::size_t k = std::size_t(nb[e]);
+            const V3 d = p.g[k] - p.g[j];
+            const V3 res = regResidual(p, s, j, k);
+            const M3 ddT = o.regWeight * d * d.transpose();
+            for (int b = 0; b < 3; ++b)
+                for (int cc = 0; cc < 3; ++cc)
+                    for (int a = 0; a < 3; ++a) haa(3 * b + a, 3 * cc + a) += ddT(b, cc);
+            for (int b = 0; b < 3; ++b)
+                for (int a = 0; a < 3; ++a) {
+                    ga(3 * b + a) += o.regWeight * d(b) * res(a);
+                    hat[0](3 * b + a, a) += o.regWeight * d(b); // t_j
+                }
+            if (p.freeIndex[k] >= 0) {
+                Mat93& hk = hat[mEdgePos[fi][e]];
+                for (int b = 0; b < 3; ++b)
+                    for (int a = 0; a < 3; ++a) hk(3 * b + a, a) -= o.regWeight * d(b); // t_k
+            }
+        }
+    }
+
+    /// Per-node Schur terms: W = H_AA^-1 H_At, y = H_AA^-1 g_A, products H_tA W and H_tA y.
+    bool eliminateNode(std::size_t fi)
+    {
+        const Eigen::LLT<Mat9> llt(mHaa[fi]);
+        if (llt.info() != Eigen::Success) return false;
+        const std::size_t m = mSet[fi].size();
+        for (std::size_t a = 0; a < m; ++a) mW[fi][a] = llt.solve(mHat[fi][a]);
+        mY[fi] = llt.solve(mGa[fi]);
+        for (std::size_t a = 0; a < m; ++a) {
+            mRhsPart[fi][a].noalias() = mHat[fi][a].transpose() * mY[fi];
+            for (std::size_t b = 0; b < m; ++b) mProd[fi][a * m + b].noalias() = mHat[fi][a].transpose() * mW[fi][b];
+        }
+        return true;
+    }
+
     const Problem& mP;
     std::vector<std::vector<int>> mSet;        // [F] free node, then its free neighbours (unknown indices)
     std::vector<std::vector<int>> mPairBlocks; // [F][|set|^2] block id of (set[a], set[b])
@@ -298,6 +348,9 @@ private:
     std::vector<std::vector<Mat93>> mHat;      // [F][|set|] H_{A_f, t_set[a]}
     std::vector<std::vector<Mat93>> mW;        // H_AA^-1 H_At
     std::vector<Vec9> mY;                      // H_AA^-1 g_A
+    std::vector<std::vector<std::size_t>> mEdgePos; // [F][k] position of out-edge e's node in mSet (0 if fixed)
+    std::vector<std::vector<M3>> mProd;        // [F][|set|^2] H_tA W per pair
+    std::vector<std::vector<V3>> mRhsPart;     // [F][|set|] H_tA y
 };
 
 State toState(const Problem& p, const NodeTransforms* warm)

@@ -45,6 +45,11 @@ Vec3d endpoint(const RestFrame& f, int e, double sigmas)
     return f.centre + axis * (sign * sigmas * f.sigma[a]);
 }
 
+// GCC reports Eigen's fixed-size JacobiSVD singular values as maybe-uninitialized (a false positive).
+#if defined(__GNUC__) && !defined(__clang__)
+#pragma GCC diagnostic push
+#pragma GCC diagnostic ignored "-Wmaybe-uninitialized"
+#endif
 /// Polar decomposition M = R S in double via SVD; R proper (det +1): if det(U V^T) < 0 the
 /// smallest singular direction is flipped, so S may have one negative eigenvalue then.
 void polar(const Mat3d& m, Mat3d& r, Mat3d& s)
@@ -54,19 +59,22 @@ void polar(const Mat3d& m, Mat3d& r, Mat3d& s)
         for (int b = 0; b < 3; ++b) em(a, b) = m[a][b];
     const Eigen::JacobiSVD<Eigen::Matrix3d> svd(em, Eigen::ComputeFullU | Eigen::ComputeFullV);
     Eigen::Matrix3d u = svd.matrixU();
-    Eigen::Vector3d sv = svd.singularValues();
     const Eigen::Matrix3d v = svd.matrixV();
+    Eigen::Matrix3d es = v * svd.singularValues().asDiagonal() * v.transpose();
     if ((u * v.transpose()).determinant() < 0.0) { // Eigen sorts singular values: the last is the smallest
         u.col(2) *= -1.0;
-        sv(2) *= -1.0;
+        es -= (2.0 * svd.singularValues()(2)) * v.col(2) * v.col(2).transpose();
     }
-    const Eigen::Matrix3d er = u * v.transpose(), es = v * sv.asDiagonal() * v.transpose();
+    const Eigen::Matrix3d er = u * v.transpose();
     for (int a = 0; a < 3; ++a)
         for (int b = 0; b < 3; ++b) {
             r[a][b] = er(a, b);
             s[a][b] = es(a, b);
         }
 }
+#if defined(__GNUC__) && !defined(__clang__)
+#pragma GCC diagnostic pop
+#endif
 
 } // namespace
 

@@ -70,6 +70,8 @@ TEST(DeformSpec, ErrorsNameTheFileAndHandle)
     EXPECT_NE(e.find("handle 0"), std::string::npos) << e;
     EXPECT_NE(e.find("zero"), std::string::npos) << e;
 
+    e = parseError(R"({"version":1,"handles":[{"box":{"min":[0,0,0]}}]})");
+    EXPECT_NE(e.find("my.json: handle 0: \"box\" needs \"max\""), std::string::npos) << e;
     e = parseError(R"({"version":2,"handles":[{"nodes":[0]}]})");
     EXPECT_NE(e.find("version"), std::string::npos) << e;
     e = parseError(R"({"version":1,"handles":[{"nodes":[0]}],"extra":1})");

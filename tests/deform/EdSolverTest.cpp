@@ -107,6 +107,9 @@ TEST(EdSolver, SolvingTwiceFromRestEqualsOnceAndWarmStartAgrees)
     const Deformation a = solveDeformation(g, bar(), spec, tight());
     const Deformation b = solveDeformation(g, bar(), spec, tight());
     EXPECT_EQ(maxDiff(a.transforms, b.transforms), 0.0);
+    EdOptions serial = tight();
+    serial.threaded = false;
+    EXPECT_EQ(maxDiff(a.transforms, solveDeformation(g, bar(), spec, serial).transforms), 0.0);
     // Re-solving from the previous solution stays there (no drift) up to the convergence tolerance.
     const Deformation c = solveDeformation(g, bar(), spec, tight(), &a.transforms);
     EXPECT_LT(maxDiff(a.transforms, c.transforms), 1e-6);
