@@ -28,8 +28,8 @@ struct SampleGridOptions {
     /// A (sample, Gaussian) pair contributes only where alpha*G >= cutoff (1e-3 for thin structures).
     float cutoff = kDefaultCutoff;
     /// The rest targets use Mip-Splatting's isotropic 3D filter: variance lambdaLpf * spacing^2 is
-    /// added to every covariance (0.2, Mip-Splatting's value; 0 = no filter).
-    float lambdaLpf = 0.2f;
+    /// added to every covariance (0 = no filter).
+    float lambdaLpf = kDefaultLambdaLpf;
     /// Run the parallel loops with oneTBB (false: serial, deterministic debugging).
     bool threaded = true;
 };
