@@ -1,19 +1,18 @@
 #include "SampleWarp.h"
 
-#include <Eigen/LU>
-#include <Eigen/SVD>
 #include <algorithm>
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
 
 #include "core/Error.h"
+#include "deform/WarpPoints.h"
 #include "sh/SphericalHarmonics.h"
 
 namespace splatwarp {
 
 namespace {
 
-/// Samples skinned per batch: bounds the skin-weight arrays ([batch,k] nodes and weights).
+/// Samples warped per batch: bounds the per-batch rotation array ([batch,9]).
 constexpr std::size_t kWarpBatch = std::size_t(1) << 16;
 /// Samples (or cells) per parallel task.
 constexpr std::size_t kGrain = 512;
@@ -30,21 +29,6 @@ void forRange(std::size_t b, std::size_t e, bool threaded, const Body& body)
 
 } // namespace
 
-Mat3d polarRotation(const Mat3d& m)
-{
-    Eigen::Matrix3d a;
-    for (int i = 0; i < 3; ++i)
-        for (int j = 0; j < 3; ++j) a(i, j) = m.m[i][j];
-    const Eigen::JacobiSVD<Eigen::Matrix3d> svd(a, Eigen::ComputeFullU | Eigen::ComputeFullV);
-    Eigen::Matrix3d u = svd.matrixU();
-    if ((u * svd.matrixV().transpose()).determinant() < 0) u.col(2) = -u.col(2); // singular values sorted: col 2 smallest
-    const Eigen::Matrix3d r = u * svd.matrixV().transpose();
-    Mat3d out;
-    for (int i = 0; i < 3; ++i)
-        for (int j = 0; j < 3; ++j) out.m[i][j] = r(i, j);
-    return out;
-}
-
 void warpSamples(SampleSet& samples, const DeformationGraph& graph, const NodeTransforms& transforms, bool threaded)
 {
     const std::size_t m = samples.sampleCount();
@@ -54,17 +38,19 @@ void warpSamples(SampleSet& samples, const DeformationGraph& graph, const NodeTr
         throw InputError(msg("warpSamples: ", transforms.size(), " node transforms for ", graph.nodeCount(), " nodes"));
     samples.warpedPositions.resize(3 * m);
     const std::size_t stride = std::size_t(samples.featureStride());
+    const bool rotate = samples.shDegree > 0;
+    std::vector<float> rotations(rotate ? 9 * std::min(m, kWarpBatch) : 0);
     for (std::size_t b0 = 0; b0 < m; b0 += kWarpBatch) {
         const std::size_t b1 = std::min(m, b0 + kWarpBatch);
-        const SkinWeights w = graph.skinWeights(&samples.restPositions[3 * b0], b1 - b0, threaded);
+        warpPoints(graph, transforms, &samples.restPositions[3 * b0], b1 - b0, &samples.warpedPositions[3 * b0],
+                   rotate ? rotations.data() : nullptr, threaded);
+        if (!rotate) continue;
         forRange(b0, b1, threaded, [&](std::size_t b, std::size_t e) {
             for (std::size_t s = b; s < e; ++s) {
-                const float* p = &samples.restPositions[3 * s];
-                const Vec3d x = skinPoint(graph, transforms, w, s - b0, Vec3d(p[0], p[1], p[2]));
-                for (int k = 0; k < 3; ++k) samples.warpedPositions[3 * s + k] = float(x[k]);
-                if (samples.shDegree > 0)
-                    ShRotation(polarRotation(skinGradient(graph, transforms, w, s - b0)))
-                        .apply(samples.shDegree, &samples.targetF[s * stride]);
+                const float* r = &rotations[9 * (s - b0)];
+                Mat3d rot;
+                for (int i = 0; i < 9; ++i) rot.m[i / 3][i % 3] = r[i];
+                ShRotation(rot, samples.shDegree).apply(samples.shDegree, &samples.targetF[s * stride]);
             }
         });
     }

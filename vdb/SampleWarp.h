@@ -11,9 +11,6 @@
 
 namespace splatwarp {
 
-/// @brief Rotation of the polar decomposition M = R S (SVD in double; when det(U V^T) < 0 the
-///        smallest singular direction is flipped so R is a proper rotation).
-Mat3d polarRotation(const Mat3d& m);
 
 /// @brief Warp the samples from their rest positions with the deformation (graph, transforms).
 /// @details warpedPositions = skinned restPositions (skin weights of the sample positions);

@@ -7,6 +7,7 @@
 #include <tbb/parallel_for.h>
 
 #include "core/Error.h"
+#include "core/Polar.h"
 #include "core/Progress.h"
 #include "sh/SphericalHarmonics.h"
 
@@ -45,36 +46,6 @@ Vec3d endpoint(const RestFrame& f, int e, double sigmas)
     return f.centre + axis * (sign * sigmas * f.sigma[a]);
 }
 
-// GCC reports Eigen's fixed-size JacobiSVD singular values as maybe-uninitialized (a false positive).
-#if defined(__GNUC__) && !defined(__clang__)
-#pragma GCC diagnostic push
-#pragma GCC diagnostic ignored "-Wmaybe-uninitialized"
-#endif
-/// Polar decomposition M = R S in double via SVD; R proper (det +1): if det(U V^T) < 0 the
-/// smallest singular direction is flipped, so S may have one negative eigenvalue then.
-void polar(const Mat3d& m, Mat3d& r, Mat3d& s)
-{
-    Eigen::Matrix3d em;
-    for (int a = 0; a < 3; ++a)
-        for (int b = 0; b < 3; ++b) em(a, b) = m[a][b];
-    const Eigen::JacobiSVD<Eigen::Matrix3d> svd(em, Eigen::ComputeFullU | Eigen::ComputeFullV);
-    Eigen::Matrix3d u = svd.matrixU();
-    const Eigen::Matrix3d v = svd.matrixV();
-    Eigen::Matrix3d es = v * svd.singularValues().asDiagonal() * v.transpose();
-    if ((u * v.transpose()).determinant() < 0.0) { // Eigen sorts singular values: the last is the smallest
-        u.col(2) *= -1.0;
-        es -= (2.0 * svd.singularValues()(2)) * v.col(2) * v.col(2).transpose();
-    }
-    const Eigen::Matrix3d er = u * v.transpose();
-    for (int a = 0; a < 3; ++a)
-        for (int b = 0; b < 3; ++b) {
-            r[a][b] = er(a, b);
-            s[a][b] = es(a, b);
-        }
-}
-#if defined(__GNUC__) && !defined(__clang__)
-#pragma GCC diagnostic pop
-#endif
 
 } // namespace
 
@@ -144,7 +115,7 @@ StageOneResult applyStageOne(const GaussianCloud& rest, const StageOneRig& rig, 
             }
             const Mat3d m = mr * f.r0.transposed(); // M = [M r_a] R0^T
             Mat3d r, s;
-            polar(m, r, s);
+            polarDecomposition(m, r, s);
             const Quatd q = matrixToQuat(r * f.r0);
             res.deformed.setMean(i, Vec3f(centre));
             res.deformed.setRotation(i, Quatf{float(q.w), float(q.x), float(q.y), float(q.z)});

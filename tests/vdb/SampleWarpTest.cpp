@@ -4,6 +4,7 @@
 
 #include "SampleGrid.h"
 #include "SampleWarp.h"
+#include "core/Polar.h"
 #include "deform/DeformSpec.h"
 #include "samples/SampleModels.h"
 #include "sh/SphericalHarmonics.h"
