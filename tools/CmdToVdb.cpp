@@ -1,5 +1,6 @@
 /// `splatwarp to-vdb IN -o OUT.vdb`: sample a model's radiance field into sparse VDB grids.
 #include "Command.h"
+#include "GridArgs.h"
 #include "SampleGrid.h"
 #include "SampleWarp.h"
 #include "VdbExport.h"
@@ -23,17 +24,7 @@ const CommandRegistrar reg(40, [](CLI::App& app) {
                                                  "(density fog volume, color, active cells, optional SH grids)");
     sub->add_option("input", args->input, "Input Gaussians (.ply, .splat, compressed .ply)")->required();
     sub->add_option("-o,--output", args->output, "Output .vdb path")->required();
-    sub->add_option("--cells", args->grid.cells, "Cells along the model's largest extent (ignored with --cell-size)")
-        ->capture_default_str()
-        ->check(CLI::PositiveNumber);
-    sub->add_option("--cell-size", args->grid.cellSize, "Explicit cell edge in world units (overrides --cells)")
-        ->check(CLI::PositiveNumber);
-    sub->add_option("--samples-per-cell", args->grid.samplesPerAxis, "Samples per cell along each axis (n; n^3 per cell)")
-        ->capture_default_str()
-        ->check(CLI::Range(2, 16));
-    sub->add_option("--cutoff", args->grid.cutoff, "A Gaussian contributes where alpha*G >= cutoff (1e-3 for thin structures)")
-        ->capture_default_str()
-        ->check(CLI::Range(1e-8, 0.999));
+    addGridOptions(sub, args->grid);
     sub->add_flag("--sh-grids", args->vdb.shGrids, "Also write one Vec3S grid sh_<k> per SH coefficient of the radial features");
     sub->add_flag("--half", args->vdb.half, "Store float grids as 16-bit half floats");
     sub->add_option("--spec", args->spec,

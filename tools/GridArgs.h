@@ -1,0 +1,24 @@
+#pragma once
+/// @file GridArgs.h
+/// @brief The sample-grid flags shared by `to-vdb`, `deform` and `eval` (one definition).
+#include "Command.h"
+#include "SampleGrid.h"
+
+namespace splatwarp::cli {
+
+inline void addGridOptions(CLI::App* sub, SampleGridOptions& grid)
+{
+    sub->add_option("--cells", grid.cells, "Cells along the model's largest extent (ignored with --cell-size)")
+        ->capture_default_str()
+        ->check(CLI::PositiveNumber);
+    sub->add_option("--cell-size", grid.cellSize, "Explicit cell edge in world units (overrides --cells)")
+        ->check(CLI::PositiveNumber);
+    sub->add_option("--samples-per-cell", grid.samplesPerAxis, "Samples per cell along each axis (n; n^3 per cell)")
+        ->capture_default_str()
+        ->check(CLI::Range(2, 16));
+    sub->add_option("--cutoff", grid.cutoff, "A Gaussian contributes where alpha*G >= cutoff (1e-3 for thin structures)")
+        ->capture_default_str()
+        ->check(CLI::Range(1e-8, 0.999));
+}
+
+} // namespace splatwarp::cli

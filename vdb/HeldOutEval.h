@@ -1,0 +1,41 @@
+#pragma once
+/// @file HeldOutEval.h
+/// @brief Field fidelity of a deformed model at held-out points: random points X in the active
+///        rest cells of a SampleGrid (continuous positions, not the training samples), pushed
+///        through the deformation x = phi(X); see fieldError() in src/field/FieldError.h.
+#include <cstdint>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+#include "SampleGrid.h"
+#include "deform/Deformation.h"
+#include "field/FieldError.h"
+
+namespace splatwarp {
+
+/// @brief Options of the held-out evaluation.
+struct HeldOutOptions {
+    std::size_t points = 100000; ///< held-out points (uniform over the active rest cells)
+    std::uint32_t seed = 1;      ///< deterministic for a seed
+};
+
+/// @brief Held-out points with their warped positions and local rotations.
+struct HeldOutPoints {
+    std::vector<float> rest;      ///< [P,3] X
+    std::vector<float> warped;    ///< [P,3] x = phi(X)
+    std::vector<float> rotations; ///< [P,9] polar rotation of the local deformation gradient
+    FeatureOptions features;      ///< cutoff and (rest, isotropic) filter of the grid's targets
+    std::size_t size() const { return rest.size() / 3; }
+};
+
+/// @brief Draw held-out points in the grid's active cells and warp them with the deformation.
+HeldOutPoints makeHeldOutPoints(const SampleGrid& grid, const Deformation& deformation, const HeldOutOptions& options = {});
+
+/// @brief Field error of `deformed` against `rest` pushed through the deformation, at the points.
+FieldErrorReport evaluateHeldOut(const GaussianCloud& rest, const GaussianCloud& deformed, const HeldOutPoints& points);
+
+/// @brief JSON of a report: opacity, color, points, inside{...}, outside{...}.
+nlohmann::json fieldErrorJson(const FieldErrorReport& report);
+
+} // namespace splatwarp
