@@ -89,7 +89,9 @@ nlohmann::json runDeformJob(const DeformJobOptions& o)
     report["spec"] = o.specPath;
     report["timingsMs"]["read"] = readMs;
     const std::string baseline = outPath(o, "baseline.ply");
+    clock.reset();
     writePly(baseline, stage1.deformed);
+    double writeMs = clock.ms();
     report["outputs"]["baseline"] = baseline;
 
     if (!o.stage1Only) {
@@ -136,7 +138,9 @@ nlohmann::json runDeformJob(const DeformJobOptions& o)
             progress(msg("Stage II held-out field error: opacity ", e2.opacity, ", color ", e2.color));
         }
         const std::string deformed = outPath(o, "deformed.ply");
+        clock.reset();
         writePly(deformed, fitted);
+        writeMs += clock.ms();
         report["outputs"]["deformed"] = deformed;
 
         if (o.writeVdb) {
@@ -161,6 +165,7 @@ nlohmann::json runDeformJob(const DeformJobOptions& o)
             report["timingsMs"]["render"] = clock.ms();
         }
     }
+    report["timingsMs"]["write"] = writeMs;
     report["timingsMs"]["total"] = total.ms();
     const std::string reportPath = outPath(o, "report.json");
     writeFileAtomic(reportPath, report.dump(2) + "\n");
