@@ -42,26 +42,15 @@ constexpr double kGradRelPerGaussian = 1e-4; // the same per Gaussian (a priori)
 constexpr double kEnergyRel100 = 1e-2;       // energies after 100 Adam steps (L1 sign flips make
                                              // the trajectories drift apart slowly; a priori)
 
-struct Problem {
-    GaussianCloud start;
-    SampleSet samples;
-    std::vector<std::uint8_t> moving;
-    std::vector<std::int32_t> cells;
-    StageTwoOptions options;
-};
+using Problem = RigidStageTwoProblem;
 
 /// Random cloud, targets from the cloud moved rigidly; every third Gaussian static when asked.
 Problem makeProblem(int degree, std::uint32_t seed, bool someStatic, std::size_t count = 60)
 {
-    Problem p;
-    const GaussianCloud rest = randomCloud(count, degree, seed, 0.45f, 0.04f, 0.12f);
-    const GaussianCloud target = rigidlyMoved(rest, quatToMatrix(Quatd{1.0, 0.04, -0.06, 0.05}), Vec3d(0.03, 0.02, -0.04));
-    p.samples = latticeSampleSet(target, kCells, kHalf, 2, p.options);
-    p.start = rest;
-    p.moving.assign(rest.size(), 1);
+    Problem p = rigidStageTwoProblem(count, degree, seed, 0.45f, quatToMatrix(Quatd{1.0, 0.04, -0.06, 0.05}),
+                                     Vec3d(0.03, 0.02, -0.04), kCells, kHalf);
     if (someStatic)
         for (std::size_t i = 0; i < p.moving.size(); i += 3) p.moving[i] = 0;
-    p.cells = latticeCells(rest, kCells, kHalf);
     return p;
 }
 

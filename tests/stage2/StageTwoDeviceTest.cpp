@@ -61,22 +61,12 @@ std::string errorOf(const F& f)
     return "";
 }
 
-struct SmallProblem {
-    GaussianCloud cloud;
-    SampleSet samples;
-    std::vector<std::uint8_t> moving;
-    std::vector<std::int32_t> cells;
-    StageTwoOptions options;
-    SmallProblem()
-    {
-        options.iterations = 3;
-        cloud = randomCloud(12, 0, 7, 0.4f, 0.05f, 0.12f);
-        const GaussianCloud target = rigidlyMoved(cloud, Mat3d::identity(), Vec3d(0.03, 0, 0));
-        samples = latticeSampleSet(target, 6, 0.9f, 2, options);
-        moving.assign(cloud.size(), 1);
-        cells = latticeCells(cloud, 6, 0.9f);
-    }
-};
+RigidStageTwoProblem smallProblem()
+{
+    StageTwoOptions o;
+    o.iterations = 3;
+    return rigidStageTwoProblem(12, 0, 7, 0.4f, Mat3d::identity(), Vec3d(0.03, 0, 0), 6, 0.9f, o);
+}
 
 bool sameParams(const GaussianCloud& a, const GaussianCloud& b)
 {
@@ -106,10 +96,10 @@ TEST(Device, CudaWithoutSupportFailsClearly)
     const std::string e = errorOf([] { resolveDevice(Device::Cuda); });
     EXPECT_NE(e.find("this build has no CUDA support"), std::string::npos) << e;
 
-    SmallProblem p;
-    GaussianCloud cloud = p.cloud;
+    const RigidStageTwoProblem p = smallProblem();
+    GaussianCloud cloud = p.start;
     EXPECT_THROW(runStageTwo(Device::Cuda, cloud, p.samples, p.moving, p.cells, p.options), InputError);
-    EXPECT_TRUE(sameParams(cloud, p.cloud));
+    EXPECT_TRUE(sameParams(cloud, p.start));
 }
 
 TEST(Device, CudaWithoutGpuFailsClearlyAndAutoUsesCpu)
@@ -120,8 +110,8 @@ TEST(Device, CudaWithoutGpuFailsClearlyAndAutoUsesCpu)
     EXPECT_FALSE(cudaPresent());
     const std::string e = errorOf([] { resolveDevice(Device::Cuda); });
     EXPECT_NE(e.find("no usable CUDA GPU"), std::string::npos) << e;
-    SmallProblem p;
-    GaussianCloud cloud = p.cloud;
+    const RigidStageTwoProblem p = smallProblem();
+    GaussianCloud cloud = p.start;
     const StageTwoReport r = runStageTwo(Device::Auto, cloud, p.samples, p.moving, p.cells, p.options);
     EXPECT_EQ(r.device, "cpu");
     EXPECT_EQ(gFakeCalls, 0);
@@ -131,8 +121,8 @@ TEST(Device, AutoDispatchesToRegisteredCuda)
 {
     gFakeCalls = 0;
     FakeCuda fake(gpu, fakeSuccess);
-    SmallProblem p;
-    GaussianCloud cloud = p.cloud;
+    const RigidStageTwoProblem p = smallProblem();
+    GaussianCloud cloud = p.start;
     const StageTwoReport r = runStageTwo(Device::Auto, cloud, p.samples, p.moving, p.cells, p.options);
     EXPECT_EQ(gFakeCalls, 1);
     EXPECT_EQ(r.device, "cuda");
@@ -146,8 +136,8 @@ TEST(Device, OutOfGpuMemoryFallsBackUnderAutoOnly)
 {
     gFakeCalls = 0;
     FakeCuda fake(gpu, fakeOutOfMemory);
-    SmallProblem p;
-    GaussianCloud reference = p.cloud, cloud = p.cloud;
+    const RigidStageTwoProblem p = smallProblem();
+    GaussianCloud reference = p.start, cloud = p.start;
     const StageTwoReport ref = optimiseStageTwo(reference, p.samples, p.moving, p.cells, p.options);
     const StageTwoReport r = runStageTwo(Device::Auto, cloud, p.samples, p.moving, p.cells, p.options);
     EXPECT_EQ(gFakeCalls, 1);
@@ -155,7 +145,7 @@ TEST(Device, OutOfGpuMemoryFallsBackUnderAutoOnly)
     EXPECT_TRUE(sameParams(cloud, reference));
     EXPECT_EQ(r.energies.back().total, ref.energies.back().total);
 
-    GaussianCloud explicitCuda = p.cloud;
+    GaussianCloud explicitCuda = p.start;
     try {
         runStageTwo(Device::Cuda, explicitCuda, p.samples, p.moving, p.cells, p.options);
         ADD_FAILURE() << "expected DeviceMemoryError";
@@ -163,5 +153,5 @@ TEST(Device, OutOfGpuMemoryFallsBackUnderAutoOnly)
         EXPECT_NE(std::string(e.what()).find("coverage pairs"), std::string::npos) << e.what();
     }
     EXPECT_EQ(gFakeCalls, 2);
-    EXPECT_TRUE(sameParams(explicitCuda, p.cloud));
+    EXPECT_TRUE(sameParams(explicitCuda, p.start));
 }
