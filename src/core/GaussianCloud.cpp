@@ -56,4 +56,17 @@ void centreBounds(const GaussianCloud& g, Vec3f& lo, Vec3f& hi)
     }
 }
 
+GaussianCloud withShDegree(const GaussianCloud& g, int degree)
+{
+    GaussianCloud out;
+    out.resize(g.size(), degree); // throws for a degree outside 0..3
+    out.means = g.means;
+    out.rotations = g.rotations;
+    out.logScales = g.logScales;
+    out.opacities = g.opacities;
+    const int keep = std::min(g.shStride(), out.shStride());
+    for (std::size_t i = 0; i < g.size(); ++i) std::copy(g.shOf(i), g.shOf(i) + keep, out.shOf(i));
+    return out;
+}
+
 } // namespace splatwarp

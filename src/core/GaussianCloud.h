@@ -58,4 +58,8 @@ struct GaussianCloud {
 /// @brief Axis-aligned bounding box of the centres (min, max). Empty cloud gives zeros.
 void centreBounds(const GaussianCloud& g, Vec3f& lo, Vec3f& hi);
 
+/// @brief A copy with another SH degree: higher bands dropped, or new bands zero (benchmarks,
+///        writers of degree-limited formats).
+GaussianCloud withShDegree(const GaussianCloud& g, int degree);
+
 } // namespace splatwarp

@@ -33,7 +33,7 @@ FieldErrorReport fieldError(const GaussianCloud& rest, const GaussianCloud& defo
             Mat3d rot;
             for (int a = 0; a < 3; ++a)
                 for (int b = 0; b < 3; ++b) rot.m[a][b] = rotations[9 * j + std::size_t(3 * a + b)];
-            ShRotation(rot).apply(rest.shDegree, target.data());
+            ShRotation(rot, rest.shDegree).apply(rest.shDegree, target.data());
         }
         const int side = oRest[j] > 0.0f ? 0 : 1;
         ++(side == 0 ? r.insidePoints : r.outsidePoints);

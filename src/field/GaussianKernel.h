@@ -11,6 +11,10 @@ namespace splatwarp {
 /// the smallest contribution an 8-bit image can show.
 constexpr float kDefaultCutoff = 1.0f / 255.0f;
 
+/// Default low-pass filter strength lambda_lpf: variance lambda * spacing^2 (times F_k F_k^T in
+/// Stage II) is added to every covariance; 0.2 is Mip-Splatting's 3D filter value.
+constexpr float kDefaultLambdaLpf = 0.2f;
+
 /// @brief Covariance R S S^T R^T from a (raw, normalised on use) quaternion and standard deviations.
 template <typename T>
 SPLATWARP_HOST_DEVICE Mat3<T> gaussianCovariance(const Quat<T>& q, const Vec3<T>& scale)

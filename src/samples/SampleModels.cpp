@@ -78,11 +78,13 @@ GaussianCloud makeStripes(const SampleOptions& o)
         const int band = std::min(7, int((p.x / lx + 0.5) * 8.0));
         const double* c = kPalette[band];
         setColour(g, i, Vec3d(c[0], c[1], c[2]) * rng.uniform(0.92, 1.0));
-        // View-dependent sheen in band 1, stronger on the odd bands.
+        // View-dependent sheen in SH band 1: one coherent lobe per colour band (as trained
+        // models show on glossy surfaces), stronger on the odd bands, plus a little noise.
         float* sh = g.shOf(i);
-        const double k = (band % 2) ? 0.25 : 0.08;
+        const double k = (band % 2) ? 0.2 : 0.06;
+        const Vec3d lobe = Vec3d(std::cos(1.3 * band), std::sin(1.3 * band), 0.5 * std::cos(0.7 * band));
         for (int j = 1; j < 4; ++j)
-            for (int ch = 0; ch < 3; ++ch) sh[3 * j + ch] = float(k * rng.uniform(-1.0, 1.0));
+            for (int ch = 0; ch < 3; ++ch) sh[3 * j + ch] = float(k * lobe[j - 1] + 0.02 * rng.uniform(-1.0, 1.0));
     }
     return g;
 }

@@ -69,20 +69,24 @@ SPLATWARP_HOST_DEVICE Vec3<T> evalShColor(int degree, const C* coeffs, const Vec
 
 /// @brief The per-band matrices that rotate SH coefficients by a rotation R: after apply(),
 ///        eval(coeffs', R d) == eval(coeffs, d) for every direction d. Band 0 is invariant.
+/// @note  Built per rotation (once per Gaussian or sample), so construction is kept cheap:
+///        fixed-size arrays, and only the bands up to the degree asked for.
 class ShRotation {
 public:
-    /// @param r a proper rotation matrix (orthonormal, det +1).
-    explicit ShRotation(const Mat3d& r);
-    /// @brief Rotate coefficients [K,3] (K = (degree+1)^2) in place.
+    /// @param r      a proper rotation matrix (orthonormal, det +1).
+    /// @param degree highest band to build (apply() accepts degrees up to this).
+    explicit ShRotation(const Mat3d& r, int degree = 3);
+    /// @brief Rotate coefficients [K,3] (K = (degree+1)^2) in place; degree <= the built degree.
     void apply(int degree, float* coeffs) const;
     void apply(int degree, double* coeffs) const;
-    /// @brief Band matrix entry D_l[i][j] (l = 1..3), mainly for tests.
-    double band(int l, int i, int j) const;
+    /// @brief Band matrix entry D_l[i][j] (l = 1..built degree), mainly for tests.
+    double band(int l, int i, int j) const { return mBand[l][i * (2 * l + 1) + j]; }
 
 private:
     template <typename T>
     void applyImpl(int degree, T* coeffs) const;
-    double mD1[3][3], mD2[5][5], mD3[7][7];
+    int mDegree;
+    double mBand[4][49]; ///< band l: (2l+1) x (2l+1) row-major; band 0 unused
 };
 
 /// @brief Rotate the SH of every Gaussian of a cloud by the same rotation (rigid motions, tests).

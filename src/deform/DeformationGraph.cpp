@@ -1,0 +1,181 @@
+#include "deform/DeformationGraph.h"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <nanoflann.hpp>
+#include <random>
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
+#include <tbb/parallel_reduce.h>
+
+#include "core/Error.h"
+
+namespace splatwarp {
+
+namespace detail {
+
+/// nanoflann dataset adaptor over an owned copy of the node positions.
+struct NodeCloud {
+    std::vector<double> xyz; // [J,3]
+    std::size_t kdtree_get_point_count() const { return xyz.size() / 3; }
+    double kdtree_get_pt(std::size_t i, std::size_t dim) const { return xyz[3 * i + dim]; }
+    template <class Box>
+    bool kdtree_get_bbox(Box&) const { return false; }
+};
+
+using NodeTree =
+    nanoflann::KDTreeSingleIndexAdaptor<nanoflann::L2_Simple_Adaptor<double, NodeCloud>, NodeCloud, 3, std::int32_t>;
+
+struct NodeIndex {
+    NodeCloud cloud;
+    std::unique_ptr<NodeTree> tree;
+
+    /// Up to n nearest nodes of q, nearest first; returns how many were found.
+    std::size_t nearest(const double* q, std::size_t n, std::int32_t* idx, double* dist2) const
+    {
+        return tree->knnSearch(q, n, idx, dist2);
+    }
+};
+
+} // namespace detail
+
+namespace {
+
+/// One FPS round: fold the newest node into the running minimum distances and find the farthest
+/// point. Ties go to the lowest index so serial and parallel runs pick the same nodes.
+struct FarthestOp {
+    const float* points;
+    float* minDist2;
+    Vec3f node;
+    float best = -1.0f;
+    std::size_t bestIndex = 0;
+
+    FarthestOp(const float* p, float* d, const Vec3f& n) : points(p), minDist2(d), node(n) {}
+    FarthestOp(FarthestOp& o, tbb::split) : points(o.points), minDist2(o.minDist2), node(o.node) {}
+
+    void operator()(const tbb::blocked_range<std::size_t>& r)
+    {
+        for (std::size_t i = r.begin(); i != r.end(); ++i) {
+            const float dx = points[3 * i] - node.x, dy = points[3 * i + 1] - node.y, dz = points[3 * i + 2] - node.z;
+            const float d = std::min(minDist2[i], dx * dx + dy * dy + dz * dz);
+            minDist2[i] = d;
+            if (d > best) { best = d; bestIndex = i; } // strict: keeps the lowest index within a range
+        }
+    }
+    void join(const FarthestOp& o)
+    {
+        if (o.best > best || (o.best == best && o.bestIndex < bestIndex)) { best = o.best; bestIndex = o.bestIndex; }
+    }
+};
+
+} // namespace
+
+DeformationGraph::DeformationGraph() = default;
+DeformationGraph::~DeformationGraph() = default;
+DeformationGraph::DeformationGraph(const DeformationGraph&) = default;
+DeformationGraph::DeformationGraph(DeformationGraph&&) noexcept = default;
+DeformationGraph& DeformationGraph::operator=(const DeformationGraph&) = default;
+DeformationGraph& DeformationGraph::operator=(DeformationGraph&&) noexcept = default;
+
+DeformationGraph DeformationGraph::build(const GaussianCloud& cloud, const GraphOptions& options, bool threaded)
+{
+    if (cloud.empty()) throw InputError("cannot build a deformation graph: the model has no Gaussians");
+    if (options.nodes < 1) throw InputError(msg("graph node count must be >= 1 (got ", options.nodes, ")"));
+    if (options.k < 1) throw InputError(msg("graph k must be >= 1 (got ", options.k, ")"));
+
+    const std::size_t n = cloud.size();
+    const float* pts = cloud.means.data();
+    std::vector<float> minDist2(n, std::numeric_limits<float>::infinity());
+    std::vector<Vec3d> nodes;
+    nodes.reserve(std::size_t(options.nodes));
+    std::size_t next = std::mt19937(options.seed)() % n;
+    const std::size_t grain = 4096;
+    while (nodes.size() < std::size_t(options.nodes)) {
+        const Vec3f p = cloud.mean(next);
+        nodes.emplace_back(p);
+        FarthestOp op(pts, minDist2.data(), p);
+        if (threaded)
+            tbb::parallel_reduce(tbb::blocked_range<std::size_t>(0, n, grain), op);
+        else
+            op(tbb::blocked_range<std::size_t>(0, n));
+        if (!(op.best > 0.0f)) break; // every centre coincides with a node already
+        next = op.bestIndex;
+    }
+    return fromNodes(std::move(nodes), options.k);
+}
+
+DeformationGraph DeformationGraph::fromNodes(std::vector<Vec3d> nodes, int k)
+{
+    if (nodes.empty()) throw InputError("a deformation graph needs at least one node");
+    if (k < 1) throw InputError(msg("graph k must be >= 1 (got ", k, ")"));
+    DeformationGraph g;
+    g.mNodes = std::move(nodes);
+    g.mK = k;
+    g.buildIndex();
+    const std::size_t j = g.mNodes.size();
+    const std::size_t query = std::min<std::size_t>(std::size_t(k) + 1, j);
+    std::vector<std::int32_t> idx(query);
+    std::vector<double> d2(query);
+    g.mNeighbours.resize(j);
+    for (std::size_t a = 0; a < j; ++a) {
+        const double q[3] = {g.mNodes[a].x, g.mNodes[a].y, g.mNodes[a].z};
+        const std::size_t found = g.mIndex->nearest(q, query, idx.data(), d2.data());
+        for (std::size_t i = 0; i < found && g.mNeighbours[a].size() < std::size_t(k); ++i)
+            if (std::size_t(idx[i]) != a) g.mNeighbours[a].push_back(idx[i]);
+    }
+    return g;
+}
+
+void DeformationGraph::buildIndex()
+{
+    auto index = std::make_shared<detail::NodeIndex>();
+    index->cloud.xyz.reserve(3 * mNodes.size());
+    for (const Vec3d& p : mNodes) index->cloud.xyz.insert(index->cloud.xyz.end(), {p.x, p.y, p.z});
+    index->tree = std::make_unique<detail::NodeTree>(3, index->cloud, nanoflann::KDTreeSingleIndexAdaptorParams(10));
+    mIndex = std::move(index);
+}
+
+SkinWeights DeformationGraph::skinWeights(const float* points, std::size_t count, bool threaded) const
+{
+    SkinWeights w;
+    const std::size_t j = nodeCount();
+    w.k = int(std::min<std::size_t>(std::size_t(mK), j));
+    const std::size_t k = std::size_t(w.k);
+    w.nodes.resize(count * k);
+    w.weights.resize(count * k);
+    const std::size_t query = std::min(k + 1, j);
+    auto body = [&](const tbb::blocked_range<std::size_t>& r) {
+        // Scratch per range (not per point): neighbour indices, squared distances, weights.
+        std::vector<std::int32_t> idx(query);
+        std::vector<double> d2(query), wt(k);
+        std::int32_t* ip = idx.data();
+        double* dp = d2.data();
+        double* wp = wt.data();
+        for (std::size_t p = r.begin(); p != r.end(); ++p) {
+            const double q[3] = {points[3 * p], points[3 * p + 1], points[3 * p + 2]};
+            mIndex->nearest(q, query, ip, dp);
+            const double dNext = query > k ? std::sqrt(dp[k]) : 2.0 * std::sqrt(dp[k - 1]);
+            double sum = 0.0;
+            for (std::size_t i = 0; i < k; ++i) {
+                const double t = dNext > 0.0 ? 1.0 - std::sqrt(dp[i]) / dNext : 0.0;
+                wp[i] = t > 0.0 ? t * t : 0.0;
+                sum += wp[i];
+            }
+            // d_{k+1} == 0 or all k+1 nodes equidistant: no preference, share equally.
+            const bool uniform = !(sum > 0.0);
+            for (std::size_t i = 0; i < k; ++i) {
+                w.nodes[p * k + i] = ip[i];
+                w.weights[p * k + i] = float(uniform ? 1.0 / double(k) : wp[i] / sum);
+            }
+        }
+    };
+    const tbb::blocked_range<std::size_t> range(0, count, 1024);
+    if (threaded)
+        tbb::parallel_for(range, body);
+    else
+        body(tbb::blocked_range<std::size_t>(0, count));
+    return w;
+}
+
+} // namespace splatwarp

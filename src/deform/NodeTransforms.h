@@ -1,0 +1,31 @@
+#pragma once
+/// @file NodeTransforms.h
+/// @brief Per-node affine transforms of the deformation graph and embedded-deformation skinning:
+///        v' = sum_j w_j (A_j (v - g_j) + g_j + t_j).
+#include <cstddef>
+#include <vector>
+
+#include "core/SmallMath.h"
+#include "deform/DeformationGraph.h"
+
+namespace splatwarp {
+
+/// @brief Affine part A_j and translation t_j of every graph node, [J] each.
+struct NodeTransforms {
+    std::vector<Mat3d> A;
+    std::vector<Vec3d> t;
+    /// @brief n identity transforms (A = I, t = 0).
+    static NodeTransforms identity(std::size_t n);
+    std::size_t size() const { return t.size(); }
+};
+
+/// @brief Deformed position of point i of the weights, at rest position v:
+///        v' = sum_j w_j (A_j (v - g_j) + g_j + t_j).
+Vec3d skinPoint(const DeformationGraph& graph, const NodeTransforms& transforms, const SkinWeights& weights,
+                std::size_t i, const Vec3d& v);
+
+/// @brief Local deformation gradient of point i: sum_j w_j A_j.
+Mat3d skinGradient(const DeformationGraph& graph, const NodeTransforms& transforms, const SkinWeights& weights,
+                   std::size_t i);
+
+} // namespace splatwarp

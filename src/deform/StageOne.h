@@ -1,0 +1,59 @@
+#pragma once
+/// @file StageOne.h
+/// @brief Stage I: move every Gaussian with the embedded deformation. Six endpoints at +-2 sigma
+///        along its axes are skinned, M = (P Q^T)(Q Q^T)^-1 is split by polar decomposition M = R S,
+///        and mean, rotation, scales and SH follow (DESIGN.md "Stage I").
+#include <cstdint>
+#include <vector>
+
+#include "core/GaussianCloud.h"
+#include "deform/Deformation.h"
+#include "deform/DeformationGraph.h"
+#include "deform/NodeTransforms.h"
+
+namespace splatwarp {
+
+/// @brief Options of Stage I.
+struct StageOneOptions {
+    double endpointSigmas = 2.0;     ///< endpoints at +-endpointSigmas * sigma per axis (paper: 2)
+    double flatEpsilon = 1e-3;       ///< sigma = scale + flatEpsilon * largest scale: flat Gaussians keep a frame
+    double absoluteEpsilon = 1e-6;   ///< ... + absoluteEpsilon * model extent: near-zero Gaussians too
+    double minStretch = 1e-6;        ///< lower bound of the stretch along an axis (keeps log-scales finite)
+    bool threaded = true;
+};
+
+/// @brief Per-model precomputation: the 7 skinned points of every Gaussian (centre, then the
+///        endpoints +x,-x,+y,-y,+z,-z of its own axes) and their skin weights.
+struct StageOneRig {
+    std::vector<float> points;   ///< [N*7,3] rest positions
+    SkinWeights weights;         ///< [N*7,k]
+    double extent = 1.0;         ///< largest extent of the centre bounding box
+    std::size_t size() const { return points.size() / 21; }
+};
+
+/// @brief Timings of a Stage I run, ms.
+struct StageOneTimings {
+    double rigMs = 0;     ///< endpoints and weights (0 when a rig was given)
+    double updateMs = 0;  ///< per-Gaussian update
+};
+
+/// @brief Deformed model and which Gaussians moved.
+struct StageOneResult {
+    GaussianCloud deformed;            ///< static Gaussians are bit-exact copies of the rest model
+    std::vector<std::uint8_t> moving;  ///< [N] 1 if any of its 7 points has weight on a moving node
+    std::size_t movingCount = 0;
+    StageOneTimings timings;
+};
+
+/// @brief Endpoints and weights for a rest model on a graph (once per model and graph).
+StageOneRig prepareStageOne(const GaussianCloud& rest, const DeformationGraph& graph, const StageOneOptions& options = {});
+
+/// @brief Apply node transforms to every Gaussian. nodeMoving [J]: 0 for nodes at identity.
+StageOneResult applyStageOne(const GaussianCloud& rest, const StageOneRig& rig, const DeformationGraph& graph,
+                             const NodeTransforms& transforms, const std::vector<std::uint8_t>& nodeMoving,
+                             const StageOneOptions& options = {});
+
+/// @brief prepareStageOne + applyStageOne for a solved deformation.
+StageOneResult runStageOne(const GaussianCloud& rest, const Deformation& deformation, const StageOneOptions& options = {});
+
+} // namespace splatwarp

@@ -1,0 +1,91 @@
+/// `splatwarp bench stage1 [IN] [--spec S]`: median times of the Stage I phases.
+#include <algorithm>
+#include <cstdio>
+#include <nlohmann/json.hpp>
+
+#include "Command.h"
+#include "core/Error.h"
+#include "core/Progress.h"
+#include "deform/StageOne.h"
+#include "io/GaussianIO.h"
+#include "samples/SampleModels.h"
+
+namespace splatwarp::cli {
+namespace {
+
+struct BenchArgs {
+    std::string input;                              // empty: the stripes sample
+    std::string spec = "samples/specs/bend.json";   // relative to the repository root
+    int runs = 5;
+    bool json = false;
+};
+
+double median(std::vector<double> v)
+{
+    std::sort(v.begin(), v.end());
+    const std::size_t n = v.size();
+    return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
+}
+
+void runBench(const BenchArgs& a)
+{
+    const GaussianCloud rest = a.input.empty() ? makeSample("stripes") : readGaussians(a.input);
+    const DeformSpec spec = loadDeformSpec(a.spec);
+    const bool quiet = !progressEnabled();
+    setProgressEnabled(false); // the per-phase lines would swamp the table
+    std::vector<double> graphMs, weightsMs, solveMs, updateMs, stepMs;
+    Deformation d;
+    StageOneResult s;
+    for (int r = 0; r < a.runs; ++r) {
+        Stopwatch t;
+        const DeformationGraph graph = DeformationGraph::build(rest, spec.graph);
+        graphMs.push_back(t.ms());
+        t.reset();
+        const StageOneRig rig = prepareStageOne(rest, graph);
+        weightsMs.push_back(t.ms());
+        t.reset();
+        d = solveDeformation(graph, rest, spec);
+        solveMs.push_back(t.ms());
+        const Stopwatch u;
+        s = applyStageOne(rest, rig, d.graph, d.transforms, d.nodeMoving);
+        updateMs.push_back(u.ms());
+        stepMs.push_back(t.ms());
+    }
+    setProgressEnabled(!quiet);
+    const std::string name = a.input.empty() ? std::string("stripes (sample)") : a.input;
+    nlohmann::json j = {{"model", name}, {"spec", a.spec}, {"gaussians", rest.size()}, {"shDegree", rest.shDegree},
+                        {"nodes", d.graph.nodeCount()}, {"k", d.graph.k()}, {"moving", s.movingCount},
+                        {"solverIterations", d.report.solver.iterations}, {"runs", a.runs},
+                        {"medianMs", {{"graph", median(graphMs)}, {"weights", median(weightsMs)},
+                                      {"solve", median(solveMs)}, {"update", median(updateMs)},
+                                      {"step", median(stepMs)}, {"precompute", median(graphMs) + median(weightsMs)}}}};
+    if (a.json) {
+        std::printf("%s\n", j.dump(2).c_str());
+        return;
+    }
+    std::printf("Stage I benchmark: %s, %zu Gaussians (SH %d), %zu nodes, k %d, %zu moving, %d GN iterations\n",
+                name.c_str(), rest.size(), rest.shDegree, d.graph.nodeCount(), d.graph.k(), s.movingCount,
+                d.report.solver.iterations);
+    std::printf("%-34s %10s\n", "phase (median of runs)", "ms");
+    const auto& m = j["medianMs"];
+    std::printf("%-34s %10.2f\n", "graph build (FPS + edges)", m["graph"].get<double>());
+    std::printf("%-34s %10.2f\n", "skin weights (7 points/Gaussian)", m["weights"].get<double>());
+    std::printf("%-34s %10.2f\n", "ED solve", m["solve"].get<double>());
+    std::printf("%-34s %10.2f\n", "per-Gaussian update", m["update"].get<double>());
+    std::printf("%-34s %10.2f\n", "step = solve + update", m["step"].get<double>());
+    std::printf("%-34s %10.2f\n", "precompute = graph + weights", m["precompute"].get<double>());
+}
+
+const CommandRegistrar reg(1010, [](CLI::App& app) {
+    auto args = std::make_shared<BenchArgs>();
+    CLI::App* sub = benchCommand(app)->add_subcommand("stage1", "Time Stage I: graph build, skin weights, ED solve, per-Gaussian update");
+    sub->add_option("input", args->input, "Model to deform (default: the stripes sample)")->check(CLI::ExistingFile);
+    sub->add_option("--spec", args->spec, "Deformation spec (default: samples/specs/bend.json, from the repository root)")
+        ->capture_default_str();
+    sub->add_option("--runs", args->runs, "Runs per phase; the median is reported")->check(CLI::Range(1, 1000))->capture_default_str();
+    sub->add_flag("--json", args->json, "Print JSON instead of a table");
+    sub->callback([args] { runBench(*args); });
+});
+
+} // namespace
+} // namespace splatwarp::cli

@@ -1,0 +1,271 @@
+#include "SampleGrid.h"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+
+#include <openvdb/openvdb.h>
+#include <openvdb/tools/Morphology.h>
+#include <openvdb/tree/LeafManager.h>
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
+#include <tbb/parallel_reduce.h>
+
+#include "SampleGridImpl.h"
+#include "VdbLibrary.h"
+#include "core/Error.h"
+#include "core/Progress.h"
+#include "field/FeatureField.h"
+#include "field/PreparedGaussian.h"
+
+namespace splatwarp {
+
+namespace {
+
+/// Gaussians per task in the parallel loops (small enough to balance, large enough to amortise).
+constexpr std::size_t kGrain = 1024;
+
+/// body(begin, end) over [0, n), in parallel chunks or in one serial call.
+template <typename Body>
+void forRange(std::size_t n, bool threaded, const Body& body)
+{
+    if (threaded)
+        tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n, kGrain),
+                          [&](const tbb::blocked_range<std::size_t>& r) { body(r.begin(), r.end()); });
+    else
+        body(std::size_t(0), n);
+}
+
+/// World-space box of a prepared Gaussian: its pruning AABB (the exact cutoff ellipsoid box,
+/// slightly padded; the centre alone when it never contributes), the same box the feature
+/// evaluation prunes with, so no contributing pair falls outside the active cells.
+void gaussianBox(const PreparedGaussian& g, Vec3d& lo, Vec3d& hi)
+{
+    const Vec3d c(g.mean);
+    const Vec3d half(std::max(g.halfExtent.x, 0.0f), std::max(g.halfExtent.y, 0.0f), std::max(g.halfExtent.z, 0.0f));
+    lo = c - half;
+    hi = c + half;
+}
+
+/// Per-thread union of the cells overlapped by each Gaussian's box (tbb::parallel_reduce body).
+struct TopologyOp {
+    const std::vector<PreparedGaussian>& gaussians;
+    const SampleGrid::Impl& grid;
+    openvdb::MaskTree tree;
+
+    TopologyOp(const std::vector<PreparedGaussian>& g, const SampleGrid::Impl& im) : gaussians(g), grid(im) {}
+    TopologyOp(TopologyOp& o, tbb::split) : gaussians(o.gaussians), grid(o.grid) {}
+
+    void operator()(const tbb::blocked_range<std::size_t>& r)
+    {
+        openvdb::tree::ValueAccessor<openvdb::MaskTree> acc(tree);
+        for (std::size_t i = r.begin(); i != r.end(); ++i) {
+            Vec3d lo, hi;
+            gaussianBox(gaussians[i], lo, hi);
+            const openvdb::CoordBBox box(grid.cellOf(lo), grid.cellOf(hi));
+            // Large boxes (big Gaussians) are filled as tiles where possible; small ones voxel by voxel.
+            if (box.volume() > 512) {
+                tree.sparseFill(box, true, true);
+                continue;
+            }
+            for (int x = box.min().x(); x <= box.max().x(); ++x)
+                for (int y = box.min().y(); y <= box.max().y(); ++y)
+                    for (int z = box.min().z(); z <= box.max().z(); ++z) acc.setValueOn(openvdb::Coord(x, y, z));
+        }
+    }
+    void join(TopologyOp& o) { tree.topologyUnion(o.tree); }
+};
+
+} // namespace
+
+openvdb::Coord SampleGrid::Impl::cellOf(const Vec3d& p) const
+{
+    return openvdb::Coord(cellCoordOf(p.x), cellCoordOf(p.y), cellCoordOf(p.z));
+}
+
+int SampleGrid::Impl::cellCoordOf(double x) const { return int(std::floor(x / double(set.cellSize))); }
+
+SampleGrid::SampleGrid(const GaussianCloud& cloud, const SampleGridOptions& options) : mImpl(std::make_unique<Impl>())
+{
+    vdb::initialize();
+    cloud.checkConsistent();
+    if (cloud.empty()) throw InputError("sample grid: the model has no Gaussians");
+    if (options.samplesPerAxis < 2 || options.samplesPerAxis > 16)
+        throw InputError(msg("sample grid: samples per cell axis must be in 2..16, got ", options.samplesPerAxis));
+    if (!(options.cutoff > 0.0f && options.cutoff < 1.0f))
+        throw InputError(msg("sample grid: cutoff must be in (0, 1), got ", options.cutoff));
+    if (!(options.lambdaLpf >= 0.0f)) throw InputError(msg("sample grid: lambdaLpf must be >= 0, got ", options.lambdaLpf));
+    if (!(options.cellSize >= 0.0f) || (options.cellSize <= 0.0f && options.cells < 1))
+        throw InputError("sample grid: give a positive cell count or cell size");
+
+    Impl& im = *mImpl;
+    im.options = options;
+    SampleSet& set = im.set;
+    const std::size_t n = cloud.size();
+    const int na = options.samplesPerAxis;
+    const double cutoff = options.cutoff;
+    Stopwatch watch;
+
+    // Cell edge: the largest extent of the unfiltered extent boxes / cells.
+    double h = options.cellSize;
+    if (h <= 0.0) {
+        Vec3d lo(std::numeric_limits<double>::max(), std::numeric_limits<double>::max(), std::numeric_limits<double>::max());
+        Vec3d hi = -lo;
+        for (std::size_t i = 0; i < n; ++i) {
+            Vec3d a, b;
+            gaussianBox(prepareGaussian(cloud, i, 0.0, cutoff), a, b);
+            for (int k = 0; k < 3; ++k) { lo[k] = std::min(lo[k], a[k]); hi[k] = std::max(hi[k], b[k]); }
+        }
+        const double extent = std::max(hi.x - lo.x, std::max(hi.y - lo.y, hi.z - lo.z));
+        if (!(extent > 0.0) || !std::isfinite(extent))
+            throw InputError("sample grid: the model has zero extent; give an explicit cell size");
+        h = extent / options.cells;
+    }
+    set.shDegree = cloud.shDegree;
+    set.samplesPerAxis = na;
+    set.cellSize = float(h);
+    set.spacing = float(h / na);
+    const double spacing = h / na;
+    const double filterVariance = double(options.lambdaLpf) * spacing * spacing;
+
+    // Active cells: every cell a Gaussian's box overlaps, then one cell of 26-neighbour dilation.
+    const std::vector<PreparedGaussian> prepared = prepareCloud(cloud, filterVariance, cutoff, options.threaded);
+    TopologyOp topo(prepared, im);
+    if (options.threaded)
+        tbb::parallel_reduce(tbb::blocked_range<std::size_t>(0, n, kGrain), topo);
+    else
+        topo(tbb::blocked_range<std::size_t>(0, n));
+    openvdb::tools::dilateActiveValues(topo.tree, 1, openvdb::tools::NN_FACE_EDGE_VERTEX, openvdb::tools::EXPAND_TILES,
+                                       options.threaded);
+    topo.tree.voxelizeActiveTiles(options.threaded);
+
+    // Index grid: -1 background, active cells numbered in leaf order (deterministic for a topology).
+    im.index = openvdb::Int32Grid::create(-1);
+    im.index->setTree(std::make_shared<openvdb::Int32Tree>(topo.tree, -1, openvdb::TopologyCopy()));
+    im.index->setTransform(openvdb::math::Transform::createLinearTransform(h));
+    im.index->transform().postTranslate(openvdb::Vec3d(0.5 * h)); // cell (i,j,k) spans [i h, (i+1) h)
+    im.index->setName("cell_index");
+    openvdb::tree::LeafManager<openvdb::Int32Tree> leaves(im.index->tree());
+    std::vector<std::size_t> leafStart(leaves.leafCount() + 1, 0);
+    for (std::size_t l = 0; l < leaves.leafCount(); ++l) leafStart[l + 1] = leafStart[l] + leaves.leaf(l).onVoxelCount();
+    const std::size_t cells = leafStart.back();
+    if (cells > std::size_t(std::numeric_limits<std::int32_t>::max()) / std::size_t(na * na * na))
+        throw InputError(msg("sample grid: ", cells, " cells x ", na * na * na, " samples is too many; use fewer cells"));
+    im.cellCoords.resize(3 * cells);
+    forRange(leaves.leafCount(), options.threaded, [&](std::size_t b, std::size_t e) {
+        for (std::size_t l = b; l < e; ++l) {
+            std::int32_t c = std::int32_t(leafStart[l]);
+            for (auto it = leaves.leaf(l).beginValueOn(); it; ++it, ++c) {
+                it.setValue(c);
+                const openvdb::Coord ijk = it.getCoord();
+                for (int k = 0; k < 3; ++k) im.cellCoords[3 * c + k] = ijk[k];
+            }
+        }
+    });
+
+    // Samples: cell-centred n^3 sub-lattice per cell.
+    const std::size_t perCell = std::size_t(na) * na * na;
+    const std::size_t m = cells * perCell;
+    set.restPositions.resize(3 * m);
+    set.sampleCell.resize(m);
+    forRange(cells, options.threaded, [&](std::size_t b, std::size_t e) {
+        for (std::size_t c = b; c < e; ++c) {
+            const std::int32_t* ijk = &im.cellCoords[3 * c];
+            std::size_t s = c * perCell;
+            for (int a = 0; a < na; ++a)
+                for (int bb = 0; bb < na; ++bb)
+                    for (int cc = 0; cc < na; ++cc, ++s) {
+                        set.restPositions[3 * s] = float((ijk[0] * na + a + 0.5) * spacing);
+                        set.restPositions[3 * s + 1] = float((ijk[1] * na + bb + 0.5) * spacing);
+                        set.restPositions[3 * s + 2] = float((ijk[2] * na + cc + 0.5) * spacing);
+                        set.sampleCell[s] = std::int32_t(c);
+                    }
+        }
+    });
+    set.warpedPositions = set.restPositions;
+    set.cellGradient.assign(9 * cells, 0.0f);
+    for (std::size_t c = 0; c < cells; ++c) set.cellGradient[9 * c] = set.cellGradient[9 * c + 4] = set.cellGradient[9 * c + 8] = 1.0f;
+
+    // Cell of each Gaussian's centre (active: its box, which contains the centre, was activated).
+    im.gaussianCell.resize(n);
+    {
+        openvdb::Int32Grid::ConstAccessor acc = im.index->getConstAccessor();
+        for (std::size_t i = 0; i < n; ++i) im.gaussianCell[i] = acc.getValue(im.cellOf(Vec3d(cloud.mean(i))));
+    }
+    im.stats.cells = cells;
+    im.stats.samples = m;
+    im.stats.topologyMs = watch.ms();
+    progress(msg("sample grid: ", cells, " cells of ", h, " (", na, "^3 samples each, ", m, " samples) in ",
+                 int(im.stats.topologyMs), " ms"));
+
+    // Rest targets with the rest isotropic filter.
+    watch.reset();
+    FeatureOptions fo;
+    fo.cutoff = options.cutoff;
+    fo.filterVariance = float(filterVariance);
+    fo.threaded = options.threaded;
+    set.targetF.assign(m * std::size_t(set.featureStride()), 0.0f);
+    set.targetO.assign(m, 0.0f);
+    FeatureStats fs;
+    evaluateFeatures(cloud, set.restPositions.data(), m, fo, set.targetF.data(), set.targetO.data(), &fs);
+    im.stats.pairsTested = fs.pairsTested;
+    im.stats.pairsContributing = fs.pairsContributing;
+    im.stats.featuresMs = watch.ms();
+
+    im.computeCellSkip();
+    progress(msg("sample grid: rest targets in ", int(im.stats.featuresMs), " ms; ", im.stats.skippedCells, " of ", cells,
+                 " cells skipped (empty neighbourhood)"));
+}
+
+void SampleGrid::Impl::computeCellSkip()
+{
+    const std::size_t cells = cellCoords.size() / 3;
+    const std::size_t perCell = std::size_t(set.samplesPerAxis) * set.samplesPerAxis * set.samplesPerAxis;
+    const std::size_t stride = std::size_t(set.featureStride());
+    std::vector<std::uint8_t> nonZero(cells, 0);
+    forRange(cells, options.threaded, [&](std::size_t b, std::size_t e) {
+        for (std::size_t c = b; c < e; ++c) {
+            const std::size_t s0 = c * perCell, s1 = s0 + perCell;
+            bool any = std::any_of(set.targetO.begin() + s0, set.targetO.begin() + s1, [](float v) { return v != 0.0f; });
+            any = any || std::any_of(set.targetF.begin() + s0 * stride, set.targetF.begin() + s1 * stride,
+                                     [](float v) { return v != 0.0f; });
+            nonZero[c] = any ? 1 : 0;
+        }
+    });
+    set.cellSkip.assign(cells, 1);
+    forRange(cells, options.threaded, [&](std::size_t b, std::size_t e) {
+        openvdb::Int32Grid::ConstAccessor acc = index->getConstAccessor();
+        for (std::size_t c = b; c < e; ++c) {
+            const std::int32_t* ijk = &cellCoords[3 * c];
+            for (int dx = -1; dx <= 1 && set.cellSkip[c]; ++dx)
+                for (int dy = -1; dy <= 1 && set.cellSkip[c]; ++dy)
+                    for (int dz = -1; dz <= 1; ++dz) {
+                        const std::int32_t k = acc.getValue(openvdb::Coord(ijk[0] + dx, ijk[1] + dy, ijk[2] + dz));
+                        if (k >= 0 && nonZero[std::size_t(k)]) {
+                            set.cellSkip[c] = 0;
+                            break;
+                        }
+                    }
+        }
+    });
+    stats.skippedCells = std::size_t(std::count(set.cellSkip.begin(), set.cellSkip.end(), std::uint8_t(1)));
+}
+
+SampleGrid::~SampleGrid() = default;
+SampleGrid::SampleGrid(SampleGrid&&) noexcept = default;
+SampleGrid& SampleGrid::operator=(SampleGrid&&) noexcept = default;
+
+const SampleGridOptions& SampleGrid::options() const { return mImpl->options; }
+const SampleGridStats& SampleGrid::stats() const { return mImpl->stats; }
+const SampleSet& SampleGrid::samples() const { return mImpl->set; }
+SampleSet& SampleGrid::samples() { return mImpl->set; }
+const std::vector<std::int32_t>& SampleGrid::gaussianCell() const { return mImpl->gaussianCell; }
+const std::vector<std::int32_t>& SampleGrid::cellCoords() const { return mImpl->cellCoords; }
+
+std::int32_t SampleGrid::cellIndex(int i, int j, int k) const { return mImpl->index->tree().getValue(openvdb::Coord(i, j, k)); }
+
+std::int32_t SampleGrid::cellIndexAt(const Vec3d& p) const { return mImpl->index->tree().getValue(mImpl->cellOf(p)); }
+
+int SampleGrid::cellCoordOf(double x) const { return mImpl->cellCoordOf(x); }
+
+} // namespace splatwarp

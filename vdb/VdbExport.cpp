@@ -1,0 +1,271 @@
+#include "VdbExport.h"
+
+#include <Eigen/SVD>
+#include <openvdb/openvdb.h>
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_reduce.h>
+
+#include "SampleGridImpl.h"
+#include "VdbLibrary.h"
+#include "core/AtomicFile.h"
+#include "core/Error.h"
+#include "core/Progress.h"
+#include "sh/SphericalHarmonics.h"
+
+namespace splatwarp {
+
+namespace {
+
+/// Transform of the sample lattice: voxel size s, index I centred at (I + 1/2) s.
+openvdb::math::Transform::Ptr latticeTransform(double voxel)
+{
+    openvdb::math::Transform::Ptr t = openvdb::math::Transform::createLinearTransform(voxel);
+    t->postTranslate(openvdb::Vec3d(0.5 * voxel));
+    return t;
+}
+
+template <typename GridT>
+typename GridT::Ptr makeGrid(const std::string& name, openvdb::math::Transform::Ptr transform, openvdb::GridClass cls)
+{
+    typename GridT::Ptr g = GridT::create();
+    g->setName(name);
+    g->setTransform(transform);
+    g->setGridClass(cls);
+    return g;
+}
+
+/// Lattice coordinate of sample (a,b,c) of a cell: (i n + a, j n + b, k n + c).
+openvdb::Coord sampleCoord(const std::int32_t* cell, int n, int a, int b, int c)
+{
+    return openvdb::Coord(cell[0] * n + a, cell[1] * n + b, cell[2] * n + c);
+}
+
+/// Per-thread trees of sample values, merged (tbb::parallel_reduce body over cells).
+/// value(s, v) returns whether sample s gets a voxel and sets its value.
+template <typename TreeT, typename ValueFn>
+struct FillSamplesOp {
+    const SampleGrid& grid;
+    const ValueFn& value;
+    TreeT tree;
+
+    FillSamplesOp(const SampleGrid& g, const ValueFn& f) : grid(g), value(f) {}
+    FillSamplesOp(FillSamplesOp& o, tbb::split) : grid(o.grid), value(o.value) {}
+    void operator()(const tbb::blocked_range<std::size_t>& r)
+    {
+        const int n = grid.samples().samplesPerAxis;
+        openvdb::tree::ValueAccessor<TreeT> acc(tree);
+        typename TreeT::ValueType v;
+        for (std::size_t c = r.begin(); c != r.end(); ++c) {
+            std::size_t s = c * std::size_t(n * n * n);
+            for (int a = 0; a < n; ++a)
+                for (int b = 0; b < n; ++b)
+                    for (int cc = 0; cc < n; ++cc, ++s)
+                        if (value(s, v)) acc.setValue(sampleCoord(&grid.cellCoords()[3 * c], n, a, b, cc), v);
+        }
+    }
+    void join(FillSamplesOp& o) { tree.merge(o.tree); }
+};
+
+/// A grid on the sample lattice filled in parallel (cells are disjoint, so merges never collide).
+template <typename GridT, typename ValueFn>
+typename GridT::Ptr latticeGrid(const SampleGrid& grid, const std::string& name, openvdb::math::Transform::Ptr transform,
+                                openvdb::GridClass cls, bool threaded, const ValueFn& value)
+{
+    FillSamplesOp<typename GridT::TreeType, ValueFn> op(grid, value);
+    const tbb::blocked_range<std::size_t> cells(0, grid.samples().cellCount(), 256);
+    if (threaded)
+        tbb::parallel_reduce(cells, op);
+    else
+        op(cells);
+    typename GridT::Ptr g = makeGrid<GridT>(name, transform, cls);
+    g->setTree(std::make_shared<typename GridT::TreeType>(std::move(op.tree)));
+    return g;
+}
+
+void addMetadata(openvdb::MetaMap& meta, const SampleGrid& grid, const VdbExportOptions& options)
+{
+    const SampleSet& set = grid.samples();
+    meta.insertMeta("creator", openvdb::StringMetadata("splatwarp"));
+    meta.insertMeta("source", openvdb::StringMetadata(options.source));
+    meta.insertMeta("sh_degree", openvdb::Int32Metadata(set.shDegree));
+    meta.insertMeta("cell_size", openvdb::FloatMetadata(set.cellSize));
+    meta.insertMeta("samples_per_axis", openvdb::Int32Metadata(set.samplesPerAxis));
+    meta.insertMeta("samples_per_cell", openvdb::Int32Metadata(set.samplesPerAxis * set.samplesPerAxis * set.samplesPerAxis));
+    meta.insertMeta("cutoff", openvdb::FloatMetadata(grid.options().cutoff));
+    meta.insertMeta("lambda_lpf", openvdb::FloatMetadata(grid.options().lambdaLpf));
+    if (!options.spec.empty()) meta.insertMeta("spec", openvdb::StringMetadata(options.spec));
+}
+
+/// Largest singular value of a row-major 3x3.
+float largestSingularValue(const float* f)
+{
+    Eigen::Matrix3d m;
+    for (int i = 0; i < 3; ++i)
+        for (int j = 0; j < 3; ++j) m(i, j) = f[3 * i + j];
+    return float(Eigen::JacobiSVD<Eigen::Matrix3d>(m).singularValues()(0));
+}
+
+} // namespace
+
+void writeSampleGridVdb(const std::string& path, const SampleGrid& grid, const VdbExportOptions& options)
+{
+    vdb::initialize();
+    Stopwatch watch;
+    const SampleSet& set = grid.samples();
+    const std::size_t k = std::size_t(shCoeffCount(set.shDegree));
+    const std::size_t stride = std::size_t(set.featureStride());
+    openvdb::math::Transform::Ptr sampleXf = latticeTransform(set.spacing);
+    openvdb::math::Transform::Ptr cellXf = latticeTransform(set.cellSize);
+
+    openvdb::GridPtrVec grids;
+    auto density = latticeGrid<openvdb::FloatGrid>(grid, "density", sampleXf, openvdb::GRID_FOG_VOLUME, options.threaded,
+                                                  [&](std::size_t s, float& v) { v = set.targetO[s]; return true; });
+    auto color = latticeGrid<openvdb::Vec3SGrid>(grid, "color", sampleXf, openvdb::GRID_UNKNOWN, options.threaded, [&](std::size_t s, openvdb::Vec3s& v) {
+        const float o = set.targetO[s];
+        if (!(o > 0.0f)) return false; // colour is undefined where there is no density
+        const float* f = &set.targetF[s * stride];
+        for (int ch = 0; ch < 3; ++ch) v[ch] = float(0.5 + kShC0 * f[ch] / o);
+        return true;
+    });
+    grids.push_back(density);
+    grids.push_back(color);
+
+    // BoolGrid rather than MaskGrid: pyopenvdb cannot load mask grids.
+    auto active = makeGrid<openvdb::BoolGrid>("active", cellXf, openvdb::GRID_UNKNOWN);
+    {
+        openvdb::BoolGrid::Accessor aa = active->getAccessor();
+        const std::vector<std::int32_t>& cells = grid.cellCoords();
+        for (std::size_t c = 0; c < set.cellCount(); ++c) aa.setValue(openvdb::Coord(cells[3 * c], cells[3 * c + 1], cells[3 * c + 2]), true);
+    }
+    grids.push_back(active);
+
+    if (options.shGrids) {
+        for (std::size_t kk = 0; kk < k; ++kk) {
+            grids.push_back(latticeGrid<openvdb::Vec3SGrid>(grid, "sh_" + std::to_string(kk), sampleXf, openvdb::GRID_UNKNOWN, options.threaded,
+                                                           [&](std::size_t s, openvdb::Vec3s& v) {
+                                                               const float* f = &set.targetF[s * stride + 3 * kk];
+                                                               v = openvdb::Vec3s(f[0], f[1], f[2]);
+                                                               return true;
+                                                           }));
+        }
+    }
+    if (options.stretch) {
+        auto stretch = makeGrid<openvdb::FloatGrid>("stretch", cellXf, openvdb::GRID_UNKNOWN);
+        openvdb::FloatGrid::Accessor acc = stretch->getAccessor();
+        const std::vector<std::int32_t>& cells = grid.cellCoords();
+        for (std::size_t c = 0; c < set.cellCount(); ++c)
+            acc.setValue(openvdb::Coord(cells[3 * c], cells[3 * c + 1], cells[3 * c + 2]),
+                         largestSingularValue(&set.cellGradient[9 * c]));
+        grids.push_back(stretch);
+    }
+
+    openvdb::MetaMap fileMeta;
+    addMetadata(fileMeta, grid, options);
+    for (openvdb::GridBase::Ptr& g : grids) {
+        addMetadata(*g, grid, options);
+        if (g->isType<openvdb::FloatGrid>() || g->isType<openvdb::Vec3SGrid>()) g->setSaveFloatAsHalf(options.half);
+    }
+
+    AtomicFile out(path);
+    try {
+        openvdb::io::File file(out.tempPath());
+        file.setCompression(openvdb::io::COMPRESS_ZIP | openvdb::io::COMPRESS_ACTIVE_MASK);
+        file.write(grids, fileMeta);
+        file.close();
+    } catch (const openvdb::Exception& e) {
+        throw IoError(msg(path, ": cannot write the VDB file: ", e.what()));
+    }
+    out.commit();
+    progress(msg("wrote ", grids.size(), " grids (", set.sampleCount(), " samples, ", set.cellCount(), " cells) to ", path,
+                 " in ", int(watch.ms()), " ms"));
+}
+
+const VdbGridData* VdbFileData::find(const std::string& name) const
+{
+    for (const VdbGridData& g : grids)
+        if (g.name == name) return &g;
+    return nullptr;
+}
+
+namespace {
+
+std::map<std::string, std::string> metaStrings(const openvdb::MetaMap& meta)
+{
+    std::map<std::string, std::string> out;
+    for (auto it = meta.beginMeta(); it != meta.endMeta(); ++it) out[it->first] = it->second->str();
+    return out;
+}
+
+/// Channel k of a scalar or vector value as float.
+template <typename T>
+float channel(const T& v, int) { return float(v); }
+float channel(const openvdb::Vec3s& v, int k) { return v[k]; }
+
+template <typename GridT>
+bool readValues(const openvdb::GridBase::Ptr& base, VdbGridData& out)
+{
+    typename GridT::Ptr g = openvdb::GridBase::grid<GridT>(base);
+    if (!g) return false;
+    using ValueT = typename GridT::ValueType;
+    out.channels = openvdb::VecTraits<ValueT>::Size;
+    for (auto it = g->cbeginValueOn(); it; ++it) {
+        // Tiles are expanded so every active voxel is listed.
+        openvdb::CoordBBox box;
+        it.getBoundingBox(box);
+        for (auto c = box.begin(); c; ++c) {
+            const openvdb::Coord ijk = *c;
+            for (int k = 0; k < 3; ++k) out.coords.push_back(ijk[k]);
+            const ValueT v = *it;
+            for (int k = 0; k < out.channels; ++k) out.values.push_back(channel(v, k));
+        }
+    }
+    return true;
+}
+
+bool readMask(const openvdb::GridBase::Ptr& base, VdbGridData& out)
+{
+    openvdb::MaskGrid::Ptr g = openvdb::GridBase::grid<openvdb::MaskGrid>(base);
+    if (!g) return false;
+    for (auto it = g->cbeginValueOn(); it; ++it) {
+        openvdb::CoordBBox box;
+        it.getBoundingBox(box);
+        for (auto c = box.begin(); c; ++c)
+            for (int k = 0; k < 3; ++k) out.coords.push_back((*c)[k]);
+    }
+    return true;
+}
+
+} // namespace
+
+VdbFileData readVdbFile(const std::string& path)
+{
+    vdb::initialize();
+    VdbFileData data;
+    try {
+        openvdb::io::File file(path);
+        file.open();
+        data.metadata = metaStrings(*file.getMetadata());
+        openvdb::GridPtrVecPtr grids = file.getGrids();
+        file.close();
+        for (const openvdb::GridBase::Ptr& base : *grids) {
+            VdbGridData g;
+            g.name = base->getName();
+            g.valueType = base->valueType();
+            g.gridClass = openvdb::GridBase::gridClassToString(base->getGridClass());
+            g.voxelSize = base->voxelSize()[0];
+            const openvdb::Vec3d o = base->indexToWorld(openvdb::Coord(0, 0, 0));
+            for (int k = 0; k < 3; ++k) g.origin[k] = o[k];
+            g.savedAsHalf = base->saveFloatAsHalf();
+            g.metadata = metaStrings(*base);
+            readValues<openvdb::FloatGrid>(base, g) || readValues<openvdb::DoubleGrid>(base, g) ||
+                readValues<openvdb::Int32Grid>(base, g) || readValues<openvdb::Vec3SGrid>(base, g) ||
+                readValues<openvdb::BoolGrid>(base, g) || readMask(base, g);
+            data.grids.push_back(std::move(g));
+        }
+    } catch (const openvdb::Exception& e) {
+        throw IoError(msg(path, ": cannot read the VDB file: ", e.what()));
+    }
+    return data;
+}
+
+} // namespace splatwarp
