@@ -7,8 +7,10 @@
 // but nvcc contracts multiply-adds into FMAs and its expf/logf differ from glibc by <= 2 ulp,
 // so each alpha*G differs by a few 1e-7 relative and a feature (a sum of <= ~100 such terms)
 // by ~1e-6 relative; a pair exactly at the cutoff may count on one side only (one term of
-// ~1/255). Gradients are accumulated in double on both sides (different order), so they
-// inherit the float weight differences: ~1e-6 relative.
+// ~1/255; rare, but one such pair moves a Gaussian's gradient by up to ~1e-3 relative, which
+// would fail kGradRelPerGaussian: look at the pair before loosening). Gradients are accumulated
+// in double on both sides (different order), so they inherit the float weight differences:
+// ~1e-6 relative.
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -313,7 +315,9 @@ TEST(StageTwoCuda, HundredIterationsMatchCpu)
     EXPECT_EQ(rg.coverageRebuilds, rc.coverageRebuilds);
     ASSERT_EQ(rg.energies.size(), rc.energies.size());
     ASSERT_EQ(rg.pairsPerIteration.size(), rc.pairsPerIteration.size());
-    EXPECT_EQ(rg.pairsPerIteration.front(), rc.pairsPerIteration.front());
+    // Same start parameters: only pairs within rounding of the cutoff may count on one side only.
+    EXPECT_NEAR(double(rg.pairsPerIteration.front()), double(rc.pairsPerIteration.front()),
+                1e-3 * double(rc.pairsPerIteration.front()));
     for (std::size_t e = 0; e < rc.energies.size(); ++e) {
         EXPECT_EQ(rg.energies[e].iteration, rc.energies[e].iteration);
         EXPECT_NEAR(rg.energies[e].total, rc.energies[e].total, kEnergyRel100 * rc.energies[e].total) << "entry " << e;
