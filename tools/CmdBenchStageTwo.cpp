@@ -13,13 +13,14 @@
 #include "field/FeatureField.h"
 #include "samples/SampleModels.h"
 #include "field/RigidMotion.h"
-#include "stage2/StageTwo.h"
+#include "stage2/StageTwoDevice.h"
 
 namespace splatwarp::cli {
 namespace {
 
 struct BenchStageTwoArgs {
     int samplesPerAxis = 2;
+    std::string device = "auto";
     StageTwoOptions options;
 };
 
@@ -75,9 +76,12 @@ SampleSet benchSamples(const GaussianCloud& rest, const GaussianCloud& target, i
 const CommandRegistrar reg(1020, [](CLI::App& app) {
     auto args = std::make_shared<BenchStageTwoArgs>();
     args->options.iterations = 10;
-    CLI::App* sub = benchCommand(app)->add_subcommand("stage2", "Stage II CPU optimiser on the stripes sample");
+    CLI::App* sub = benchCommand(app)->add_subcommand("stage2", "Stage II optimiser on the stripes sample");
     sub->add_option("--iterations", args->options.iterations, "Adam iterations")->capture_default_str();
     sub->add_option("--samples-per-axis", args->samplesPerAxis, "n: samples per cell axis")->capture_default_str();
+    sub->add_option("--device", args->device, "auto (CUDA when compiled in and a GPU is present, else CPU), cpu or cuda")
+        ->check(CLI::IsMember({"auto", "cpu", "cuda"}))
+        ->capture_default_str();
     sub->add_flag("--serial", [args](std::int64_t) { args->options.threaded = false; }, "Single thread");
     sub->callback([args] {
         const GaussianCloud rest = makeSample("stripes");
@@ -93,12 +97,12 @@ const CommandRegistrar reg(1020, [](CLI::App& app) {
         const double msSamples = sw.ms();
         GaussianCloud cloud = rest;
         std::vector<std::uint8_t> moving(rest.size(), 1);
-        const StageTwoReport r = optimiseStageTwo(cloud, s, moving, cells, args->options);
+        const StageTwoReport r = runStageTwo(parseDevice(args->device), cloud, s, moving, cells, args->options);
         std::uint64_t pairs = 0;
         for (std::uint64_t p : r.pairsPerIteration) pairs += p;
         const double it = std::max(1, args->options.iterations);
-        std::printf("stage2: %zu Gaussians SH%d, %zu samples (built in %.0f ms), %d iterations\n", rest.size(),
-                    rest.shDegree, r.samplesUsed, msSamples, args->options.iterations);
+        std::printf("stage2 (%s): %zu Gaussians SH%d, %zu samples (built in %.0f ms), %d iterations\n",
+                    r.device.c_str(), rest.size(), rest.shDegree, r.samplesUsed, msSamples, args->options.iterations);
         std::printf("  energy %.6g -> %.6g\n", r.energies.front().total, r.energies.back().total);
         std::printf("  per iteration: %.1f ms total; coverage %.1f, forward %.1f, backward %.1f, update %.1f ms; "
                     "setup %.1f ms once\n",

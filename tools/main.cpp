@@ -11,6 +11,9 @@
 #include "core/Progress.h"
 #include "splatwarp/Version.h"
 #include "VdbLibrary.h"
+#ifdef SPLATWARP_WITH_CUDA
+#include "CudaBackends.h"
+#endif
 
 namespace splatwarp::cli {
 
@@ -54,6 +57,7 @@ int main(int argc, char** argv)
                  "with the radiance field kept consistent (sampled into sparse OpenVDB grids)."};
     app.require_subcommand(1);
 #ifdef SPLATWARP_WITH_CUDA
+    cuda::registerBackends(); // the core library cannot link the kernels: hand it their entry points
     const char* cuda = "CUDA support: compiled in";
 #else
     const char* cuda = "CUDA support: not compiled in";

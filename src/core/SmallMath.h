@@ -11,7 +11,7 @@ namespace splatwarp {
 template <typename T>
 struct Vec3 {
     T x = 0, y = 0, z = 0;
-    SPLATWARP_HOST_DEVICE Vec3() = default;
+    Vec3() = default; // defaulted: host/device implicitly (an annotation here only draws nvcc warnings)
     SPLATWARP_HOST_DEVICE Vec3(T a, T b, T c) : x(a), y(b), z(c) {}
     template <typename U>
     SPLATWARP_HOST_DEVICE explicit Vec3(const Vec3<U>& o) : x(T(o.x)), y(T(o.y)), z(T(o.z)) {}

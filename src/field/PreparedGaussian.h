@@ -51,7 +51,7 @@ struct BasicPreparedGaussian {
 
     /// @brief Convert from another precision.
     template <typename U>
-    static BasicPreparedGaussian from(const BasicPreparedGaussian<U>& o)
+    SPLATWARP_HOST_DEVICE static BasicPreparedGaussian from(const BasicPreparedGaussian<U>& o)
     {
         BasicPreparedGaussian g;
         g.mean = Vec3<T>(o.mean);
@@ -94,7 +94,7 @@ constexpr double kPrunePad = 1e-3;
 
 /// @brief Prepare a Gaussian from its centre, filtered covariance and alpha.
 template <typename T>
-BasicPreparedGaussian<T> prepareGaussian(const Vec3<T>& mean, const Mat3<T>& cov, T alpha, T cutoff)
+SPLATWARP_HOST_DEVICE BasicPreparedGaussian<T> prepareGaussian(const Vec3<T>& mean, const Mat3<T>& cov, T alpha, T cutoff)
 {
     BasicPreparedGaussian<T> g;
     g.mean = mean;

@@ -60,7 +60,7 @@ SPLATWARP_HOST_DEVICE Mat3<T> lowPassFilter(const float* f, T lambda, T spacing)
 
 /// @brief Kernel of a Gaussian from its raw parameters and filter.
 template <typename T>
-BasicPreparedGaussian<T> prepareParams(const GaussianParams<T>& p, const Mat3<T>& filter, T cutoff)
+SPLATWARP_HOST_DEVICE BasicPreparedGaussian<T> prepareParams(const GaussianParams<T>& p, const Mat3<T>& filter, T cutoff)
 {
     const Vec3<T> s(std::exp(p.logScale.x), std::exp(p.logScale.y), std::exp(p.logScale.z));
     return prepareGaussian(p.mean, filteredCovariance(p.rotation, s, filter), sigmoid(p.logit), cutoff);

@@ -12,6 +12,7 @@
 #include "stage2/Adam.h"
 #include "stage2/Coverage.h"
 #include "stage2/PairGradients.h"
+#include "stage2/StageTwoCommon.h"
 
 namespace splatwarp {
 namespace {
@@ -26,39 +27,6 @@ void forEach(std::size_t n, std::size_t grain, bool threaded, const Op& op)
     threaded ? tbb::parallel_for(all, body) : body(all);
 }
 
-GaussianParams<double> paramsOf(const GaussianCloud& c, std::size_t i)
-{
-    GaussianParams<double> p;
-    p.mean = Vec3d(c.mean(i));
-    p.rotation = Quatd{c.rotations[4 * i], c.rotations[4 * i + 1], c.rotations[4 * i + 2], c.rotations[4 * i + 3]};
-    p.logScale = Vec3d(c.logScales[3 * i], c.logScales[3 * i + 1], c.logScales[3 * i + 2]);
-    p.logit = c.opacities[i];
-    return p;
-}
-
-void validate(const GaussianCloud& cloud, const SampleSet& s, const std::vector<std::uint8_t>& moving,
-              const std::vector<std::int32_t>& gaussianCell, const StageTwoOptions& o)
-{
-    cloud.checkConsistent();
-    const std::size_t m = s.sampleCount(), c = s.cellCount();
-    if (s.shDegree != cloud.shDegree)
-        throw InputError(msg("Stage II: sample SH degree ", s.shDegree, " differs from the model's ", cloud.shDegree));
-    if (s.warpedPositions.size() != 3 * m || s.targetF.size() != m * std::size_t(s.featureStride()) ||
-        s.sampleCell.size() != m || s.cellGradient.size() != 9 * c)
-        throw InputError("Stage II: sample set arrays have inconsistent sizes");
-    if (moving.size() != cloud.size() || gaussianCell.size() != cloud.size())
-        throw InputError(msg("Stage II: moving/gaussianCell have ", moving.size(), "/", gaussianCell.size(),
-                             " entries for ", cloud.size(), " Gaussians"));
-    for (std::size_t j = 0; j < m; ++j)
-        if (s.sampleCell[j] < 0 || std::size_t(s.sampleCell[j]) >= c)
-            throw InputError(msg("Stage II: sample ", j, " has cell ", s.sampleCell[j], " outside 0..", c - 1));
-    for (std::size_t i = 0; i < gaussianCell.size(); ++i)
-        if (gaussianCell[i] >= std::int32_t(c))
-            throw InputError(msg("Stage II: Gaussian ", i, " has cell ", gaussianCell[i], " outside 0..", c - 1));
-    if (o.iterations < 0 || o.rebuildEvery < 1 || !(o.cutoff > 0.0f) || o.lambdaLpf < 0.0f)
-        throw InputError("Stage II: iterations must be >= 0, rebuildEvery >= 1, cutoff > 0, lambdaLpf >= 0");
-}
-
 } // namespace
 
 StageTwoReport optimiseStageTwo(GaussianCloud& cloud, const SampleSet& samples, const std::vector<std::uint8_t>& moving,
@@ -66,62 +34,22 @@ StageTwoReport optimiseStageTwo(GaussianCloud& cloud, const SampleSet& samples, 
                                 const std::function<void(int, const GaussianCloud&)>& onEval, int evalEvery)
 {
     Stopwatch total, phase;
-    validate(cloud, samples, moving, gaussianCell, options);
     StageTwoReport report;
+    const StageTwoSetup setup = setupStageTwo(cloud, samples, moving, gaussianCell, options);
     const bool threaded = options.threaded;
     const int stride = cloud.shStride();
     const float cutoff = options.cutoff;
-
-    // Samples used: those whose cell is not skipped.
-    std::vector<std::uint32_t> used;
-    for (std::size_t j = 0; j < samples.sampleCount(); ++j)
-        if (!samples.cellSkip[std::size_t(samples.sampleCell[j])]) used.push_back(std::uint32_t(j));
-    const std::size_t s = used.size();
+    const std::vector<std::uint32_t>& used = setup.used;
+    const std::vector<float>& x = setup.x;
+    const std::vector<std::uint32_t>& mov = setup.moving;
+    const std::vector<Mat3d>& filter = setup.filter;
+    const std::vector<float>& fStatic = setup.fStatic;
+    const std::vector<float>& oStatic = setup.oStatic;
+    const std::size_t s = used.size(), g = mov.size();
     report.samplesUsed = s;
     report.samplesSkipped = samples.sampleCount() - s;
-    std::vector<float> x(3 * s);
-    for (std::size_t k = 0; k < s; ++k)
-        for (int a = 0; a < 3; ++a) x[3 * k + std::size_t(a)] = samples.warpedPositions[3 * used[k] + std::size_t(a)];
-    if (s > 0) {
-        Vec3f lo(x[0], x[1], x[2]), hi = lo;
-        for (std::size_t k = 0; k < s; ++k)
-            for (int a = 0; a < 3; ++a) {
-                lo[a] = std::min(lo[a], x[3 * k + std::size_t(a)]);
-                hi[a] = std::max(hi[a], x[3 * k + std::size_t(a)]);
-            }
-        report.sceneExtent = std::max({hi.x - lo.x, hi.y - lo.y, hi.z - lo.z});
-    }
-
-    // Per-Gaussian filters (fixed: F_k of the rest cell does not change during Stage II).
-    const std::size_t n = cloud.size();
-    std::vector<Mat3d> filter(n);
-    if (options.lowPassFilter)
-        forEach(n, 1024, threaded, [&](std::size_t i) {
-            if (gaussianCell[i] >= 0)
-                filter[i] = lowPassFilter(samples.cellGradient.data() + 9 * std::size_t(gaussianCell[i]),
-                                          double(options.lambdaLpf), double(samples.spacing));
-        });
-
-    std::vector<std::uint32_t> mov;
-    for (std::size_t i = 0; i < n; ++i)
-        if (moving[i]) mov.push_back(std::uint32_t(i));
-    const std::size_t g = mov.size();
+    report.sceneExtent = setup.sceneExtent;
     report.movingGaussians = g;
-
-    // The static Gaussians' contribution never changes: evaluate it once.
-    std::vector<float> fStatic(s * std::size_t(stride), 0.0f), oStatic(s, 0.0f);
-    {
-        std::vector<PreparedGaussian> prepared(n);
-        forEach(n, 1024, threaded, [&](std::size_t i) {
-            if (moving[i]) return; // left out of the bins (empty box)
-            const GaussianParams<double> p = paramsOf(cloud, i);
-            prepared[i] = PreparedGaussian::from(prepareParams(p, filter[i], double(cutoff)));
-        });
-        GaussianBins bins;
-        binPreparedGaussians(prepared, 0.0f, threaded, bins);
-        evaluatePreparedFeatures(prepared, cloud.sh.data(), stride, bins, x.data(), s, cutoff, threaded,
-                                 fStatic.data(), oStatic.data());
-    }
     report.msSetup = phase.ms();
 
     std::vector<PreparedGaussian> kernels(g);
@@ -135,17 +63,11 @@ StageTwoReport optimiseStageTwo(GaussianCloud& cloud, const SampleSet& samples, 
     Coverage coverage;
     const double lambda1 = options.lambdaOpacity, lambda2 = options.boundaryWeight;
 
-    // Position learning rate: exponential from start to end over the run, times the scene extent.
-    auto positionRate = [&](int iteration) {
-        const double tFrac = options.iterations > 1 ? double(iteration) / double(options.iterations - 1) : 0.0;
-        return float(double(options.lrPositionStart) *
-                     std::pow(double(options.lrPositionEnd) / double(options.lrPositionStart), std::min(tFrac, 1.0)) *
-                     double(report.sceneExtent));
-    };
+    auto positionRate = [&](int iteration) { return stageTwoPositionRate(options, iteration, report.sceneExtent); };
     auto prepareKernels = [&] {
         forEach(g, 256, threaded, [&](std::size_t k) {
             const std::size_t i = mov[k];
-            kernels[k] = PreparedGaussian::from(prepareParams(paramsOf(cloud, i), filter[i], double(cutoff)));
+            kernels[k] = PreparedGaussian::from(prepareParams(gaussianParamsOf(cloud, i), filter[i], double(cutoff)));
         });
     };
     auto rebuildCoverage = [&](int iteration) {
@@ -157,23 +79,7 @@ StageTwoReport optimiseStageTwo(GaussianCloud& cloud, const SampleSet& samples, 
         const double move = double(steps) * double(positionRate(iteration)); // per axis
         forEach(g, 256, threaded, [&](std::size_t k) {
             const std::size_t i = mov[k];
-            GaussianParams<double> p = paramsOf(cloud, i);
-            const double qn = std::sqrt(p.rotation.w * p.rotation.w + p.rotation.x * p.rotation.x +
-                                        p.rotation.y * p.rotation.y + p.rotation.z * p.rotation.z);
-            const double angle = std::min(4.0 * double(steps) * double(options.lrRotation) / std::max(qn, 1e-12), M_PI);
-            p.logit += double(steps) * double(options.lrOpacity);
-            for (int a = 0; a < 3; ++a) p.logScale[a] += double(steps) * double(options.lrLogScale);
-            const Vec3d sc(std::exp(p.logScale.x), std::exp(p.logScale.y), std::exp(p.logScale.z));
-            const Mat3d cov = filteredCovariance(p.rotation, sc, filter[i]);
-            const double r = extentRadius(sigmoid(p.logit), double(cutoff));
-            const Vec3d half = ellipsoidHalfExtent(cov, r);
-            const double sphere = r * std::sqrt(cov.m[0][0] + cov.m[1][1] + cov.m[2][2]);
-            for (int a = 0; a < 3; ++a) {
-                const double h = r > 0 ? std::min(sphere, half[a] * (1.0 + double(options.coveragePad)) + sphere * angle) + move
-                                       : -1.0;
-                boxLo[3 * k + std::size_t(a)] = float(p.mean[a] - h);
-                boxHi[3 * k + std::size_t(a)] = float(p.mean[a] + h);
-            }
+            stageTwoCoverageBox(gaussianParamsOf(cloud, i), filter[i], steps, move, options, &boxLo[3 * k], &boxHi[3 * k]);
         });
         coverage.build(boxLo.data(), boxHi.data(), g, x.data(), s, threaded);
         report.coveragePairs = coverage.pairCount();
@@ -247,7 +153,7 @@ StageTwoReport optimiseStageTwo(GaussianCloud& cloud, const SampleSet& samples, 
                 }
                 pairBackward<double>(gw, double(w), double(kg.alpha), Vec3d(ad), acc);
             }
-            const GaussianParamGrad<double> pg = paramBackward(paramsOf(cloud, i), acc);
+            const GaussianParamGrad<double> pg = paramBackward(gaussianParamsOf(cloud, i), acc);
             float* out = grad.data() + k * perG;
             for (int a = 0; a < 3; ++a) out[a] = float(pg.mean[a]);
             out[3] = float(pg.rotation.w); out[4] = float(pg.rotation.x);

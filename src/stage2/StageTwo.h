@@ -6,6 +6,7 @@
 ///        Adam with analytic gradients.
 #include <cstdint>
 #include <functional>
+#include <string>
 #include <vector>
 
 #include "core/GaussianCloud.h"
@@ -23,6 +24,7 @@ struct StageTwoEnergy {
 
 /// @brief What a Stage II run did.
 struct StageTwoReport {
+    std::string device = "cpu"; ///< which device ran: "cpu" or "cuda"
     std::vector<StageTwoEnergy> energies;
     std::size_t movingGaussians = 0;
     std::size_t samplesUsed = 0;    ///< samples in cells not skipped

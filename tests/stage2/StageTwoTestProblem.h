@@ -80,4 +80,29 @@ inline std::vector<std::int32_t> latticeCells(const GaussianCloud& g, int cellsP
     return cells;
 }
 
+/// @brief A whole Stage II problem: a random start cloud (all moving), its lattice sample set
+///        with targets from the cloud moved by (r, t), and the rest cells.
+struct RigidStageTwoProblem {
+    GaussianCloud start;
+    SampleSet samples;
+    std::vector<std::uint8_t> moving;
+    std::vector<std::int32_t> cells;
+    StageTwoOptions options;
+};
+
+/// @brief See RigidStageTwoProblem; the cloud is randomCloud(count, degree, seed, extent, 0.04..0.12 scales)
+///        and the lattice latticeSampleSet(target, cellsPerAxis, half, 2, options).
+inline RigidStageTwoProblem rigidStageTwoProblem(std::size_t count, int degree, std::uint32_t seed, float extent,
+                                                 const Mat3d& r, const Vec3d& t, int cellsPerAxis, float half,
+                                                 const StageTwoOptions& options = {})
+{
+    RigidStageTwoProblem p;
+    p.options = options;
+    p.start = randomCloud(count, degree, seed, extent, 0.04f, 0.12f);
+    p.samples = latticeSampleSet(rigidlyMoved(p.start, r, t), cellsPerAxis, half, 2, options);
+    p.moving.assign(count, 1);
+    p.cells = latticeCells(p.start, cellsPerAxis, half);
+    return p;
+}
+
 } // namespace splatwarp::test

@@ -1,0 +1,14 @@
+#pragma once
+/// @file CudaBackends.h
+/// @brief Start-up registration of the CUDA implementations with the core library (which
+///        cannot link the kernels): tools/main.cpp calls registerBackends() under
+///        SPLATWARP_WITH_CUDA.
+namespace splatwarp::cuda {
+
+/// @brief Whether a CUDA GPU is usable (cudaGetDeviceCount > 0 and no driver error).
+bool cudaDeviceAvailable();
+
+/// @brief Register the device probe and the CUDA Stage II (see core/Device.h, StageTwoDevice.h).
+void registerBackends();
+
+} // namespace splatwarp::cuda

@@ -1,0 +1,59 @@
+#include "core/Device.h"
+
+#include <atomic>
+
+namespace splatwarp {
+namespace {
+
+std::atomic<bool (*)()>& probeSlot()
+{
+    static std::atomic<bool (*)()> probe{nullptr};
+    return probe;
+}
+
+} // namespace
+
+Device parseDevice(const std::string& name)
+{
+    if (name == "auto") return Device::Auto;
+    if (name == "cpu") return Device::Cpu;
+    if (name == "cuda") return Device::Cuda;
+    throw InputError(msg("unknown device '", name, "': expected auto, cpu or cuda"));
+}
+
+const char* deviceName(Device device)
+{
+    switch (device) {
+    case Device::Auto: return "auto";
+    case Device::Cpu: return "cpu";
+    case Device::Cuda: return "cuda";
+    }
+    return "?";
+}
+
+bool cudaCompiledIn() { return probeSlot().load() != nullptr; }
+
+bool cudaPresent()
+{
+    bool (*probe)() = probeSlot().load();
+    return probe && probe();
+}
+
+Device resolveDevice(Device requested)
+{
+    switch (requested) {
+    case Device::Cpu: return Device::Cpu;
+    case Device::Auto: return cudaPresent() ? Device::Cuda : Device::Cpu;
+    case Device::Cuda:
+        if (!cudaCompiledIn())
+            throw InputError("--device cuda: this build has no CUDA support (rebuild with nvcc available, "
+                             "or use --device cpu)");
+        if (!cudaPresent()) throw InputError("--device cuda: no usable CUDA GPU found (use --device cpu or auto)");
+        return Device::Cuda;
+    }
+    return Device::Cpu;
+}
+
+void registerCudaProbe(bool (*probe)()) { probeSlot().store(probe); }
+
+} // namespace splatwarp

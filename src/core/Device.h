@@ -1,0 +1,45 @@
+#pragma once
+/// @file Device.h
+/// @brief Which device runs the heavy stages (`--device auto|cpu|cuda`). The core library
+///        cannot link the CUDA kernels, so the kernels register a probe (and their stage
+///        implementations, see stage2/StageTwoDevice.h) at start-up; with nothing registered
+///        this is a CPU-only build.
+#include <string>
+
+#include "core/Error.h"
+
+namespace splatwarp {
+
+/// @brief A requested or resolved device.
+enum class Device { Auto, Cpu, Cuda };
+
+/// @brief The GPU ran out of memory. The message names what did not fit and how many bytes,
+///        so the caller can report it or fall back to the CPU.
+class DeviceMemoryError : public Error {
+public:
+    using Error::Error;
+};
+
+/// @brief Parse "auto", "cpu" or "cuda".
+/// @throws InputError naming the bad value and the accepted ones
+Device parseDevice(const std::string& name);
+
+/// @brief "auto", "cpu" or "cuda".
+const char* deviceName(Device device);
+
+/// @brief Whether the CUDA kernels were registered (a build with CUDA that called
+///        cuda::registerBackends()).
+bool cudaCompiledIn();
+
+/// @brief Whether a CUDA GPU can be used (compiled in and the registered probe finds one).
+bool cudaPresent();
+
+/// @brief Auto -> Cuda when compiled in and a GPU is present, else Cpu; Cpu -> Cpu.
+/// @throws InputError for Cuda in a build without CUDA support or without a usable GPU
+Device resolveDevice(Device requested);
+
+/// @brief Register the CUDA probe (returns whether a GPU is usable); nullptr unregisters.
+///        Called by the kernels' registerBackends() (tests may register fakes).
+void registerCudaProbe(bool (*probe)());
+
+} // namespace splatwarp

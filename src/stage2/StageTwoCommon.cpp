@@ -1,0 +1,117 @@
+#include "stage2/StageTwoCommon.h"
+
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
+
+#include <algorithm>
+#include <cmath>
+
+#include "core/Error.h"
+#include "field/FeatureField.h"
+
+namespace splatwarp {
+
+GaussianParams<double> gaussianParamsOf(const GaussianCloud& c, std::size_t i)
+{
+    GaussianParams<double> p;
+    p.mean = Vec3d(c.mean(i));
+    p.rotation = Quatd{c.rotations[4 * i], c.rotations[4 * i + 1], c.rotations[4 * i + 2], c.rotations[4 * i + 3]};
+    p.logScale = Vec3d(c.logScales[3 * i], c.logScales[3 * i + 1], c.logScales[3 * i + 2]);
+    p.logit = c.opacities[i];
+    return p;
+}
+
+void validateStageTwo(const GaussianCloud& cloud, const SampleSet& s, const std::vector<std::uint8_t>& moving,
+                      const std::vector<std::int32_t>& gaussianCell, const StageTwoOptions& o)
+{
+    cloud.checkConsistent();
+    const std::size_t m = s.sampleCount(), c = s.cellCount();
+    if (s.shDegree != cloud.shDegree)
+        throw InputError(msg("Stage II: sample SH degree ", s.shDegree, " differs from the model's ", cloud.shDegree));
+    if (s.warpedPositions.size() != 3 * m || s.targetF.size() != m * std::size_t(s.featureStride()) ||
+        s.sampleCell.size() != m || s.cellGradient.size() != 9 * c)
+        throw InputError("Stage II: sample set arrays have inconsistent sizes");
+    if (moving.size() != cloud.size() || gaussianCell.size() != cloud.size())
+        throw InputError(msg("Stage II: moving/gaussianCell have ", moving.size(), "/", gaussianCell.size(),
+                             " entries for ", cloud.size(), " Gaussians"));
+    for (std::size_t j = 0; j < m; ++j)
+        if (s.sampleCell[j] < 0 || std::size_t(s.sampleCell[j]) >= c)
+            throw InputError(msg("Stage II: sample ", j, " has cell ", s.sampleCell[j], " outside 0..", c - 1));
+    for (std::size_t i = 0; i < gaussianCell.size(); ++i)
+        if (gaussianCell[i] >= std::int32_t(c))
+            throw InputError(msg("Stage II: Gaussian ", i, " has cell ", gaussianCell[i], " outside 0..", c - 1));
+    if (o.iterations < 0 || o.rebuildEvery < 1 || !(o.cutoff > 0.0f) || o.lambdaLpf < 0.0f)
+        throw InputError("Stage II: iterations must be >= 0, rebuildEvery >= 1, cutoff > 0, lambdaLpf >= 0");
+}
+
+StageTwoSetup setupStageTwo(const GaussianCloud& cloud, const SampleSet& samples,
+                            const std::vector<std::uint8_t>& moving, const std::vector<std::int32_t>& gaussianCell,
+                            const StageTwoOptions& options)
+{
+    validateStageTwo(cloud, samples, moving, gaussianCell, options);
+    StageTwoSetup st;
+    const bool threaded = options.threaded;
+    const int stride = cloud.shStride();
+    const float cutoff = options.cutoff;
+    auto forEach = [threaded](std::size_t n, std::size_t grain, const auto& op) {
+        const tbb::blocked_range<std::size_t> all(0, n, grain);
+        auto body = [&](const tbb::blocked_range<std::size_t>& r) {
+            for (std::size_t i = r.begin(); i != r.end(); ++i) op(i);
+        };
+        threaded ? tbb::parallel_for(all, body) : body(all);
+    };
+
+    // Samples used: those whose cell is not skipped.
+    for (std::size_t j = 0; j < samples.sampleCount(); ++j)
+        if (!samples.cellSkip[std::size_t(samples.sampleCell[j])]) st.used.push_back(std::uint32_t(j));
+    const std::size_t s = st.used.size();
+    st.x.resize(3 * s);
+    for (std::size_t k = 0; k < s; ++k)
+        for (int a = 0; a < 3; ++a)
+            st.x[3 * k + std::size_t(a)] = samples.warpedPositions[3 * st.used[k] + std::size_t(a)];
+    if (s > 0) {
+        Vec3f lo(st.x[0], st.x[1], st.x[2]), hi = lo;
+        for (std::size_t k = 0; k < s; ++k)
+            for (int a = 0; a < 3; ++a) {
+                lo[a] = std::min(lo[a], st.x[3 * k + std::size_t(a)]);
+                hi[a] = std::max(hi[a], st.x[3 * k + std::size_t(a)]);
+            }
+        st.sceneExtent = std::max({hi.x - lo.x, hi.y - lo.y, hi.z - lo.z});
+    }
+
+    // Per-Gaussian filters (fixed: F_k of the rest cell does not change during Stage II).
+    const std::size_t n = cloud.size();
+    st.filter.assign(n, Mat3d());
+    if (options.lowPassFilter)
+        forEach(n, 1024, [&](std::size_t i) {
+            if (gaussianCell[i] >= 0)
+                st.filter[i] = lowPassFilter(samples.cellGradient.data() + 9 * std::size_t(gaussianCell[i]),
+                                             double(options.lambdaLpf), double(samples.spacing));
+        });
+    for (std::size_t i = 0; i < n; ++i)
+        if (moving[i]) st.moving.push_back(std::uint32_t(i));
+
+    // The static Gaussians' contribution never changes: evaluate it once.
+    st.fStatic.assign(s * std::size_t(stride), 0.0f);
+    st.oStatic.assign(s, 0.0f);
+    std::vector<PreparedGaussian> prepared(n);
+    forEach(n, 1024, [&](std::size_t i) {
+        if (moving[i]) return; // left out of the bins (empty box)
+        prepared[i] = PreparedGaussian::from(prepareParams(gaussianParamsOf(cloud, i), st.filter[i], double(cutoff)));
+    });
+    GaussianBins bins;
+    binPreparedGaussians(prepared, 0.0f, threaded, bins);
+    evaluatePreparedFeatures(prepared, cloud.sh.data(), stride, bins, st.x.data(), s, cutoff, threaded,
+                             st.fStatic.data(), st.oStatic.data());
+    return st;
+}
+
+float stageTwoPositionRate(const StageTwoOptions& o, int iteration, float sceneExtent)
+{
+    const double tFrac = o.iterations > 1 ? double(iteration) / double(o.iterations - 1) : 0.0;
+    return float(double(o.lrPositionStart) *
+                 std::pow(double(o.lrPositionEnd) / double(o.lrPositionStart), std::min(tFrac, 1.0)) *
+                 double(sceneExtent));
+}
+
+} // namespace splatwarp

@@ -1,0 +1,31 @@
+#pragma once
+/// @file StageTwoDevice.h
+/// @brief Stage II on the chosen device: the CPU optimiser (StageTwo.h) or the CUDA one the
+///        kernels register at start-up (the core library cannot link them).
+#include "core/Device.h"
+#include "stage2/StageTwo.h"
+
+namespace splatwarp {
+
+/// @brief Signature of a Stage II implementation (that of optimiseStageTwo()). A GPU
+///        implementation must leave the cloud untouched when it throws, so the run can be
+///        repeated on the CPU.
+using StageTwoFunction = StageTwoReport (*)(GaussianCloud&, const SampleSet&, const std::vector<std::uint8_t>&,
+                                            const std::vector<std::int32_t>&, const StageTwoOptions&,
+                                            const std::function<void(int, const GaussianCloud&)>&, int);
+
+/// @brief Register the CUDA Stage II (nullptr unregisters). Called by cuda::registerBackends().
+void registerStageTwoCuda(StageTwoFunction cuda);
+
+/// @brief Run Stage II (same arguments and results as optimiseStageTwo()) on a device.
+///        Auto picks CUDA when available (resolveDevice()); when the GPU runs out of memory
+///        under Auto the run repeats on the CPU with a progress message, under Cuda the
+///        DeviceMemoryError propagates. report.device says which device ran.
+/// @note  After a fallback, onEval sees the iterations again from the CPU run.
+/// @throws InputError when Cuda is requested but unavailable (see resolveDevice())
+StageTwoReport runStageTwo(Device device, GaussianCloud& cloud, const SampleSet& samples,
+                           const std::vector<std::uint8_t>& moving, const std::vector<std::int32_t>& gaussianCell,
+                           const StageTwoOptions& options,
+                           const std::function<void(int, const GaussianCloud&)>& onEval = {}, int evalEvery = 0);
+
+} // namespace splatwarp

@@ -1,0 +1,348 @@
+// CUDA Stage II against the CPU path (the reference) on seeded random problems: coverage,
+// features, gradients, one Adam step and 100 iterations end to end. Tests that need a GPU
+// skip with a message where cudaGetDeviceCount finds none.
+//
+// Tolerances are A-PRIORI float tolerances, not yet measured (written on a machine without a
+// GPU; confirm and tighten them on one). Reasoning: the GPU evaluates the same float formulas
+// but nvcc contracts multiply-adds into FMAs and its expf/logf differ from glibc by <= 2 ulp,
+// so each alpha*G differs by a few 1e-7 relative and a feature (a sum of <= ~100 such terms)
+// by ~1e-6 relative; a pair exactly at the cutoff may count on one side only (one term of
+// ~1/255; rare, but one such pair moves a Gaussian's gradient by up to ~1e-3 relative, which
+// would fail kGradRelPerGaussian: look at the pair before loosening). Gradients are accumulated
+// in double on both sides (different order), so they inherit the float weight differences:
+// ~1e-6 relative.
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <string>
+
+#include "CudaBackends.h"
+#include "DeviceBuffer.h"
+#include "StageTwoCuda.h"
+#include "core/Device.h"
+#include "stage2/Coverage.h"
+#include "stage2/StageTwoCommon.h"
+#include "stage2/StageTwoDevice.h"
+#include "stage2/StageTwoTestProblem.h"
+
+using namespace splatwarp;
+using namespace splatwarp::test;
+
+namespace {
+
+#define SPLATWARP_REQUIRE_GPU()                                                                         \
+    if (!::splatwarp::cuda::cudaDeviceAvailable())                                                      \
+    GTEST_SKIP() << "no CUDA GPU (cudaGetDeviceCount found none): GPU parity test compiled but not run"
+
+constexpr int kCells = 12;      // lattice cells per axis (12^3 cells, 2^3 samples each: ~14k samples)
+constexpr float kHalf = 0.9f;   // lattice covers [-0.9, 0.9]^3 around a cloud of extent 0.45
+constexpr double kFeatureRel = 1e-5;  // ||F_gpu - F_cpu|| / ||F_cpu|| (a priori, see top)
+constexpr double kGradRel = 1e-5;     // ||g_gpu - g_ref|| / ||g_ref|| over all parameters (a priori)
+constexpr double kGradRelPerGaussian = 1e-4; // the same per Gaussian (a priori)
+constexpr double kEnergyRel100 = 1e-2;       // energies after 100 Adam steps (L1 sign flips make
+                                             // the trajectories drift apart slowly; a priori)
+
+using Problem = RigidStageTwoProblem;
+
+/// Random cloud, targets from the cloud moved rigidly; every third Gaussian static when asked.
+Problem makeProblem(int degree, std::uint32_t seed, bool someStatic, std::size_t count = 60)
+{
+    Problem p = rigidStageTwoProblem(count, degree, seed, 0.45f, quatToMatrix(Quatd{1.0, 0.04, -0.06, 0.05}),
+                                     Vec3d(0.03, 0.02, -0.04), kCells, kHalf);
+    if (someStatic)
+        for (std::size_t i = 0; i < p.moving.size(); i += 3) p.moving[i] = 0;
+    return p;
+}
+
+/// ||a - b|| / ||b|| in double; fails on any non-finite value.
+double relativeError(const std::vector<float>& a, const std::vector<double>& b)
+{
+    EXPECT_EQ(a.size(), b.size());
+    double num = 0, den = 0;
+    for (std::size_t i = 0; i < std::min(a.size(), b.size()); ++i) {
+        EXPECT_TRUE(std::isfinite(a[i])) << "element " << i;
+        num += (double(a[i]) - b[i]) * (double(a[i]) - b[i]);
+        den += b[i] * b[i];
+    }
+    return den > 0 ? std::sqrt(num / den) : std::sqrt(num);
+}
+
+std::vector<double> toDouble(const std::vector<float>& v) { return std::vector<double>(v.begin(), v.end()); }
+
+/// CPU features (static + moving, prepared exactly as the CPU Stage II does) at the used samples.
+void cpuFeatures(const Problem& p, std::vector<float>& f, std::vector<float>& o, FeatureStats& stats)
+{
+    const StageTwoSetup st = setupStageTwo(p.start, p.samples, p.moving, p.cells, p.options);
+    std::vector<PreparedGaussian> prepared(p.start.size());
+    for (std::size_t i = 0; i < prepared.size(); ++i)
+        prepared[i] = PreparedGaussian::from(
+            prepareParams(gaussianParamsOf(p.start, i), st.filter[i], double(p.options.cutoff)));
+    GaussianBins bins;
+    binPreparedGaussians(prepared, 0.0f, true, bins);
+    const std::size_t s = st.used.size();
+    f.assign(s * std::size_t(p.start.shStride()), 0.0f);
+    o.assign(s, 0.0f);
+    evaluatePreparedFeatures(prepared, p.start.sh.data(), p.start.shStride(), bins, st.x.data(), s, p.options.cutoff,
+                             true, f.data(), o.data(), &stats);
+}
+
+/// Naive double reference of the parameter gradients from the GPU's own dE/dF, dE/dO: every
+/// (used sample, moving Gaussian) pair, no coverage, float weights as the CPU computes them.
+std::vector<double> referenceGradients(const Problem& p, const cuda::StageTwoCudaProbe& probe)
+{
+    const StageTwoSetup st = setupStageTwo(p.start, p.samples, p.moving, p.cells, p.options);
+    const int stride = p.start.shStride();
+    const std::size_t perG = 11 + std::size_t(stride);
+    std::vector<double> out(probe.moving.size() * perG, 0.0);
+    for (std::size_t k = 0; k < probe.moving.size(); ++k) {
+        const std::size_t i = probe.moving[k];
+        const GaussianParams<double> params = gaussianParamsOf(p.start, i);
+        const PreparedGaussian kg = PreparedGaussian::from(prepareParams(params, st.filter[i], double(p.options.cutoff)));
+        const float* h = p.start.shOf(i);
+        GaussianAccum<double> acc;
+        double* o = out.data() + k * perG;
+        for (std::size_t j = 0; j < st.used.size(); ++j) {
+            const Vec3f xj(st.x[3 * j], st.x[3 * j + 1], st.x[3 * j + 2]);
+            Vec3f ad;
+            const float w = kg.weight(xj - kg.mean, p.options.cutoff, &ad);
+            if (w == 0.0f) continue;
+            double gw = probe.gradO[j];
+            for (int c = 0; c < stride; ++c) {
+                const double gfc = probe.gradF[j * std::size_t(stride) + std::size_t(c)];
+                gw += gfc * double(h[c]);
+                o[11 + c] += double(w) * gfc;
+            }
+            pairBackward<double>(gw, double(w), double(kg.alpha), Vec3d(ad), acc);
+        }
+        const GaussianParamGrad<double> g = paramBackward(params, acc);
+        for (int a = 0; a < 3; ++a) o[a] = g.mean[a];
+        o[3] = g.rotation.w; o[4] = g.rotation.x; o[5] = g.rotation.y; o[6] = g.rotation.z;
+        for (int a = 0; a < 3; ++a) o[7 + a] = g.logScale[a];
+        o[10] = g.logit;
+    }
+    return out;
+}
+
+} // namespace
+
+// Runs without a GPU too: registration, and clear errors when CUDA is asked for but absent.
+TEST(CudaBackends, RegistrationAndNoGpuErrors)
+{
+    cuda::registerBackends();
+    EXPECT_TRUE(cudaCompiledIn());
+    EXPECT_EQ(cudaPresent(), cuda::cudaDeviceAvailable());
+    if (!cuda::cudaDeviceAvailable()) {
+        Problem p = makeProblem(1, 3, false, 12);
+        p.options.iterations = 2;
+        GaussianCloud cloud = p.start;
+        EXPECT_THROW(runStageTwo(Device::Cuda, cloud, p.samples, p.moving, p.cells, p.options), InputError);
+        const StageTwoReport r = runStageTwo(Device::Auto, cloud, p.samples, p.moving, p.cells, p.options);
+        EXPECT_EQ(r.device, "cpu");
+    } else {
+        EXPECT_EQ(resolveDevice(Device::Auto), Device::Cuda);
+    }
+    registerCudaProbe(nullptr);
+    registerStageTwoCuda(nullptr);
+}
+
+// Validation happens before any CUDA call, so it runs (and must throw) without a GPU as well.
+TEST(StageTwoCuda, InvalidInputThrowsInputError)
+{
+    Problem p = makeProblem(1, 4, false, 12);
+    GaussianCloud cloud = p.start;
+    std::vector<std::uint8_t> shortMask(3, 1);
+    EXPECT_THROW(cuda::optimiseStageTwoCuda(cloud, p.samples, shortMask, p.cells, p.options), InputError);
+}
+
+TEST(StageTwoCuda, OutOfMemoryNamesTheBuffer)
+{
+    SPLATWARP_REQUIRE_GPU();
+    try {
+        cuda::DeviceBuffer<float> huge(std::size_t(1) << 50, "test buffer"); // 4 PiB: never fits
+        ADD_FAILURE() << "expected DeviceMemoryError";
+    } catch (const DeviceMemoryError& e) {
+        EXPECT_NE(std::string(e.what()).find("test buffer"), std::string::npos) << e.what();
+        EXPECT_NE(std::string(e.what()).find("4503599627370496 bytes"), std::string::npos) << e.what();
+    }
+    cuda::DeviceBuffer<float> small(16, "small buffer"); // the context still works afterwards
+    EXPECT_EQ(small.size(), 16u);
+}
+
+// Coverage: the GPU's sort-based binning finds exactly the pairs the CPU Coverage finds for the
+// same boxes (pure comparisons: exact), and its boxes match the host's box formula.
+TEST(StageTwoCuda, CoverageMatchesCpu)
+{
+    SPLATWARP_REQUIRE_GPU();
+    Problem p = makeProblem(1, 11, true);
+    p.options.iterations = 100;
+    const cuda::StageTwoCudaProbe probe = cuda::probeStageTwoCuda(p.start, p.samples, p.moving, p.cells, p.options);
+    const StageTwoSetup st = setupStageTwo(p.start, p.samples, p.moving, p.cells, p.options);
+    ASSERT_EQ(probe.used, st.used);
+    ASSERT_EQ(probe.moving, st.moving);
+    const std::size_t g = st.moving.size();
+    const int steps = std::min(p.options.rebuildEvery, p.options.iterations);
+    const double move = double(steps) * double(stageTwoPositionRate(p.options, 0, st.sceneExtent));
+    for (std::size_t k = 0; k < g; ++k) {
+        float lo[3], hi[3];
+        const std::size_t i = st.moving[k];
+        stageTwoCoverageBox(gaussianParamsOf(p.start, i), st.filter[i], steps, move, p.options, lo, hi);
+        for (int a = 0; a < 3; ++a) {
+            EXPECT_NEAR(probe.boxLo[3 * k + a], lo[a], 1e-6f * (1 + std::fabs(lo[a]))) << "box " << k;
+            EXPECT_NEAR(probe.boxHi[3 * k + a], hi[a], 1e-6f * (1 + std::fabs(hi[a]))) << "box " << k;
+        }
+    }
+    Coverage cpu;
+    cpu.build(probe.boxLo.data(), probe.boxHi.data(), g, st.x.data(), st.used.size());
+    EXPECT_GT(cpu.pairCount(), 0u);
+    EXPECT_EQ(probe.sampleOffsets, cpu.sampleOffsets());
+    EXPECT_EQ(probe.sampleItems, cpu.sampleItems());
+    EXPECT_EQ(probe.gaussianOffsets, cpu.gaussianOffsets());
+    EXPECT_EQ(probe.gaussianItems, cpu.gaussianItems());
+}
+
+// Forward: F and O at every used sample against the CPU features, for every SH degree (the
+// kernels are instantiated per SH stride); dE/dF, dE/dO are exactly the signs of the GPU's own
+// residuals.
+TEST(StageTwoCuda, FeaturesMatchCpuForEveryShDegree)
+{
+    SPLATWARP_REQUIRE_GPU();
+    for (int degree = 0; degree <= 3; ++degree) {
+        SCOPED_TRACE("SH degree " + std::to_string(degree));
+        const Problem p = makeProblem(degree, 20 + std::uint32_t(degree), true);
+        const cuda::StageTwoCudaProbe probe = cuda::probeStageTwoCuda(p.start, p.samples, p.moving, p.cells, p.options);
+        std::vector<float> f, o;
+        FeatureStats stats;
+        cpuFeatures(p, f, o, stats);
+        const double ef = relativeError(probe.features, toDouble(f)), eo = relativeError(probe.opacity, toDouble(o));
+        std::printf("  degree %d: features rel err %.3g, opacity rel err %.3g, pairs gpu %llu (moving only)\n", degree,
+                    ef, eo, (unsigned long long)probe.pairs);
+        EXPECT_LT(ef, kFeatureRel);
+        EXPECT_LT(eo, kFeatureRel);
+        const int stride = p.start.shStride();
+        for (std::size_t k = 0; k < probe.used.size(); ++k) {
+            const std::size_t j = probe.used[k];
+            const float r = probe.opacity[k] - p.samples.targetO[j];
+            ASSERT_EQ(probe.gradO[k] != 0.0f, r != 0.0f) << "sample " << k;
+            for (int c = 0; c < stride; ++c) {
+                const float rf = probe.features[k * std::size_t(stride) + std::size_t(c)] -
+                                 p.samples.targetF[j * std::size_t(stride) + std::size_t(c)];
+                const float sign = rf > 0 ? 1.0f : (rf < 0 ? -1.0f : 0.0f);
+                ASSERT_EQ(probe.gradF[k * std::size_t(stride) + std::size_t(c)], sign) << "sample " << k << " c " << c;
+            }
+        }
+        // Energy of the same forward pass on the CPU (0 iterations: forward only).
+        GaussianCloud cloud = p.start;
+        StageTwoOptions o0 = p.options;
+        o0.iterations = 0;
+        const StageTwoReport r = optimiseStageTwo(cloud, p.samples, p.moving, p.cells, o0);
+        EXPECT_NEAR(probe.energy.total, r.energies.front().total, kFeatureRel * r.energies.front().total);
+    }
+}
+
+// Backward: the GPU's parameter gradients against a naive double reference over all pairs.
+TEST(StageTwoCuda, GradientsMatchDoubleReference)
+{
+    SPLATWARP_REQUIRE_GPU();
+    for (int degree : {1, 3}) {
+        SCOPED_TRACE("SH degree " + std::to_string(degree));
+        const Problem p = makeProblem(degree, 30 + std::uint32_t(degree), true);
+        const cuda::StageTwoCudaProbe probe = cuda::probeStageTwoCuda(p.start, p.samples, p.moving, p.cells, p.options);
+        const std::vector<double> ref = referenceGradients(p, probe);
+        const double e = relativeError(probe.grad, ref);
+        std::printf("  degree %d: gradient rel err %.3g over %zu Gaussians\n", degree, e, probe.moving.size());
+        EXPECT_LT(e, kGradRel);
+        const std::size_t perG = 11 + std::size_t(p.start.shStride());
+        for (std::size_t k = 0; k < probe.moving.size(); ++k) {
+            const std::vector<float> a(probe.grad.begin() + std::ptrdiff_t(k * perG), probe.grad.begin() + std::ptrdiff_t((k + 1) * perG));
+            const std::vector<double> b(ref.begin() + std::ptrdiff_t(k * perG), ref.begin() + std::ptrdiff_t((k + 1) * perG));
+            EXPECT_LT(relativeError(a, b), kGradRelPerGaussian) << "Gaussian " << probe.moving[k];
+        }
+    }
+}
+
+// One Adam step on both devices. The first Adam step is lr * g / (|g| + eps) = lr * sign(g):
+// equal wherever the gradient signs agree; a gradient within rounding of 0 may flip (2 lr).
+TEST(StageTwoCuda, OneAdamStepMatchesCpu)
+{
+    SPLATWARP_REQUIRE_GPU();
+    Problem p = makeProblem(1, 40, true);
+    p.options.iterations = 1;
+    GaussianCloud a = p.start, b = p.start;
+    optimiseStageTwo(a, p.samples, p.moving, p.cells, p.options);
+    const StageTwoReport r = cuda::optimiseStageTwoCuda(b, p.samples, p.moving, p.cells, p.options);
+    EXPECT_EQ(r.device, "cuda");
+    const StageTwoOptions& o = p.options;
+    std::size_t total = 0, off = 0;
+    auto compare = [&](const std::vector<float>& x, const std::vector<float>& y, float lr) {
+        for (std::size_t i = 0; i < x.size(); ++i) {
+            const double d = std::fabs(double(x[i]) - double(y[i]));
+            ++total;
+            if (d > 1e-6 * std::max(1.0, std::fabs(double(x[i]))) + 1e-3 * double(lr)) ++off;
+            EXPECT_LE(d, 2.01 * double(lr) + 1e-6 * std::max(1.0, std::fabs(double(x[i])))) << "element " << i;
+        }
+    };
+    compare(a.means, b.means, stageTwoPositionRate(o, 0, r.sceneExtent));
+    compare(a.rotations, b.rotations, o.lrRotation);
+    compare(a.logScales, b.logScales, o.lrLogScale);
+    compare(a.opacities, b.opacities, o.lrOpacity);
+    compare(a.sh, b.sh, o.lrSh);
+    std::printf("  one Adam step: %zu of %zu parameters differ beyond rounding\n", off, total);
+    EXPECT_LE(double(off), 0.005 * double(total)); // a priori: sign flips of near-zero gradients only
+    for (std::size_t i = 0; i < p.moving.size(); ++i)
+        if (!p.moving[i]) {
+            EXPECT_EQ(b.opacities[i], p.start.opacities[i]);
+            EXPECT_EQ(b.means[3 * i], p.start.means[3 * i]);
+        }
+}
+
+// 100 iterations end to end: same report structure, energies within kEnergyRel100.
+TEST(StageTwoCuda, HundredIterationsMatchCpu)
+{
+    SPLATWARP_REQUIRE_GPU();
+    Problem p = makeProblem(1, 50, true);
+    p.options.iterations = 100;
+    GaussianCloud a = p.start, b = p.start;
+    std::vector<int> seenCpu, seenGpu;
+    const StageTwoReport rc = optimiseStageTwo(a, p.samples, p.moving, p.cells, p.options,
+                                               [&](int it, const GaussianCloud&) { seenCpu.push_back(it); }, 25);
+    const StageTwoReport rg = cuda::optimiseStageTwoCuda(b, p.samples, p.moving, p.cells, p.options,
+                                                         [&](int it, const GaussianCloud&) { seenGpu.push_back(it); }, 25);
+    EXPECT_EQ(seenCpu, seenGpu);
+    EXPECT_EQ(rg.samplesUsed, rc.samplesUsed);
+    EXPECT_EQ(rg.movingGaussians, rc.movingGaussians);
+    EXPECT_EQ(rg.coverageRebuilds, rc.coverageRebuilds);
+    ASSERT_EQ(rg.energies.size(), rc.energies.size());
+    ASSERT_EQ(rg.pairsPerIteration.size(), rc.pairsPerIteration.size());
+    // Same start parameters: only pairs within rounding of the cutoff may count on one side only.
+    EXPECT_NEAR(double(rg.pairsPerIteration.front()), double(rc.pairsPerIteration.front()),
+                1e-3 * double(rc.pairsPerIteration.front()));
+    for (std::size_t e = 0; e < rc.energies.size(); ++e) {
+        EXPECT_EQ(rg.energies[e].iteration, rc.energies[e].iteration);
+        EXPECT_NEAR(rg.energies[e].total, rc.energies[e].total, kEnergyRel100 * rc.energies[e].total) << "entry " << e;
+    }
+    std::printf("  100 iterations: energy cpu %.6g -> %.6g, cuda %.6g -> %.6g; cuda %.2f ms/iter (coverage %.2f, "
+                "forward %.2f, backward %.2f, update %.2f ms total)\n",
+                rc.energies.front().total, rc.energies.back().total, rg.energies.front().total,
+                rg.energies.back().total, rg.msTotal / 100.0, rg.msCoverage, rg.msForward, rg.msBackward, rg.msUpdate);
+    EXPECT_LT(rg.energies.back().total, 0.8 * rg.energies.front().total);
+    for (std::size_t i = 0; i < p.moving.size(); ++i)
+        if (!p.moving[i]) EXPECT_EQ(b.shOf(i)[0], p.start.shOf(i)[0]) << "static Gaussian " << i;
+}
+
+// Nothing moving: no pairs, no steps, the cloud and the energy unchanged (empty launches skipped).
+TEST(StageTwoCuda, NothingMoving)
+{
+    SPLATWARP_REQUIRE_GPU();
+    Problem p = makeProblem(2, 60, false, 20);
+    p.options.iterations = 5;
+    p.moving.assign(p.moving.size(), 0);
+    GaussianCloud cloud = p.start;
+    const StageTwoReport r = cuda::optimiseStageTwoCuda(cloud, p.samples, p.moving, p.cells, p.options);
+    EXPECT_EQ(cloud.means, p.start.means);
+    EXPECT_EQ(cloud.sh, p.start.sh);
+    EXPECT_EQ(r.movingGaussians, 0u);
+    EXPECT_EQ(r.energies.front().total, r.energies.back().total);
+    EXPECT_GT(r.energies.front().total, 0.0);
+}

@@ -1,0 +1,157 @@
+// Device parsing and Stage II dispatch in a CPU-only process (this binary never links the
+// CUDA kernels): CUDA requested without support fails clearly, auto runs on the CPU, and a
+// registered GPU implementation running out of memory falls back to the CPU under auto only.
+#include <gtest/gtest.h>
+
+#include <cstring>
+#include <string>
+
+#include "core/Device.h"
+#include "stage2/StageTwoDevice.h"
+#include "stage2/StageTwoTestProblem.h"
+
+using namespace splatwarp;
+using namespace splatwarp::test;
+
+namespace {
+
+/// Registers fakes for one test and always restores the CPU-only state.
+struct FakeCuda {
+    FakeCuda(bool (*probe)(), StageTwoFunction stageTwo)
+    {
+        registerCudaProbe(probe);
+        registerStageTwoCuda(stageTwo);
+    }
+    ~FakeCuda()
+    {
+        registerCudaProbe(nullptr);
+        registerStageTwoCuda(nullptr);
+    }
+};
+
+bool noGpu() { return false; }
+bool gpu() { return true; }
+
+int gFakeCalls = 0;
+StageTwoReport fakeOutOfMemory(GaussianCloud&, const SampleSet&, const std::vector<std::uint8_t>&,
+                               const std::vector<std::int32_t>&, const StageTwoOptions&,
+                               const std::function<void(int, const GaussianCloud&)>&, int)
+{
+    ++gFakeCalls;
+    throw DeviceMemoryError("CUDA: out of GPU memory for the coverage pairs (1234 bytes)");
+}
+StageTwoReport fakeSuccess(GaussianCloud&, const SampleSet&, const std::vector<std::uint8_t>&,
+                           const std::vector<std::int32_t>&, const StageTwoOptions&,
+                           const std::function<void(int, const GaussianCloud&)>&, int)
+{
+    ++gFakeCalls;
+    StageTwoReport r;
+    r.movingGaussians = 12345; // marks this fake's report
+    return r;
+}
+
+template <typename F>
+std::string errorOf(const F& f)
+{
+    try {
+        f();
+    } catch (const InputError& e) {
+        return e.what();
+    }
+    return "";
+}
+
+RigidStageTwoProblem smallProblem()
+{
+    StageTwoOptions o;
+    o.iterations = 3;
+    return rigidStageTwoProblem(12, 0, 7, 0.4f, Mat3d::identity(), Vec3d(0.03, 0, 0), 6, 0.9f, o);
+}
+
+bool sameParams(const GaussianCloud& a, const GaussianCloud& b)
+{
+    return a.means == b.means && a.rotations == b.rotations && a.logScales == b.logScales &&
+           a.opacities == b.opacities && a.sh == b.sh;
+}
+
+} // namespace
+
+TEST(Device, ParseNamesAndRejectOthers)
+{
+    EXPECT_EQ(parseDevice("auto"), Device::Auto);
+    EXPECT_EQ(parseDevice("cpu"), Device::Cpu);
+    EXPECT_EQ(parseDevice("cuda"), Device::Cuda);
+    for (Device d : {Device::Auto, Device::Cpu, Device::Cuda}) EXPECT_EQ(parseDevice(deviceName(d)), d);
+    const std::string e = errorOf([] { parseDevice("gpu"); });
+    EXPECT_NE(e.find("'gpu'"), std::string::npos) << e;
+    EXPECT_NE(e.find("auto, cpu or cuda"), std::string::npos) << e;
+    EXPECT_THROW(parseDevice("CUDA"), InputError);
+}
+
+TEST(Device, CudaWithoutSupportFailsClearly)
+{
+    ASSERT_FALSE(cudaCompiledIn()) << "the CPU test binary must not register CUDA backends";
+    EXPECT_EQ(resolveDevice(Device::Auto), Device::Cpu);
+    EXPECT_EQ(resolveDevice(Device::Cpu), Device::Cpu);
+    const std::string e = errorOf([] { resolveDevice(Device::Cuda); });
+    EXPECT_NE(e.find("this build has no CUDA support"), std::string::npos) << e;
+
+    const RigidStageTwoProblem p = smallProblem();
+    GaussianCloud cloud = p.start;
+    EXPECT_THROW(runStageTwo(Device::Cuda, cloud, p.samples, p.moving, p.cells, p.options), InputError);
+    EXPECT_TRUE(sameParams(cloud, p.start));
+}
+
+TEST(Device, CudaWithoutGpuFailsClearlyAndAutoUsesCpu)
+{
+    gFakeCalls = 0;
+    FakeCuda fake(noGpu, fakeSuccess);
+    EXPECT_TRUE(cudaCompiledIn());
+    EXPECT_FALSE(cudaPresent());
+    const std::string e = errorOf([] { resolveDevice(Device::Cuda); });
+    EXPECT_NE(e.find("no usable CUDA GPU"), std::string::npos) << e;
+    const RigidStageTwoProblem p = smallProblem();
+    GaussianCloud cloud = p.start;
+    const StageTwoReport r = runStageTwo(Device::Auto, cloud, p.samples, p.moving, p.cells, p.options);
+    EXPECT_EQ(r.device, "cpu");
+    EXPECT_EQ(gFakeCalls, 0);
+}
+
+TEST(Device, AutoDispatchesToRegisteredCuda)
+{
+    gFakeCalls = 0;
+    FakeCuda fake(gpu, fakeSuccess);
+    const RigidStageTwoProblem p = smallProblem();
+    GaussianCloud cloud = p.start;
+    const StageTwoReport r = runStageTwo(Device::Auto, cloud, p.samples, p.moving, p.cells, p.options);
+    EXPECT_EQ(gFakeCalls, 1);
+    EXPECT_EQ(r.device, "cuda");
+    EXPECT_EQ(r.movingGaussians, 12345u);
+    const StageTwoReport c = runStageTwo(Device::Cpu, cloud, p.samples, p.moving, p.cells, p.options);
+    EXPECT_EQ(gFakeCalls, 1);
+    EXPECT_EQ(c.device, "cpu");
+}
+
+TEST(Device, OutOfGpuMemoryFallsBackUnderAutoOnly)
+{
+    gFakeCalls = 0;
+    FakeCuda fake(gpu, fakeOutOfMemory);
+    const RigidStageTwoProblem p = smallProblem();
+    GaussianCloud reference = p.start, cloud = p.start;
+    const StageTwoReport ref = optimiseStageTwo(reference, p.samples, p.moving, p.cells, p.options);
+    const StageTwoReport r = runStageTwo(Device::Auto, cloud, p.samples, p.moving, p.cells, p.options);
+    EXPECT_EQ(gFakeCalls, 1);
+    EXPECT_EQ(r.device, "cpu");
+    EXPECT_TRUE(sameParams(cloud, reference));
+    EXPECT_EQ(r.energies.back().total, ref.energies.back().total);
+
+    GaussianCloud explicitCuda = p.start;
+    try {
+        runStageTwo(Device::Cuda, explicitCuda, p.samples, p.moving, p.cells, p.options);
+        ADD_FAILURE() << "expected DeviceMemoryError";
+    } catch (const DeviceMemoryError& e) {
+        EXPECT_NE(std::string(e.what()).find("coverage pairs"), std::string::npos) << e.what();
+    }
+    EXPECT_EQ(gFakeCalls, 2);
+    EXPECT_TRUE(sameParams(explicitCuda, p.start));
+}
