@@ -1,11 +1,11 @@
-// Host/device Jacobi eigen-decomposition and polar decomposition (core/Polar3.h) against
-// Eigen in double (the reference: the same SVD construction as deform/StageOne.cpp's polar()).
+// Host/device Jacobi eigen-decomposition and polar decomposition (core/Polar.h) against
+// Eigen's SVD in double (the reference).
 #include <gtest/gtest.h>
 
 #include <Eigen/Dense>
 #include <random>
 
-#include "core/Polar3.h"
+#include "core/Polar.h"
 
 using namespace splatwarp;
 
@@ -59,7 +59,7 @@ Mat3d randomMatrix(std::mt19937& rng, double lo, double hi, bool negative)
 
 } // namespace
 
-TEST(Polar3, SymmetricEigenDecomposes)
+TEST(Polar, SymmetricEigenDecomposes)
 {
     std::mt19937 rng(7);
     std::uniform_real_distribution<double> u(-2.0, 2.0);
@@ -86,7 +86,7 @@ TEST(Polar3, SymmetricEigenDecomposes)
     EXPECT_LT(worst, 1e-13); // measured 4e-15 (500 matrices, seed 7)
 }
 
-TEST(Polar3, PolarMatchesEigenReference)
+TEST(Polar, PolarMatchesEigenReference)
 {
     std::mt19937 rng(11);
     double worstR = 0, worstS = 0, worstM = 0;
@@ -113,7 +113,7 @@ TEST(Polar3, PolarMatchesEigenReference)
     EXPECT_LT(worstS, 1e-12);
 }
 
-TEST(Polar3, DegenerateInputsStayFinite)
+TEST(Polar, DegenerateInputsStayFinite)
 {
     for (const Mat3d& m : {Mat3d(), Mat3d::identity(), Mat3d::identity() * -1.0}) {
         Mat3d r, s;
