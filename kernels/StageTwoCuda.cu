@@ -2,6 +2,7 @@
 // per-element maths is the shared host/device code (PairGradients.h, PreparedGaussian.h,
 // StageTwoCommon.h). Notation: S used samples, G moving Gaussians, P coverage pairs,
 // E bin entries, STRIDE = 3 (degree+1)^2 SH floats, PER_G = 11 + STRIDE packed parameters.
+#include <math_constants.h>
 #include "StageTwoCuda.h"
 
 #include <cub/cub.cuh>
@@ -436,6 +437,34 @@ struct StepRates {
     float position, rotation, logScale, opacity, sh;
 };
 
+/// keepBest, step 1: compare the energy of `iteration` with the best so far (one thread, so no
+/// race on `best`); flag = 1 when it is lower, and it becomes the best. Same comparison of the same
+/// double sum as the CPU loop.
+__global__ void bestFlagKernel(const EnergySum* sum, int iteration, double* best, int* bestIteration, int* flag)
+{
+    const double total = sum->color + sum->opacity + sum->boundary;
+    const int better = total < *best ? 1 : 0;
+    *flag = better;
+    if (better) {
+        *best = total;
+        *bestIteration = iteration;
+    }
+}
+
+/// keepBest, step 2: copy the parameters into the snapshot when the flag is set.
+__global__ void snapshotKernel(std::size_t n, const int* flag, const float* params /* [G,PER_G] */,
+                               float* snapshot /* [G,PER_G] */)
+{
+    const std::size_t i = blockIdx.x * std::size_t(blockDim.x) + threadIdx.x;
+    if (i < n && *flag) snapshot[i] = params[i];
+}
+
+__global__ void initBestKernel(double* best, int* bestIteration)
+{
+    *best = CUDART_INF;
+    *bestIteration = 0;
+}
+
 /// Adam on every packed parameter, operation for operation as stage2/Adam.h: the float moments
 /// use round-to-nearest intrinsics so nvcc cannot contract them into FMAs (the CPU does not).
 __global__ void adamKernel(std::size_t n, int perG, float* params /* [G,PER_G] */, const float* grad /* [G,PER_G] */,
@@ -694,6 +723,35 @@ public:
                mOptions.epsilon, corr1, corr2, lr);
     }
 
+    /// keepBest: start tracking (best = +inf).
+    void initBest()
+    {
+        mBestParams.resize(mParams.size());
+        mBest.resize(1);
+        mBestIteration.resize(1);
+        mBestFlag.resize(1);
+        initBestKernel<<<1, 1, 0, stream()>>>(mBest.data(), mBestIteration.data());
+        SPLATWARP_CUDA_CHECK_LAUNCH("initBestKernel");
+    }
+    /// keepBest: snapshot the parameters when the energy of `iteration` (forward() done) is the lowest.
+    void trackBest(int iteration)
+    {
+        bestFlagKernel<<<1, 1, 0, stream()>>>(mSums.data() + iteration, iteration, mBest.data(), mBestIteration.data(),
+                                              mBestFlag.data());
+        SPLATWARP_CUDA_CHECK_LAUNCH("bestFlagKernel");
+        launch("snapshotKernel", snapshotKernel, mParams.size(), stream(), mParams.size(),
+               (const int*)mBestFlag.data(), (const float*)mParams.data(), mBestParams.data());
+    }
+    /// keepBest: put the best parameters back (waits for the best energy and iteration).
+    void restoreBest(int& iteration, double& energy)
+    {
+        if (mParams.size() > 0)
+            SPLATWARP_CUDA_CHECK(cudaMemcpyAsync(mParams.data(), mBestParams.data(), mParams.size() * sizeof(float),
+                                                 cudaMemcpyDeviceToDevice, stream()));
+        mBest.download(&energy, 1, stream());
+        mBestIteration.download(&iteration, 1, stream());
+    }
+
     /// Write the packed parameters into the moving Gaussians of a cloud (waits).
     void download(GaussianCloud& cloud) const
     {
@@ -783,6 +841,9 @@ private:
         mGaussianKeys{"Gaussian-major pair keys"}, mGaussianItems{"Gaussian-major pairs"},
         mGaussianOffsets{"Gaussian-major offsets"}, mPairCount{"per-sample pair counts"};
     DeviceBuffer<EnergySum> mPartial{"energy partial sums"}, mSums{"energies per iteration"};
+    DeviceBuffer<float> mBestParams{"best-iterate parameters"};
+    DeviceBuffer<double> mBest{"best energy"};
+    DeviceBuffer<int> mBestIteration{"best iteration"}, mBestFlag{"best flag"};
     DeviceBuffer<unsigned char> mCubTemp{"CUB temporary storage"};
 };
 
@@ -806,6 +867,7 @@ StageTwoReport optimiseStageTwoCuda(GaussianCloud& cloud, const SampleSet& sampl
     PhaseTimer& timer = solver.timer();
     std::unique_ptr<GaussianCloud> evalCloud; // onEval sees a copy: the caller's cloud changes only on success
     const int reportEvery = std::max(options.reportEvery, 1);
+    if (options.keepBest) solver.initBest();
     for (int it = 0; it <= options.iterations; ++it) {
         timer.begin(PhaseTimer::Forward);
         solver.prepare();
@@ -817,6 +879,7 @@ StageTwoReport optimiseStageTwoCuda(GaussianCloud& cloud, const SampleSet& sampl
         }
         timer.begin(PhaseTimer::Forward);
         solver.forward(it);
+        if (options.keepBest) solver.trackBest(it);
         timer.end();
         if (it % reportEvery == 0 || it == options.iterations) {
             std::uint64_t pairs = 0;
@@ -841,6 +904,14 @@ StageTwoReport optimiseStageTwoCuda(GaussianCloud& cloud, const SampleSet& sampl
     report.pairsPerIteration = solver.pairsPerIteration(options.iterations);
     report.coveragePairs = solver.coveragePairs();
     report.coverageRebuilds = solver.rebuilds();
+    if (options.keepBest) {
+        solver.restoreBest(report.bestIteration, report.bestEnergy);
+        if (report.bestIteration != options.iterations)
+            progress(msg("Stage II (CUDA): kept iteration ", report.bestIteration, " (lowest energy ", report.bestEnergy, ")"));
+    } else {
+        report.bestIteration = options.iterations;
+        report.bestEnergy = report.energies.back().total;
+    }
     solver.download(cloud);
     double ms[PhaseTimer::Count];
     timer.totals(ms);

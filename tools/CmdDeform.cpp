@@ -3,6 +3,7 @@
 #include "Command.h"
 #include "DeformPipeline.h"
 #include "GridArgs.h"
+#include "core/Device.h"
 #include "core/Error.h"
 
 namespace splatwarp::cli {
@@ -13,6 +14,7 @@ struct DeformArgs {
     int nodes = 0, k = 0;
     std::uint32_t seed = 0;
     bool noLpf = false, noEval = false;
+    std::string device = "auto";
 };
 
 const CommandRegistrar reg(30, [](CLI::App& app) {
@@ -42,6 +44,9 @@ const CommandRegistrar reg(30, [](CLI::App& app) {
         ->check(CLI::NonNegativeNumber);
     sub->add_option("--eval-points", job.heldOut.points, "Held-out points for the field errors")->capture_default_str()->check(CLI::PositiveNumber);
     sub->add_flag("--no-eval", args->noEval, "Skip the held-out field errors");
+    sub->add_option("--device", args->device, "Where Stage II runs: auto (CUDA when compiled in and a GPU is present), cpu, cuda")
+        ->capture_default_str()
+        ->check(CLI::IsMember({"auto", "cpu", "cuda"}));
     sub->add_flag("--vdb", job.writeVdb, "Also write field.vdb: the Stage II model's sampled field (as `to-vdb`)");
     sub->add_flag("--render", job.render, "Also write compare.png: rest | Stage I | Stage II from a few orbit views");
     sub->callback([args, sub] {
@@ -51,6 +56,7 @@ const CommandRegistrar reg(30, [](CLI::App& app) {
         if (sub->count("--seed")) job.seed = args->seed;
         job.stage2.lowPassFilter = !args->noLpf;
         job.evaluate = !args->noEval;
+        job.device = parseDevice(args->device);
         if (job.render && job.stage1Only) throw UsageError("--render needs Stage II (drop --stage1-only)");
         runDeformJob(job);
     });

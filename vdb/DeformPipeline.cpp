@@ -12,7 +12,7 @@
 #include "io/GaussianIO.h"
 #include "render/Camera.h"
 #include "render/ComparisonSheet.h"
-#include "stage2/StageTwo.h"
+#include "stage2/StageTwoDevice.h"
 
 namespace splatwarp {
 
@@ -41,11 +41,14 @@ nlohmann::json stageTwoJson(const StageTwoReport& r, const SampleGrid& grid, con
             {"pairsPerIteration", pairsPerIteration},
             {"pairsPerSecond", r.msForward + r.msBackward > 0 ? pairs / ((r.msForward + r.msBackward) / 1000.0) : 0.0},
             {"coverageRebuilds", r.coverageRebuilds},
+            {"bestIteration", r.bestIteration},
+            {"bestEnergy", r.bestEnergy},
+            {"device", r.device},
             {"sceneExtent", r.sceneExtent},
             {"parameters",
              {{"iterations", o.iterations}, {"lambdaOpacity", o.lambdaOpacity}, {"boundaryWeight", o.boundaryWeight},
               {"lowPassFilter", o.lowPassFilter}, {"lambdaLpf", o.lambdaLpf}, {"rebuildEvery", o.rebuildEvery},
-              {"cutoff", o.cutoff}}},
+              {"cutoff", o.cutoff}, {"keepBest", o.keepBest}}},
             {"timingsMs",
              {{"setup", r.msSetup}, {"coverage", r.msCoverage}, {"forward", r.msForward}, {"backward", r.msBackward},
               {"update", r.msUpdate}, {"total", r.msTotal}}}};
@@ -67,6 +70,7 @@ std::vector<Camera> comparisonCameras(const GaussianCloud& rest, const GaussianC
 nlohmann::json runDeformJob(const DeformJobOptions& o)
 {
     Stopwatch total, clock;
+    if (!o.stage1Only) resolveDevice(o.device); // fail before any work when the device cannot run
     DeformSpec spec = loadDeformSpec(o.specPath);
     if (o.nodes) spec.graph.nodes = *o.nodes;
     if (o.k) spec.graph.k = *o.k;
@@ -125,7 +129,7 @@ nlohmann::json runDeformJob(const DeformJobOptions& o)
             progress(msg("Stage II iteration ", iteration, ": held-out opacity error ", e.opacity));
         };
         progress(msg("Stage II: ", o.stage2.iterations, " iterations on ", stage1.movingCount, " moving Gaussians"));
-        const StageTwoReport r2 = optimiseStageTwo(fitted, grid.samples(), stage1.moving, grid.gaussianCell(), o.stage2,
+        const StageTwoReport r2 = runStageTwo(o.device, fitted, grid.samples(), stage1.moving, grid.gaussianCell(), o.stage2,
                                                    o.evalEvery > 0 ? std::function<void(int, const GaussianCloud&)>(onEval)
                                                                    : std::function<void(int, const GaussianCloud&)>(),
                                                    o.evalEvery);

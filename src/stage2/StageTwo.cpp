@@ -4,6 +4,7 @@
 #include <tbb/parallel_for.h>
 
 #include <algorithm>
+#include <limits>
 #include <cmath>
 
 #include "core/Error.h"
@@ -184,12 +185,37 @@ StageTwoReport optimiseStageTwo(GaussianCloud& cloud, const SampleSet& samples, 
         report.msUpdate += sw.ms();
     };
 
+    // The moving Gaussians' parameters of the best iterate so far (keepBest), packed per Gaussian
+    // as means, rotation, log-scales, logit, SH.
+    const std::size_t packed = std::size_t(11 + stride);
+    std::vector<float> best(options.keepBest ? g * packed : 0);
+    auto snapshot = [&](bool save) {
+        forEach(g, 1024, threaded, [&](std::size_t k) {
+            const std::size_t i = mov[k];
+            float* b = best.data() + k * packed;
+            float* fields[5] = {&cloud.means[3 * i], &cloud.rotations[4 * i], &cloud.logScales[3 * i], &cloud.opacities[i],
+                                cloud.shOf(i)};
+            const int sizes[5] = {3, 4, 3, 1, stride};
+            for (int f = 0; f < 5; ++f) {
+                if (save) std::copy(fields[f], fields[f] + sizes[f], b);
+                else std::copy(b, b + sizes[f], fields[f]);
+                b += sizes[f];
+            }
+        });
+    };
+    report.bestEnergy = std::numeric_limits<double>::infinity();
+
     const int reportEvery = std::max(options.reportEvery, 1);
     for (int it = 0; it <= options.iterations; ++it) {
         prepareKernels();
         if (it < options.iterations && it % options.rebuildEvery == 0) rebuildCoverage(it);
         if (it == 0 && options.iterations == 0) rebuildCoverage(it);
         const auto [e, pairs] = forward(it);
+        if (!options.keepBest || e.total < report.bestEnergy) {
+            report.bestEnergy = e.total;
+            report.bestIteration = it;
+            if (options.keepBest && it < options.iterations) snapshot(true);
+        }
         if (it % reportEvery == 0 || it == options.iterations) {
             report.energies.push_back(e);
             progress(msg("Stage II iteration ", it, ": energy ", e.total, " (colour ", e.color, ", opacity ",
@@ -200,6 +226,10 @@ StageTwoReport optimiseStageTwo(GaussianCloud& cloud, const SampleSet& samples, 
         backward();
         step(it);
         if (onEval && evalEvery > 0 && (it + 1) % evalEvery == 0) onEval(it + 1, cloud);
+    }
+    if (options.keepBest && report.bestIteration != options.iterations) {
+        snapshot(false);
+        progress(msg("Stage II: kept iteration ", report.bestIteration, " (lowest energy ", report.bestEnergy, ")"));
     }
     report.msTotal = total.ms();
     return report;

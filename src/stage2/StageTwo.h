@@ -26,6 +26,8 @@ struct StageTwoEnergy {
 struct StageTwoReport {
     std::string device = "cpu"; ///< which device ran: "cpu" or "cuda"
     std::vector<StageTwoEnergy> energies;
+    int bestIteration = 0;   ///< the iterate returned (the last one when keepBest is off)
+    double bestEnergy = 0;   ///< its training energy
     std::size_t movingGaussians = 0;
     std::size_t samplesUsed = 0;    ///< samples in cells not skipped
     std::size_t samplesSkipped = 0;
