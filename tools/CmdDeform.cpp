@@ -1,5 +1,7 @@
 /// `splatwarp deform IN --spec SPEC.json -o OUTDIR`: Stage I (embedded deformation) and Stage II
 /// (fit to the warped radiance field) -> baseline.ply, deformed.ply, report.json [, field.vdb, compare.png].
+#include <cstdio>
+
 #include "Command.h"
 #include "DeformPipeline.h"
 #include "GridArgs.h"
@@ -58,7 +60,18 @@ const CommandRegistrar reg(30, [](CLI::App& app) {
         job.evaluate = !args->noEval;
         job.device = parseDevice(args->device);
         if (job.render && job.stage1Only) throw UsageError("--render needs Stage II (drop --stage1-only)");
-        runDeformJob(job);
+        const nlohmann::json report = runDeformJob(job);
+        // A short summary on stdout (progress lines go to stderr).
+        std::printf("outputs:");
+        for (const auto& [name, path] : report["outputs"].items()) std::printf(" %s", path.get<std::string>().c_str());
+        std::printf(" %s/report.json\n", job.outDir.c_str());
+        if (report.contains("stage2") && report["stage2"].contains("field_error")) {
+            const auto& e1 = report["stage1"]["field_error"];
+            const auto& e2 = report["stage2"]["field_error"];
+            std::printf("held-out field error (opacity, color): Stage I %.4g, %.4g -> Stage II %.4g, %.4g\n",
+                        e1["opacity"].get<double>(), e1["color"].get<double>(), e2["opacity"].get<double>(),
+                        e2["color"].get<double>());
+        }
     });
 });
 
