@@ -55,6 +55,8 @@ StageTwoReport optimiseStageTwo(GaussianCloud& cloud, const SampleSet& samples, 
 
     std::vector<PreparedGaussian> kernels(g);
     std::vector<float> boxLo(3 * g), boxHi(3 * g);
+    std::vector<CoverageSlabs> slabs(g);
+    std::vector<std::uint8_t> holds(g);
     std::vector<float> gF(s * std::size_t(stride)), gO(s), energy(3 * s);
     std::vector<std::uint32_t> pairCount(s);
     // Parameter layout per moving Gaussian: mean 3, rotation 4, logScale 3, logit 1, SH stride.
@@ -80,12 +82,25 @@ StageTwoReport optimiseStageTwo(GaussianCloud& cloud, const SampleSet& samples, 
         const double move = double(steps) * double(positionRate(iteration)); // per axis
         forEach(g, 256, threaded, [&](std::size_t k) {
             const std::size_t i = mov[k];
-            stageTwoCoverageBox(gaussianParamsOf(cloud, i), filter[i], steps, move, options, &boxLo[3 * k], &boxHi[3 * k]);
+            const GaussianParams<double> p = gaussianParamsOf(cloud, i);
+            stageTwoCoverageBox(p, filter[i], steps, move, options, &boxLo[3 * k], &boxHi[3 * k]);
+            stageTwoCoverageSlabs(p, filter[i], steps, move, options, slabs[k]);
         });
-        coverage.build(boxLo.data(), boxHi.data(), g, x.data(), s, threaded);
+        coverage.build(boxLo.data(), boxHi.data(), g, x.data(), s, threaded, slabs.data());
         report.coveragePairs = coverage.pairCount();
         ++report.coverageRebuilds;
         report.msCoverage += sw.ms();
+    };
+    // The learning-rate bound behind the boxes is an estimate (Adam can step further): check
+    // each Gaussian is still inside its box and slabs, so a missed pair forces a rebuild
+    // instead of silently changing the result.
+    auto coverageHolds = [&] {
+        forEach(g, 256, threaded, [&](std::size_t k) {
+            const std::size_t i = mov[k];
+            holds[k] = stageTwoCoverageHolds(gaussianParamsOf(cloud, i), filter[i], double(cutoff), &boxLo[3 * k],
+                                             &boxHi[3 * k], slabs[k]);
+        });
+        return std::all_of(holds.begin(), holds.end(), [](std::uint8_t h) { return h != 0; });
     };
     // Forward: F, O per sample, the loss and its gradient; returns the energy terms.
     auto forward = [&](int iteration) {
@@ -208,8 +223,12 @@ StageTwoReport optimiseStageTwo(GaussianCloud& cloud, const SampleSet& samples, 
     const int reportEvery = std::max(options.reportEvery, 1);
     for (int it = 0; it <= options.iterations; ++it) {
         prepareKernels();
-        if (it < options.iterations && it % options.rebuildEvery == 0) rebuildCoverage(it);
-        if (it == 0 && options.iterations == 0) rebuildCoverage(it);
+        const bool scheduled = (it < options.iterations && it % options.rebuildEvery == 0) || it == 0;
+        if (scheduled) rebuildCoverage(it);
+        else if (!coverageHolds()) {
+            rebuildCoverage(it);
+            ++report.coverageForcedRebuilds;
+        }
         const auto [e, pairs] = forward(it);
         if (!options.keepBest || e.total < report.bestEnergy) {
             report.bestEnergy = e.total;

@@ -34,6 +34,7 @@ struct StageTwoReport {
     std::vector<std::uint64_t> pairsPerIteration; ///< counted (alpha*G >= cutoff) moving pairs per forward pass
     std::uint64_t coveragePairs = 0;              ///< candidate pairs of the last coverage
     int coverageRebuilds = 0;
+    int coverageForcedRebuilds = 0;               ///< of those, rebuilds because a Gaussian left its coverage early
     float sceneExtent = 0;                        ///< multiplies the position learning rate
     // Time per phase in milliseconds.
     double msSetup = 0, msCoverage = 0, msForward = 0, msBackward = 0, msUpdate = 0, msTotal = 0;

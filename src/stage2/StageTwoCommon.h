@@ -11,6 +11,7 @@
 #include "core/HostDevice.h"
 #include "core/SmallMath.h"
 #include "field/SampleSet.h"
+#include "stage2/Coverage.h"
 #include "stage2/PairGradients.h"
 #include "stage2/StageTwoOptions.h"
 
@@ -45,31 +46,76 @@ GaussianParams<double> gaussianParamsOf(const GaussianCloud& cloud, std::size_t 
 ///        lrPositionEnd over the run, times the scene extent.
 float stageTwoPositionRate(const StageTwoOptions& o, int iteration, float sceneExtent);
 
-/// @brief Padded coverage box of one moving Gaussian: its cutoff ellipsoid grown by what
-///        `steps` Adam steps can do (each step moves a parameter by about its learning rate:
-///        opacity and scale grow the ellipsoid, rotation turns it, the mean moves `move` per
-///        axis), plus options.coveragePad relative margin. Empty (hi < lo) when it never counts.
-/// @param lo, hi  [3] out
-SPLATWARP_HOST_DEVICE void stageTwoCoverageBox(GaussianParams<double> p, const Mat3d& filter, int steps, double move,
-                                              const StageTwoOptions& o, float* lo, float* hi)
+/// @brief What a moving Gaussian can reach within `steps` Adam steps, assuming each step changes
+///        a parameter by about its learning rate: opacity and scale grow the cutoff ellipsoid
+///        (cov, radius), rotation turns it by up to `angle` (so its points move by at most
+///        sphere * angle), the mean moves `move` per axis.
+struct StageTwoReach {
+    Vec3d mean;
+    Mat3d cov;          ///< filtered covariance with every log-scale grown by steps * lrLogScale
+    double radius = 0;  ///< Mahalanobis cutoff radius at the grown opacity (0: never counts)
+    double sphere = 0;  ///< radius * sqrt(trace cov): a ball holding the ellipsoid in any orientation
+    double angle = 0;   ///< turn bound in radians
+    double move = 0;    ///< per-axis mean motion
+};
+
+/// @brief The reach of one moving Gaussian (see StageTwoReach).
+SPLATWARP_HOST_DEVICE StageTwoReach stageTwoReach(GaussianParams<double> p, const Mat3d& filter, int steps, double move,
+                                                  const StageTwoOptions& o)
 {
     const double qn = std::sqrt(p.rotation.w * p.rotation.w + p.rotation.x * p.rotation.x +
                                 p.rotation.y * p.rotation.y + p.rotation.z * p.rotation.z);
+    StageTwoReach r;
+    r.mean = p.mean;
+    r.move = move;
     // Turn bound: 4 raw components each moving ~lrRotation per step, relative to |q|; at most a half turn.
-    const double angle = std::min(4.0 * double(steps) * double(o.lrRotation) / std::max(qn, 1e-12), M_PI);
+    r.angle = std::min(4.0 * double(steps) * double(o.lrRotation) / std::max(qn, 1e-12), M_PI);
     p.logit += double(steps) * double(o.lrOpacity);
     for (int a = 0; a < 3; ++a) p.logScale[a] += double(steps) * double(o.lrLogScale);
     const Vec3d sc(std::exp(p.logScale.x), std::exp(p.logScale.y), std::exp(p.logScale.z));
-    const Mat3d cov = filteredCovariance(p.rotation, sc, filter);
-    const double r = extentRadius(sigmoid(p.logit), double(o.cutoff));
-    const Vec3d half = ellipsoidHalfExtent(cov, r);
-    const double sphere = r * std::sqrt(cov.m[0][0] + cov.m[1][1] + cov.m[2][2]);
+    r.cov = filteredCovariance(p.rotation, sc, filter);
+    r.radius = extentRadius(sigmoid(p.logit), double(o.cutoff));
+    r.sphere = r.radius * std::sqrt(r.cov.m[0][0] + r.cov.m[1][1] + r.cov.m[2][2]);
+    return r;
+}
+
+/// @brief Half width of the reach along a unit direction n: the grown ellipsoid's support
+///        (plus options.coveragePad relative margin), plus the turn and the motion, capped by
+///        the ball that holds the ellipsoid in any orientation. Negative when it never counts.
+SPLATWARP_HOST_DEVICE double stageTwoReachWidth(const StageTwoReach& r, const Vec3d& n, double support,
+                                                const StageTwoOptions& o)
+{
+    const double motion = r.move * (std::fabs(n.x) + std::fabs(n.y) + std::fabs(n.z));
+    return r.radius > 0 ? std::min(r.sphere, support * (1.0 + double(o.coveragePad)) + r.sphere * r.angle) + motion : -1.0;
+}
+
+/// @brief Padded coverage box of one moving Gaussian: the AABB of its reach (StageTwoReach)
+///        plus options.coveragePad relative margin. Empty (hi < lo) when it never counts.
+/// @param lo, hi  [3] out
+SPLATWARP_HOST_DEVICE void stageTwoCoverageBox(const GaussianParams<double>& p, const Mat3d& filter, int steps, double move,
+                                              const StageTwoOptions& o, float* lo, float* hi)
+{
+    const StageTwoReach r = stageTwoReach(p, filter, steps, move, o);
+    const Vec3d half = ellipsoidHalfExtent(r.cov, r.radius);
     for (int a = 0; a < 3; ++a) {
-        const double h =
-            r > 0 ? std::min(sphere, half[a] * (1.0 + double(o.coveragePad)) + sphere * angle) + move : -1.0;
+        Vec3d n(0, 0, 0);
+        n[a] = 1;
+        const double h = stageTwoReachWidth(r, n, half[a], o);
         lo[a] = float(p.mean[a] - h);
         hi[a] = float(p.mean[a] + h);
     }
 }
+
+/// @brief Coverage slabs of one moving Gaussian along its own axes, holding the same reach as
+///        the box (the ellipsoid's support along each axis, plus the turn and the motion); for a
+///        flat or turned Gaussian they hold far fewer samples than its box. CPU only.
+void stageTwoCoverageSlabs(const GaussianParams<double>& p, const Mat3d& filter, int steps, double move,
+                           const StageTwoOptions& o, CoverageSlabs& out);
+
+/// @brief Whether every pair Gaussian p can count now (its prepared, padded cutoff ellipsoid)
+///        is still inside its coverage box [lo, hi] and slabs, with margin for the float
+///        rounding of those tests: when it is, the coverage still holds all its counted pairs.
+bool stageTwoCoverageHolds(const GaussianParams<double>& p, const Mat3d& filter, double cutoff, const float* lo,
+                           const float* hi, const CoverageSlabs& slabs);
 
 } // namespace splatwarp
