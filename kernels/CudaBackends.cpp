@@ -2,8 +2,10 @@
 
 #include <cuda_runtime.h>
 
+#include "RasterizerCuda.h"
 #include "StageTwoCuda.h"
 #include "core/Device.h"
+#include "render/RenderDevice.h"
 #include "stage2/StageTwoDevice.h"
 
 namespace splatwarp::cuda {
@@ -23,6 +25,7 @@ void registerBackends()
 {
     registerCudaProbe(&cudaDeviceAvailable);
     registerStageTwoCuda(&optimiseStageTwoCuda);
+    registerRenderCuda(&renderGaussiansCuda);
 }
 
 } // namespace splatwarp::cuda

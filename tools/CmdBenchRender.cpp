@@ -1,7 +1,8 @@
-/// `splatwarp bench render [IN] [--size WxH] [--repeats N]`: CPU rasteriser timing.
+/// `splatwarp bench render [IN] [--size WxH] [--repeats N] [--device D]`: rasteriser timing.
 #include <algorithm>
 #include <cstdio>
 #include <filesystem>
+#include <string>
 #include <tbb/info.h>
 #include <vector>
 
@@ -10,26 +11,30 @@
 #include "core/Progress.h"
 #include "io/GaussianIO.h"
 #include "render/Camera.h"
-#include "render/Rasterizer.h"
+#include "render/RenderDevice.h"
 #include "samples/SampleModels.h"
 
 namespace splatwarp::cli {
 namespace {
 
 struct BenchRenderArgs {
-    std::string input = "stripes", size = "800x800";
+    std::string input = "stripes", size = "800x800", device = "auto";
     int repeats = 5;
 };
 
 const CommandRegistrar reg(1010, [](CLI::App& app) {
     auto args = std::make_shared<BenchRenderArgs>();
     CLI::App* sub = benchCommand(app)->add_subcommand(
-        "render", "Median time of CPU splat renders (first orbit view, all cores unless --threads)");
+        "render", "Median time of splat renders (first orbit view; CPU: all cores unless --threads; CUDA: upload, "
+                  "render and download of the image)");
     sub->add_option("input", args->input, "Gaussian file, or a sample name (stripes, ring)")->capture_default_str();
     sub->add_option("--size", args->size, "Image size WIDTHxHEIGHT")->capture_default_str();
     sub->add_option("--repeats", args->repeats, "Timed renders (after one warm-up)")
         ->capture_default_str()
         ->check(CLI::PositiveNumber);
+    sub->add_option("--device", args->device, "Where to render: auto (CUDA when compiled in and a GPU is present), cpu, cuda")
+        ->capture_default_str()
+        ->check(CLI::IsMember({"auto", "cpu", "cuda"}));
     sub->callback([args] {
         const auto names = sampleNames();
         const bool sample = !std::filesystem::exists(args->input) &&
@@ -39,17 +44,20 @@ const CommandRegistrar reg(1010, [](CLI::App& app) {
         o.views = 1;
         parseImageSize(args->size, o.width, o.height);
         const Camera camera = orbitCameras(cloud, o)[0];
-        renderGaussians(cloud, camera); // warm-up: thread pool, page faults
+        const Device requested = parseDevice(args->device);
+        Device device = Device::Cpu;
+        renderGaussians(requested, cloud, camera, {}, &device); // warm-up: thread pool, page faults, CUDA context
         std::vector<double> ms;
         for (int i = 0; i < args->repeats; ++i) {
             Stopwatch watch;
-            renderGaussians(cloud, camera);
+            renderGaussians(device, cloud, camera);
             ms.push_back(watch.ms());
         }
         std::sort(ms.begin(), ms.end());
         const int threads = globalOptions().threads > 0 ? globalOptions().threads : tbb::info::default_concurrency();
-        std::printf("render %s: %zu Gaussians (SH %d), %dx%d, %d threads: median %.1f ms, min %.1f ms (%d runs)\n",
-                    args->input.c_str(), cloud.size(), cloud.shDegree, o.width, o.height, threads,
+        const std::string where = device == Device::Cuda ? std::string("cuda") : msg("cpu, ", threads, " threads");
+        std::printf("render %s: %zu Gaussians (SH %d), %dx%d, %s: median %.1f ms, min %.1f ms (%d runs)\n",
+                    args->input.c_str(), cloud.size(), cloud.shDegree, o.width, o.height, where.c_str(),
                     ms[ms.size() / 2], ms.front(), args->repeats);
     });
 });

@@ -9,13 +9,13 @@
 #include "image/ImageIO.h"
 #include "io/GaussianIO.h"
 #include "render/Camera.h"
-#include "render/Rasterizer.h"
+#include "render/RenderDevice.h"
 
 namespace splatwarp::cli {
 namespace {
 
 struct RenderArgs {
-    std::string input, output, size, cameraFile, background = "0,0,0", format = "png";
+    std::string input, output, size, cameraFile, background = "0,0,0", format = "png", device = "auto";
     int orbit = 0;
     OrbitOptions orbitOptions;
 };
@@ -27,6 +27,7 @@ void run(const RenderArgs& a)
     if (!a.size.empty()) parseImageSize(a.size, width, height);
     RenderOptions renderOptions;
     renderOptions.background = parseColour(a.background);
+    const Device device = parseDevice(a.device);
 
     std::vector<Camera> cameras;
     if (!a.cameraFile.empty()) {
@@ -57,19 +58,20 @@ void run(const RenderArgs& a)
     }
     for (std::size_t i = 0; i < cameras.size(); ++i) {
         Stopwatch watch;
-        const Image image = renderGaussians(cloud, cameras[i], renderOptions);
+        Device used = Device::Cpu;
+        const Image image = renderGaussians(device, cloud, cameras[i], renderOptions, &used);
         char name[32];
         std::snprintf(name, sizeof(name), "view_%03zu.%s", i, a.format.c_str());
         const std::string path = single ? a.output : (std::filesystem::path(a.output) / name).string();
         writeImage(path, image);
-        progress(msg("rendered ", cloud.size(), " Gaussians at ", image.width, "x", image.height, " in ",
-                     int(watch.ms()), " ms -> ", path));
+        progress(msg("rendered ", cloud.size(), " Gaussians at ", image.width, "x", image.height, " on ",
+                     deviceName(used), " in ", int(watch.ms()), " ms -> ", path));
     }
 }
 
 const CommandRegistrar reg(60, [](CLI::App& app) {
     auto args = std::make_shared<RenderArgs>();
-    CLI::App* sub = app.add_subcommand("render", "Render a Gaussian model to PNG (sRGB) or EXR (linear RGBA) with the CPU splat rasteriser");
+    CLI::App* sub = app.add_subcommand("render", "Render a Gaussian model to PNG (sRGB) or EXR (linear RGBA) with the splat rasteriser (CPU or CUDA)");
     sub->add_option("input", args->input, "Input Gaussian file (.ply, compressed .ply, .splat)")->required();
     sub->add_option("-o,--output", args->output,
                     "Output image (.png/.exr) for one view, or a directory receiving view_000.png ... for several")
@@ -95,6 +97,10 @@ const CommandRegistrar reg(60, [](CLI::App& app) {
     sub->add_option("--format", args->format, "Image format of the files written into an output directory")
         ->capture_default_str()
         ->check(CLI::IsMember({"png", "exr"}));
+    sub->add_option("--device", args->device,
+                    "Where to render: auto (CUDA when compiled in and a GPU is present), cpu, cuda")
+        ->capture_default_str()
+        ->check(CLI::IsMember({"auto", "cpu", "cuda"}));
     sub->callback([args] { run(*args); });
 });
 

@@ -5,12 +5,13 @@
 #include <cstddef>
 #include <vector>
 
+#include "core/HostDevice.h"
 #include "core/SmallMath.h"
 
 namespace splatwarp {
 
 /// @brief Number of SH coefficients per colour channel for a degree: (d+1)^2.
-inline int shCoeffCount(int degree) { return (degree + 1) * (degree + 1); }
+SPLATWARP_HOST_DEVICE int shCoeffCount(int degree) { return (degree + 1) * (degree + 1); }
 
 /// @brief 3DGS model, structure of arrays. N = size().
 /// @note  Activations as in 3DGS: scale = exp(logScale), opacity = sigmoid(logitOpacity),

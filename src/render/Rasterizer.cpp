@@ -25,8 +25,8 @@ using TileKey = std::uint64_t;
 struct ScreenSplat {
     ProjectedSplat p;
     Vec3f colour;
-    int x0 = 0, y0 = 0, x1 = -1, y1 = -1; ///< 3-sigma pixel range (assigns tiles); empty when x1 < x0
-    int ax0 = 0, ay0 = 0, ax1 = -1, ay1 = -1; ///< pixels where alpha can reach the cutoff
+    PixelBox range; ///< 3-sigma pixel range (assigns tiles); empty when the splat covers no pixel
+    PixelBox reach; ///< pixels where alpha can reach the cutoff
 };
 
 template <typename Body>
@@ -51,15 +51,7 @@ struct ProjectOp {
             const Vec3f mean = cloud.mean(i);
             const Mat3f cov = gaussianCovariance(cloud.rotation(i), cloud.scale(i));
             // Splats that never reach the alpha cutoff get no tiles at all.
-            if (!projectSplat(view, mean, cov, cloud.alpha(i), s.p) || s.p.cutoffX <= 0.0f ||
-                !splatPixelRange(s.p, view.width, view.height, s.x0, s.y0, s.x1, s.y1)) {
-                s.x1 = s.x0 - 1;
-                continue;
-            }
-            s.ax0 = int(std::ceil(s.p.u - s.p.cutoffX - 0.5f));
-            s.ax1 = int(std::floor(s.p.u + s.p.cutoffX - 0.5f));
-            s.ay0 = int(std::ceil(s.p.v - s.p.cutoffY - 0.5f));
-            s.ay1 = int(std::floor(s.p.v + s.p.cutoffY - 0.5f));
+            if (!projectSplatOnScreen(view, mean, cov, cloud.alpha(i), s.p, s.range, s.reach)) continue;
             s.colour = splatColour(view, cloud.shDegree, cloud.shOf(i), mean);
         }
     }
@@ -93,8 +85,8 @@ struct CompositeOp {
             }
             for (std::size_t e = tileStart[tile]; e < tileStart[tile + 1] && active > 0; ++e) {
                 const ScreenSplat& s = splats[std::uint32_t(keys[e])]; // low 32 bits: splat index
-                const int x0 = std::max(tx0, s.ax0), x1 = std::min(tx1, s.ax1);
-                const int y0 = std::max(ty0, s.ay0), y1 = std::min(ty1, s.ay1);
+                const int x0 = std::max(tx0, s.reach.x0), x1 = std::min(tx1, s.reach.x1);
+                const int y0 = std::max(ty0, s.reach.y0), y1 = std::min(ty1, s.reach.y1);
                 for (int y = y0; y <= y1; ++y)
                     for (int x = x0; x <= x1; ++x) {
                         const int k = (y - ty0) * kSplatTileSize + (x - tx0);
@@ -124,11 +116,16 @@ struct CompositeOp {
 
 } // namespace
 
-Image renderGaussians(const GaussianCloud& cloud, const Camera& camera, const RenderOptions& options)
+void checkRenderInputs(const GaussianCloud& cloud, const Camera& camera)
 {
     cloud.checkConsistent();
     if (camera.width <= 0 || camera.height <= 0 || !(camera.fx > 0) || !(camera.fy > 0))
         throw InputError(msg("camera '", camera.name, "' needs a positive image size and focal length"));
+}
+
+Image renderGaussians(const GaussianCloud& cloud, const Camera& camera, const RenderOptions& options)
+{
+    checkRenderInputs(cloud, camera);
     const PinholeView view = camera.view();
     const std::size_t n = cloud.size();
     const bool threaded = options.threaded;
@@ -141,9 +138,10 @@ Image renderGaussians(const GaussianCloud& cloud, const Camera& camera, const Re
     const int tilesY = (view.height + kSplatTileSize - 1) / kSplatTileSize;
     const std::size_t tiles = std::size_t(tilesX) * std::size_t(tilesY);
     const auto forEachTile = [&](const ScreenSplat& s, const auto& f) {
-        if (s.x1 < s.x0) return;
-        for (int ty = s.y0 / kSplatTileSize; ty <= s.y1 / kSplatTileSize; ++ty)
-            for (int tx = s.x0 / kSplatTileSize; tx <= s.x1 / kSplatTileSize; ++tx) f(std::size_t(ty) * tilesX + tx);
+        const PixelBox& r = s.range;
+        if (r.x1 < r.x0) return;
+        for (int ty = r.y0 / kSplatTileSize; ty <= r.y1 / kSplatTileSize; ++ty)
+            for (int tx = r.x0 / kSplatTileSize; tx <= r.x1 / kSplatTileSize; ++tx) f(std::size_t(ty) * tilesX + tx);
     };
     std::vector<std::atomic<std::size_t>> cursor(tiles);
     forRange(n, threaded, 1024, [&](std::size_t begin, std::size_t end) {

@@ -23,4 +23,8 @@ struct RenderOptions {
 /// @throws InputError for an inconsistent model or a camera without a positive size/focal length.
 Image renderGaussians(const GaussianCloud& cloud, const Camera& camera, const RenderOptions& options = {});
 
+/// @brief The input checks of renderGaussians(), for other rasterisers with its contract.
+/// @throws InputError for an inconsistent model or a camera without a positive size/focal length.
+void checkRenderInputs(const GaussianCloud& cloud, const Camera& camera);
+
 } // namespace splatwarp

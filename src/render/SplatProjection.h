@@ -1,7 +1,7 @@
 #pragma once
 /// @file SplatProjection.h
 /// @brief Per-Gaussian projection (EWA splatting) and per-pixel alpha of the 3DGS rasteriser,
-///        shared by the CPU rasteriser and a future CUDA one (one source of truth).
+///        shared by the CPU rasteriser and the CUDA one (one source of truth).
 /// @note  Pixel convention: pixel (i, j) covers [i, i+1) x [j, j+1) and is sampled at its centre
 ///        (i + 0.5, j + 0.5); a camera point projects to u = fx x/z + cx, v = fy y/z + cy
 ///        (OpenCV axes: x right, y down, z forward). With cx = width/2 the image is symmetric.
@@ -116,6 +116,32 @@ SPLATWARP_HOST_DEVICE bool splatPixelRange(const ProjectedSplat& s, int width, i
     y0 = fy0 < 0.0f ? 0 : int(fy0);
     x1 = fx1 > float(width - 1) ? width - 1 : int(fx1);
     y1 = fy1 > float(height - 1) ? height - 1 : int(fy1);
+    return true;
+}
+
+/// @brief An inclusive box of pixels (or tiles); empty when x1 < x0.
+struct PixelBox {
+    int x0 = 0, y0 = 0, x1 = -1, y1 = -1;
+};
+
+/// @brief Project a Gaussian for a tiled rasteriser (the CPU and the CUDA one): projectSplat(),
+///        the pixel range that assigns it to tiles (splatPixelRange()) and the box of pixels where
+///        its alpha can reach kSplatMinAlpha (a pure speed-up: splatAlpha() rejects the others).
+/// @param opacity activated opacity
+/// @return false, leaving the boxes empty, when the splat covers no pixel: culled, never reaching
+///         the alpha cutoff, or off screen.
+SPLATWARP_HOST_DEVICE bool projectSplatOnScreen(const PinholeView& view, const Vec3f& mean, const Mat3f& cov,
+                                                float opacity, ProjectedSplat& out, PixelBox& range, PixelBox& reach)
+{
+    range = PixelBox();
+    reach = PixelBox();
+    if (!projectSplat(view, mean, cov, opacity, out) || out.cutoffX <= 0.0f ||
+        !splatPixelRange(out, view.width, view.height, range.x0, range.y0, range.x1, range.y1))
+        return false; // splatPixelRange() writes the range only when it succeeds
+    reach.x0 = int(std::ceil(out.u - out.cutoffX - 0.5f));
+    reach.x1 = int(std::floor(out.u + out.cutoffX - 0.5f));
+    reach.y0 = int(std::ceil(out.v - out.cutoffY - 0.5f));
+    reach.y1 = int(std::floor(out.v + out.cutoffY - 0.5f));
     return true;
 }
 
