@@ -304,9 +304,12 @@ private:
     {
         const Eigen::LLT<Mat9> llt(mHaa[fi]);
         if (llt.info() != Eigen::Success) return false;
+        // One explicit inverse, then fixed-size products: Eigen's triangular solves with a 9x3
+        // right-hand side go through its generic (dynamic-size) kernels and cost more.
+        const Mat9 inv = llt.solve(Mat9::Identity());
         const std::size_t m = mSet[fi].size();
-        for (std::size_t a = 0; a < m; ++a) mW[fi][a] = llt.solve(mHat[fi][a]);
-        mY[fi] = llt.solve(mGa[fi]);
+        for (std::size_t a = 0; a < m; ++a) mW[fi][a].noalias() = inv * mHat[fi][a];
+        mY[fi].noalias() = inv * mGa[fi];
         for (std::size_t a = 0; a < m; ++a) {
             mRhsPart[fi][a].noalias() = mHat[fi][a].transpose() * mY[fi];
             for (std::size_t b = 0; b < m; ++b) mProd[fi][a * m + b].noalias() = mHat[fi][a].transpose() * mW[fi][b];

@@ -108,8 +108,9 @@ bool polarNewton(const Mat3d& m, Mat3d& r)
         cof.m[2][0] = x.m[0][1] * x.m[1][2] - x.m[0][2] * x.m[1][1];
         cof.m[2][1] = x.m[0][2] * x.m[1][0] - x.m[0][0] * x.m[1][2];
         cof.m[2][2] = x.m[0][0] * x.m[1][1] - x.m[0][1] * x.m[1][0];
-        // Scaling by |det|^-1/3 (Higham) speeds up matrices far from orthogonal.
-        const double g = std::cbrt(1.0 / det), h = 0.5 / (g * det);
+        // Scaling by det^-1/3 (Higham) speeds up matrices far from orthogonal; near det 1 it
+        // gains nothing and the cube root would dominate the iteration.
+        const double g = std::abs(det - 1.0) > 0.25 ? std::cbrt(1.0 / det) : 1.0, h = 0.5 / (g * det);
         double change = 0.0;
         for (int i = 0; i < 3; ++i)
             for (int j = 0; j < 3; ++j) {
