@@ -273,7 +273,7 @@ private:
             jr.block<1, 3>(3 + q, 3 * q) = 2.0 * c[q].transpose();
         }
         const Eigen::Map<const Eigen::Matrix<double, 6, 1>> rv(r);
-        haa.noalias() = o.rotWeight * jr.transpose() * jr;
+        haa.noalias() = o.rotWeight * jr.transpose().lazyProduct(jr);
         ga.noalias() = o.rotWeight * jr.transpose() * rv;
         haa.diagonal().array() += kDamping;
         // E_reg over out-edges: r_a = sum_b A[a][b] d_b + ..., so d r_a / d A[a][b] (variable 3b+a) = d_b.
@@ -304,15 +304,15 @@ private:
     {
         const Eigen::LLT<Mat9> llt(mHaa[fi]);
         if (llt.info() != Eigen::Success) return false;
-        // One explicit inverse, then fixed-size products: Eigen's triangular solves with a 9x3
-        // right-hand side go through its generic (dynamic-size) kernels and cost more.
+        // One explicit inverse, then unrolled fixed-size products (lazyProduct): Eigen sends 9x9
+        // products and triangular solves to its generic GEMM kernels, slow at this size.
         const Mat9 inv = llt.solve(Mat9::Identity());
         const std::size_t m = mSet[fi].size();
-        for (std::size_t a = 0; a < m; ++a) mW[fi][a].noalias() = inv * mHat[fi][a];
-        mY[fi].noalias() = inv * mGa[fi];
+        for (std::size_t a = 0; a < m; ++a) mW[fi][a].noalias() = inv.lazyProduct(mHat[fi][a]);
+        mY[fi].noalias() = inv.lazyProduct(mGa[fi]);
         for (std::size_t a = 0; a < m; ++a) {
-            mRhsPart[fi][a].noalias() = mHat[fi][a].transpose() * mY[fi];
-            for (std::size_t b = 0; b < m; ++b) mProd[fi][a * m + b].noalias() = mHat[fi][a].transpose() * mW[fi][b];
+            mRhsPart[fi][a].noalias() = mHat[fi][a].transpose().lazyProduct(mY[fi]);
+            for (std::size_t b = 0; b < m; ++b) mProd[fi][a * m + b].noalias() = mHat[fi][a].transpose().lazyProduct(mW[fi][b]);
         }
         return true;
     }
