@@ -161,8 +161,10 @@ nlohmann::json runDeformJob(const DeformJobOptions& o)
         }
         if (o.render) {
             clock.reset();
+            ComparisonSheetOptions sheetOptions;
+            sheetOptions.device = o.device;
             const Image sheet = renderComparisonSheet({&rest, &stage1.deformed, &fitted}, {"rest", "stage I", "stage II"},
-                                                      comparisonCameras(rest, fitted, o));
+                                                      comparisonCameras(rest, fitted, o), sheetOptions);
             const std::string png = outPath(o, "compare.png");
             writePng(png, sheet);
             report["outputs"]["compare"] = png;

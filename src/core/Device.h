@@ -7,6 +7,7 @@
 #include <string>
 
 #include "core/Error.h"
+#include "core/Progress.h"
 
 namespace splatwarp {
 
@@ -41,5 +42,33 @@ Device resolveDevice(Device requested);
 /// @brief Register the CUDA probe (returns whether a GPU is usable); nullptr unregisters.
 ///        Called by the kernels' registerBackends() (tests may register fakes).
 void registerCudaProbe(bool (*probe)());
+
+/// @brief Run a computation on a device: the registered CUDA implementation `cuda` (may be null:
+///        no CUDA version compiled in) when `requested` resolves to CUDA, else `cpu`. Under Auto a
+///        GPU out-of-memory error falls back to the CPU with a progress line naming `what`; under
+///        Cuda it propagates. `used` (optional) receives the device that ran.
+/// @throws InputError when Cuda is requested but unavailable (see resolveDevice())
+template <typename CudaFn, typename CpuFn>
+auto runOnDevice(Device requested, const char* what, bool hasCuda, CudaFn&& cuda, CpuFn&& cpu, Device* used = nullptr)
+    -> decltype(cpu())
+{
+    if (resolveDevice(requested) == Device::Cuda) {
+        if (!hasCuda) {
+            if (requested == Device::Cuda) throw InputError(msg("--device cuda: this build has no CUDA ", what));
+        } else {
+            try {
+                auto result = cuda();
+                if (used) *used = Device::Cuda;
+                return result;
+            } catch (const DeviceMemoryError& e) {
+                if (requested == Device::Cuda)
+                    throw DeviceMemoryError(msg(e.what(), " (--device cuda; --device auto would fall back to the CPU)"));
+                progress(msg(what, ": ", e.what(), "; running on the CPU instead"));
+            }
+        }
+    }
+    if (used) *used = Device::Cpu;
+    return cpu();
+}
 
 } // namespace splatwarp

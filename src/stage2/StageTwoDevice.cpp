@@ -22,25 +22,13 @@ StageTwoReport runStageTwo(Device device, GaussianCloud& cloud, const SampleSet&
                            const StageTwoOptions& options,
                            const std::function<void(int, const GaussianCloud&)>& onEval, int evalEvery)
 {
-    const Device resolved = resolveDevice(device);
     const StageTwoFunction cuda = cudaSlot().load();
-    if (resolved == Device::Cuda) {
-        if (!cuda) {
-            if (device == Device::Cuda) throw InputError("--device cuda: this build has no CUDA Stage II");
-        } else {
-            try {
-                StageTwoReport r = cuda(cloud, samples, moving, gaussianCell, options, onEval, evalEvery);
-                r.device = "cuda";
-                return r;
-            } catch (const DeviceMemoryError& e) {
-                if (device == Device::Cuda)
-                    throw DeviceMemoryError(msg(e.what(), " (--device cuda; --device auto would fall back to the CPU)"));
-                progress(msg("Stage II: ", e.what(), "; running on the CPU instead"));
-            }
-        }
-    }
-    StageTwoReport r = optimiseStageTwo(cloud, samples, moving, gaussianCell, options, onEval, evalEvery);
-    r.device = "cpu";
+    Device used = Device::Cpu;
+    StageTwoReport r = runOnDevice(
+        device, "Stage II", cuda != nullptr,
+        [&] { return cuda(cloud, samples, moving, gaussianCell, options, onEval, evalEvery); },
+        [&] { return optimiseStageTwo(cloud, samples, moving, gaussianCell, options, onEval, evalEvery); }, &used);
+    r.device = deviceName(used);
     return r;
 }
 

@@ -19,6 +19,7 @@
 #include <random>
 #include <string>
 
+#include "CudaTestSupport.h"
 #include "CudaBackends.h"
 #include "RasterizerCuda.h"
 #include "core/Device.h"
@@ -31,9 +32,6 @@ using namespace splatwarp;
 
 namespace {
 
-#define SPLATWARP_REQUIRE_GPU()                                                                         \
-    if (!::splatwarp::cuda::cudaDeviceAvailable())                                                      \
-    GTEST_SKIP() << "no CUDA GPU (cudaGetDeviceCount found none): GPU parity test compiled but not run"
 
 constexpr double kRms = 1e-5;         // RMS over all channels of all pixels (a priori, see top)
 constexpr double kPixelAbs = 1e-4;    // a channel differing by more makes its pixel an outlier (a priori)

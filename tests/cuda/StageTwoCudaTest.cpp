@@ -18,6 +18,7 @@
 #include <cstdio>
 #include <string>
 
+#include "CudaTestSupport.h"
 #include "CudaBackends.h"
 #include "DeviceBuffer.h"
 #include "StageTwoCuda.h"
@@ -32,9 +33,6 @@ using namespace splatwarp::test;
 
 namespace {
 
-#define SPLATWARP_REQUIRE_GPU()                                                                         \
-    if (!::splatwarp::cuda::cudaDeviceAvailable())                                                      \
-    GTEST_SKIP() << "no CUDA GPU (cudaGetDeviceCount found none): GPU parity test compiled but not run"
 
 constexpr int kCells = 12;      // lattice cells per axis (12^3 cells, 2^3 samples each: ~14k samples)
 constexpr float kHalf = 0.9f;   // lattice covers [-0.9, 0.9]^3 around a cloud of extent 0.45
