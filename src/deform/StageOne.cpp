@@ -45,86 +45,6 @@ Vec3d endpoint(const RestFrame& f, int e, double sigmas)
     return f.centre + axis * (sign * sigmas * f.sigma[a]);
 }
 
-/// Node j's skinning as one affine map: A_j (v - g_j) + g_j + t_j = A_j v + b_j. Precomputed once
-/// per update so each skinned point costs one 3x4 product per node instead of 3x3 plus offsets.
-struct NodeAffine {
-    double a[3][3];
-    double b[3];
-};
-
-std::vector<NodeAffine> nodeAffines(const DeformationGraph& graph, const NodeTransforms& x)
-{
-    std::vector<NodeAffine> out(graph.nodeCount());
-    for (std::size_t j = 0; j < out.size(); ++j) {
-        const Vec3d& g = graph.nodes()[j];
-        const Vec3d b = g + x.t[j] - x.A[j] * g;
-        for (int r = 0; r < 3; ++r) {
-            for (int c = 0; c < 3; ++c) out[j].a[r][c] = x.A[j][r][c];
-            out[j].b[r] = b[r];
-        }
-    }
-    return out;
-}
-
-/// Skinned position of point q of the rig (same value as skinPoint() up to rounding).
-Vec3d skinAffine(const std::vector<NodeAffine>& nodes, const SkinWeights& w, std::size_t q, const Vec3d& v)
-{
-    const std::size_t k = std::size_t(w.k);
-    double o0 = 0.0, o1 = 0.0, o2 = 0.0, sum = 0.0;
-    for (std::size_t e = q * k; e < (q + 1) * k; ++e) {
-        const double wt = double(w.weights[e]);
-        const NodeAffine& n = nodes[std::size_t(w.nodes[e])];
-        o0 += wt * (n.a[0][0] * v.x + n.a[0][1] * v.y + n.a[0][2] * v.z + n.b[0]);
-        o1 += wt * (n.a[1][0] * v.x + n.a[1][1] * v.y + n.a[1][2] * v.z + n.b[1]);
-        o2 += wt * (n.a[2][0] * v.x + n.a[2][1] * v.y + n.a[2][2] * v.z + n.b[2]);
-        sum += wt;
-    }
-    // Divide by the sum of the float weights (1 up to rounding) so rigid motions stay exact in double.
-    const double inv = 1.0 / sum;
-    return Vec3d(o0 * inv, o1 * inv, o2 * inv);
-}
-
-/// Polar factors of a deformation gradient that is close to a rotation (the ED energy keeps the
-/// node matrices near-orthonormal): Newton's iteration X <- (X + X^-T) / 2 converges
-/// quadratically in a few steps, far cheaper than the Jacobi SVD. Returns false (caller falls back
-/// to polarDecomposition()) when det M <= 0 or it does not converge, so the result is the same
-/// polar rotation up to rounding.
-bool polarNewton(const Mat3d& m, Mat3d& r)
-{
-    constexpr int kMaxIterations = 12;
-    constexpr double kStep = 1e-9; // |X_k+1 - X_k|_F: the next error is ~kStep^2, below double rounding
-    Mat3d x = m;
-    for (int it = 0; it < kMaxIterations; ++it) {
-        const double det = x.determinant();
-        if (!(det > 0.0)) return false;
-        // X^-T = cofactor(X) / det.
-        Mat3d cof;
-        cof.m[0][0] = x.m[1][1] * x.m[2][2] - x.m[1][2] * x.m[2][1];
-        cof.m[0][1] = x.m[1][2] * x.m[2][0] - x.m[1][0] * x.m[2][2];
-        cof.m[0][2] = x.m[1][0] * x.m[2][1] - x.m[1][1] * x.m[2][0];
-        cof.m[1][0] = x.m[0][2] * x.m[2][1] - x.m[0][1] * x.m[2][2];
-        cof.m[1][1] = x.m[0][0] * x.m[2][2] - x.m[0][2] * x.m[2][0];
-        cof.m[1][2] = x.m[0][1] * x.m[2][0] - x.m[0][0] * x.m[2][1];
-        cof.m[2][0] = x.m[0][1] * x.m[1][2] - x.m[0][2] * x.m[1][1];
-        cof.m[2][1] = x.m[0][2] * x.m[1][0] - x.m[0][0] * x.m[1][2];
-        cof.m[2][2] = x.m[0][0] * x.m[1][1] - x.m[0][1] * x.m[1][0];
-        // Scaling by det^-1/3 (Higham) speeds up matrices far from orthogonal; near det 1 it
-        // gains nothing and the cube root would dominate the iteration.
-        const double g = std::abs(det - 1.0) > 0.25 ? std::cbrt(1.0 / det) : 1.0, h = 0.5 / (g * det);
-        double change = 0.0;
-        for (int i = 0; i < 3; ++i)
-            for (int j = 0; j < 3; ++j) {
-                const double next = 0.5 * g * x.m[i][j] + h * cof.m[i][j];
-                change += (next - x.m[i][j]) * (next - x.m[i][j]);
-                x.m[i][j] = next;
-            }
-        if (change <= kStep * kStep) {
-            r = x;
-            return true;
-        }
-    }
-    return false;
-}
 
 
 } // namespace
@@ -174,7 +94,7 @@ StageOneResult applyStageOne(const GaussianCloud& rest, const StageOneRig& rig, 
     res.moving.assign(n, 0);
     const std::size_t k = std::size_t(rig.weights.k);
     const int degree = rest.shDegree;
-    const std::vector<NodeAffine> nodes = nodeAffines(graph, transforms);
+    const AffineSkinning nodes(graph, transforms);
     auto body = [&](const tbb::blocked_range<std::size_t>& range) {
         for (std::size_t i = range.begin(); i != range.end(); ++i) {
             bool moving = false;
@@ -184,13 +104,13 @@ StageOneResult applyStageOne(const GaussianCloud& rest, const StageOneRig& rig, 
             res.moving[i] = 1;
             const RestFrame f = restFrame(rest, i, rig.extent, o);
             const std::size_t base = i * kPoints;
-            const Vec3d centre = skinAffine(nodes, rig.weights, base, f.centre);
+            const Vec3d centre = nodes.point(rig.weights, base, f.centre);
             // With Q the symmetric endpoint offsets +-c sigma_a r_a, (P Q^T)(Q Q^T)^-1 reduces to
             // M r_a = (p_a+ - p_a-) / (2 c sigma_a): the same least-squares M without the 3x3 inverse.
             Mat3d mr; // columns M r_a
             for (int a = 0; a < 3; ++a) {
-                const Vec3d plus = skinAffine(nodes, rig.weights, base + 1 + std::size_t(2 * a), endpoint(f, 2 * a, o.endpointSigmas));
-                const Vec3d minus = skinAffine(nodes, rig.weights, base + 2 + std::size_t(2 * a), endpoint(f, 2 * a + 1, o.endpointSigmas));
+                const Vec3d plus = nodes.point(rig.weights, base + 1 + std::size_t(2 * a), endpoint(f, 2 * a, o.endpointSigmas));
+                const Vec3d minus = nodes.point(rig.weights, base + 2 + std::size_t(2 * a), endpoint(f, 2 * a + 1, o.endpointSigmas));
                 const Vec3d col = (plus - minus) / (2.0 * o.endpointSigmas * f.sigma[a]);
                 for (int r = 0; r < 3; ++r) mr[r][a] = col[r];
             }
@@ -198,7 +118,7 @@ StageOneResult applyStageOne(const GaussianCloud& rest, const StageOneRig& rig, 
             // deformed frame R R0 directly, and S's stretch along r_a is (R0^T S R0)_aa.
             Mat3d rr0; // R R0
             Vec3d stretch;
-            if (polarNewton(mr, rr0)) {
+            if (polarRotationNewton(mr, rr0)) {
                 for (int a = 0; a < 3; ++a)
                     stretch[a] = rr0[0][a] * mr[0][a] + rr0[1][a] * mr[1][a] + rr0[2][a] * mr[2][a];
             } else {
