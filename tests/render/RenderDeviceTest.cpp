@@ -50,17 +50,6 @@ Image fakeOutOfMemory(const GaussianCloud&, const Camera&, const RenderOptions&)
     throw DeviceMemoryError("CUDA: cannot allocate 1234 bytes of GPU memory for tile sort keys");
 }
 
-template <typename F>
-std::string inputErrorOf(const F& f)
-{
-    try {
-        f();
-    } catch (const InputError& e) {
-        return e.what();
-    }
-    return "";
-}
-
 struct Scene {
     GaussianCloud cloud = smallSample("stripes", 1500);
     Camera camera = smallOrbit(cloud, 1, 40, 28)[0];
@@ -78,7 +67,7 @@ TEST(RenderDevice, CpuOnlyBuildRendersAutoOnTheCpuAndRejectsCuda)
     used = Device::Cuda;
     EXPECT_EQ(renderGaussians(Device::Cpu, s.cloud, s.camera, {}, &used).pixels, s.cpu.pixels);
     EXPECT_EQ(used, Device::Cpu);
-    const std::string e = inputErrorOf([&] { renderGaussians(Device::Cuda, s.cloud, s.camera); });
+    const std::string e = test::inputErrorMessage([&] { renderGaussians(Device::Cuda, s.cloud, s.camera); });
     EXPECT_NE(e.find("--device cuda"), std::string::npos) << e;
     EXPECT_NE(e.find("no CUDA support"), std::string::npos) << e;
 }
@@ -104,7 +93,7 @@ TEST(RenderDevice, GpuWithoutRasteriserFallsBackUnderAutoOnly)
     const Scene s;
     const FakeCuda fake(&gpu, nullptr); // a probe but no rasteriser: CUDA build without this kernel
     EXPECT_EQ(renderGaussians(Device::Auto, s.cloud, s.camera).pixels, s.cpu.pixels);
-    const std::string e = inputErrorOf([&] { renderGaussians(Device::Cuda, s.cloud, s.camera); });
+    const std::string e = test::inputErrorMessage([&] { renderGaussians(Device::Cuda, s.cloud, s.camera); });
     EXPECT_NE(e.find("no CUDA rasteriser"), std::string::npos) << e;
 }
 

@@ -6,6 +6,7 @@
 #include <cstring>
 #include <string>
 
+#include "support/TestSupport.h"
 #include "core/Device.h"
 #include "stage2/StageTwoDevice.h"
 #include "stage2/StageTwoTestProblem.h"
@@ -50,17 +51,6 @@ StageTwoReport fakeSuccess(GaussianCloud&, const SampleSet&, const std::vector<s
     return r;
 }
 
-template <typename F>
-std::string errorOf(const F& f)
-{
-    try {
-        f();
-    } catch (const InputError& e) {
-        return e.what();
-    }
-    return "";
-}
-
 RigidStageTwoProblem smallProblem()
 {
     StageTwoOptions o;
@@ -82,7 +72,7 @@ TEST(Device, ParseNamesAndRejectOthers)
     EXPECT_EQ(parseDevice("cpu"), Device::Cpu);
     EXPECT_EQ(parseDevice("cuda"), Device::Cuda);
     for (Device d : {Device::Auto, Device::Cpu, Device::Cuda}) EXPECT_EQ(parseDevice(deviceName(d)), d);
-    const std::string e = errorOf([] { parseDevice("gpu"); });
+    const std::string e = test::inputErrorMessage([] { parseDevice("gpu"); });
     EXPECT_NE(e.find("'gpu'"), std::string::npos) << e;
     EXPECT_NE(e.find("auto, cpu or cuda"), std::string::npos) << e;
     EXPECT_THROW(parseDevice("CUDA"), InputError);
@@ -93,7 +83,7 @@ TEST(Device, CudaWithoutSupportFailsClearly)
     ASSERT_FALSE(cudaCompiledIn()) << "the CPU test binary must not register CUDA backends";
     EXPECT_EQ(resolveDevice(Device::Auto), Device::Cpu);
     EXPECT_EQ(resolveDevice(Device::Cpu), Device::Cpu);
-    const std::string e = errorOf([] { resolveDevice(Device::Cuda); });
+    const std::string e = test::inputErrorMessage([] { resolveDevice(Device::Cuda); });
     EXPECT_NE(e.find("this build has no CUDA support"), std::string::npos) << e;
 
     const RigidStageTwoProblem p = smallProblem();
@@ -108,7 +98,7 @@ TEST(Device, CudaWithoutGpuFailsClearlyAndAutoUsesCpu)
     FakeCuda fake(noGpu, fakeSuccess);
     EXPECT_TRUE(cudaCompiledIn());
     EXPECT_FALSE(cudaPresent());
-    const std::string e = errorOf([] { resolveDevice(Device::Cuda); });
+    const std::string e = test::inputErrorMessage([] { resolveDevice(Device::Cuda); });
     EXPECT_NE(e.find("no usable CUDA GPU"), std::string::npos) << e;
     const RigidStageTwoProblem p = smallProblem();
     GaussianCloud cloud = p.start;

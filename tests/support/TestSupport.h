@@ -9,6 +9,8 @@
 #include <filesystem>
 #include <string>
 
+#include "core/Error.h"
+
 namespace splatwarp::test {
 
 /// @brief Path of a file under ../shared/data, or "" when the data folder is missing.
@@ -51,6 +53,18 @@ inline int runCli(const std::string& args, const std::string& outputFile = "")
     cmd += outputFile.empty() ? " >/dev/null 2>&1" : " >" + outputFile + " 2>&1";
     const int rc = std::system(cmd.c_str());
     return WIFEXITED(rc) ? WEXITSTATUS(rc) : -1;
+}
+
+/// @brief The message of the InputError that f() throws, or "" when it throws none.
+template <typename F>
+std::string inputErrorMessage(const F& f)
+{
+    try {
+        f();
+    } catch (const InputError& e) {
+        return e.what();
+    }
+    return "";
 }
 
 } // namespace splatwarp::test
