@@ -14,13 +14,13 @@
 #include <limits>
 
 #include "CudaCheck.h"
+#include "CudaLaunch.cuh"
 #include "DeviceBuffer.h"
 #include "render/SplatProjection.h"
 
 namespace splatwarp::cuda {
 namespace {
 
-constexpr int kBlock = 256; // threads per block of the per-Gaussian and per-entry kernels
 // One thread per pixel of a tile; the same count of splats is staged in shared memory per batch.
 constexpr int kTilePixels = kSplatTileSize * kSplatTileSize;
 
@@ -30,10 +30,6 @@ struct TileSplat {
     float r, g, b;                                         // view-dependent colour
     int ax0, ay0, ax1, ay1;                                // pixels where alpha can reach the cutoff
 };
-
-__device__ std::size_t globalIndex() { return std::size_t(blockIdx.x) * blockDim.x + threadIdx.x; }
-
-unsigned blocksFor(std::size_t n) { return unsigned((n + kBlock - 1) / kBlock); }
 
 /// Per Gaussian: project (as the CPU's ProjectOp), store the compositing data, the box of tiles it
 /// touches and their count (0 when culled) and its depth bits (positive floats order like them).

@@ -1,0 +1,41 @@
+#pragma once
+/// @file CudaLaunch.cuh
+/// @brief What every kernel file needs: one thread per element launches (checked, no device
+///        synchronisation), the element index, and an owned non-blocking stream.
+#include <cuda_runtime.h>
+
+#include <cstddef>
+
+#include "CudaCheck.h"
+
+namespace splatwarp::cuda {
+
+/// Threads per block of the per-element kernels: 8 warps, full occupancy on sm_75..sm_90.
+constexpr int kBlock = 256;
+
+/// Index of this thread in a 1-D launch.
+__device__ __forceinline__ std::size_t globalIndex() { return std::size_t(blockIdx.x) * blockDim.x + threadIdx.x; }
+
+/// Blocks of kBlock threads covering n elements.
+inline unsigned blocksFor(std::size_t n) { return unsigned((n + kBlock - 1) / kBlock); }
+
+/// Launch `kernel` over n threads (skipped when n == 0) and check the launch (asynchronous faults
+/// surface at the next checked synchronising call).
+template <typename Kernel, typename... Args>
+void launch(const char* name, Kernel kernel, std::size_t n, cudaStream_t stream, Args... args)
+{
+    if (n == 0) return;
+    kernel<<<blocksFor(n), kBlock, 0, stream>>>(args...);
+    checkCuda(cudaGetLastError(), name, __FILE__, __LINE__);
+}
+
+/// An owned non-blocking stream (work on it never waits for the legacy default stream).
+struct StreamHolder {
+    cudaStream_t stream = nullptr;
+    StreamHolder() { SPLATWARP_CUDA_CHECK(cudaStreamCreateWithFlags(&stream, cudaStreamNonBlocking)); }
+    ~StreamHolder() { cudaStreamDestroy(stream); }
+    StreamHolder(const StreamHolder&) = delete;
+    StreamHolder& operator=(const StreamHolder&) = delete;
+};
+
+} // namespace splatwarp::cuda
