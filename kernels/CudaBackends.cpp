@@ -3,8 +3,12 @@
 #include <cuda_runtime.h>
 
 #include "RasterizerCuda.h"
+#include "StageOneCuda.h"
 #include "StageTwoCuda.h"
+#include "WarpCuda.h"
 #include "core/Device.h"
+#include "deform/StageOneDevice.h"
+#include "deform/WarpDevice.h"
 #include "render/RenderDevice.h"
 #include "stage2/StageTwoDevice.h"
 
@@ -24,6 +28,8 @@ bool cudaDeviceAvailable()
 void registerBackends()
 {
     registerCudaProbe(&cudaDeviceAvailable);
+    registerStageOneCuda(&makeStageOneCuda);
+    registerWarpCuda(&warpPointsCuda, &warpSamplesCuda);
     registerStageTwoCuda(&optimiseStageTwoCuda);
     registerRenderCuda(&renderGaussiansCuda);
 }

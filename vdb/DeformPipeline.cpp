@@ -2,12 +2,14 @@
 
 #include <filesystem>
 
-#include "SampleWarp.h"
+#include "deform/SampleWarp.h"
 #include "VdbExport.h"
 #include "core/AtomicFile.h"
 #include "core/Error.h"
 #include "core/Progress.h"
 #include "deform/DeformReport.h"
+#include "deform/StageOneDevice.h"
+#include "deform/WarpDevice.h"
 #include "image/ImageIO.h"
 #include "io/GaussianIO.h"
 #include "render/Camera.h"
@@ -70,7 +72,7 @@ std::vector<Camera> comparisonCameras(const GaussianCloud& rest, const GaussianC
 nlohmann::json runDeformJob(const DeformJobOptions& o)
 {
     Stopwatch total, clock;
-    if (!o.stage1Only) resolveDevice(o.device); // fail before any work when the device cannot run
+    resolveDevice(o.device); // fail before any work when the device cannot run
     DeformSpec spec = loadDeformSpec(o.specPath);
     if (o.nodes) spec.graph.nodes = *o.nodes;
     if (o.k) spec.graph.k = *o.k;
@@ -86,7 +88,7 @@ nlohmann::json runDeformJob(const DeformJobOptions& o)
 
     // Stage I.
     const Deformation deformation = solveDeformation(rest, spec, o.ed);
-    const StageOneResult stage1 = runStageOne(rest, deformation, o.stage1);
+    const StageOneResult stage1 = runStageOneOn(o.device, rest, deformation, o.stage1);
     nlohmann::json report = stageOneReportJson(deformation, stage1, spec.graph, o.ed);
     report["input"] = {{"path", o.input}, {"format", readReport.format}, {"gaussians", rest.size()},
                        {"shDegree", rest.shDegree}};
@@ -104,14 +106,17 @@ nlohmann::json runDeformJob(const DeformJobOptions& o)
         SampleGrid grid(rest, o.grid);
         report["timingsMs"]["sampleGrid"] = clock.ms();
         clock.reset();
-        warpSamples(grid.samples(), deformation, o.grid.threaded);
+        const char* warpDevice = warpSamplesOn(o.device, grid.samples(), deformation, o.grid.threaded);
         report["timingsMs"]["warpSamples"] = clock.ms();
-        progress(msg("warped ", grid.stats().samples, " samples in ", int(clock.ms()), " ms"));
+        report["warpDevice"] = warpDevice;
+        progress(msg("warped ", grid.stats().samples, " samples in ", int(clock.ms()), " ms on ", warpDevice));
 
         std::optional<HeldOutPoints> heldOut;
         if (o.evaluate || o.evalEvery > 0) {
             clock.reset();
-            heldOut = makeHeldOutPoints(grid, deformation, o.heldOut);
+            HeldOutOptions heldOutOptions = o.heldOut;
+            heldOutOptions.device = o.device;
+            heldOut = makeHeldOutPoints(grid, deformation, heldOutOptions);
             const FieldErrorReport e1 = evaluateHeldOut(rest, stage1.deformed, *heldOut);
             report["stage1"]["field_error"] = fieldErrorJson(e1);
             report["timingsMs"]["evaluate"] = clock.ms();

@@ -36,7 +36,7 @@ struct DeformJobOptions {
     bool render = false;    ///< compare.png: rest | Stage I | Stage II from a few orbit views
     int renderViews = 3;    ///< orbit views in compare.png
     int renderSize = 320;   ///< pixels per view (square)
-    Device device = Device::Auto; ///< where Stage II runs (auto: CUDA when compiled in and a GPU is present)
+    Device device = Device::Auto; ///< where the Stage I update and Stage II run (auto: CUDA when compiled in and a GPU is present)
 };
 
 /// @brief Run the job and write its outputs; returns the report that was written to report.json.

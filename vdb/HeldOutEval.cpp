@@ -3,7 +3,7 @@
 #include <random>
 
 #include "core/Error.h"
-#include "deform/WarpPoints.h"
+#include "deform/WarpDevice.h"
 
 namespace splatwarp {
 
@@ -26,8 +26,8 @@ HeldOutPoints makeHeldOutPoints(const SampleGrid& grid, const Deformation& defor
     }
     out.warped.resize(out.rest.size());
     out.rotations.resize(3 * out.rest.size());
-    warpPoints(deformation.graph, deformation.transforms, out.rest.data(), options.points, out.warped.data(),
-               out.rotations.data(), grid.options().threaded);
+    warpPointsOn(options.device, deformation.graph, deformation.transforms, out.rest.data(), options.points,
+                 out.warped.data(), out.rotations.data(), grid.options().threaded);
     out.features.cutoff = grid.options().cutoff;
     out.features.filterVariance = float(grid.options().lambdaLpf * grid.samples().spacing * grid.samples().spacing);
     out.features.threaded = grid.options().threaded;

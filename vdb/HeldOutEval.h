@@ -9,6 +9,7 @@
 #include <nlohmann/json.hpp>
 
 #include "SampleGrid.h"
+#include "core/Device.h"
 #include "deform/Deformation.h"
 #include "field/FieldError.h"
 
@@ -18,6 +19,7 @@ namespace splatwarp {
 struct HeldOutOptions {
     std::size_t points = 100000; ///< held-out points (uniform over the active rest cells)
     std::uint32_t seed = 1;      ///< deterministic for a seed
+    Device device = Device::Cpu; ///< where the points are warped (deform/WarpDevice.h)
 };
 
 /// @brief Held-out points with their warped positions and local rotations.

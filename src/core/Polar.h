@@ -117,7 +117,7 @@ SPLATWARP_HOST_DEVICE Mat3<T> polarRotation(const Mat3<T>& m)
 /// quadratically in a few steps, far cheaper than the Jacobi SVD. Returns false (caller falls back
 /// to polarDecomposition()) when det M <= 0 or it does not converge, so the result is the same
 /// polar rotation up to rounding.
-inline bool polarRotationNewton(const Mat3d& m, Mat3d& r)
+SPLATWARP_HOST_DEVICE bool polarRotationNewton(const Mat3d& m, Mat3d& r)
 {
     constexpr int kMaxIterations = 12;
     constexpr double kStep = 1e-9; // |X_k+1 - X_k|_F: the next error is ~kStep^2, below double rounding
@@ -156,7 +156,7 @@ inline bool polarRotationNewton(const Mat3d& m, Mat3d& r)
 
 /// @brief polarRotation() of a deformation gradient: Newton's iteration first (cheap near a
 ///        rotation, which ED deformation gradients are), the Jacobi route otherwise.
-inline Mat3d polarRotationFast(const Mat3d& m)
+SPLATWARP_HOST_DEVICE Mat3d polarRotationFast(const Mat3d& m)
 {
     Mat3d r;
     return polarRotationNewton(m, r) ? r : polarRotation(m);

@@ -42,48 +42,30 @@ Mat3d skinGradient(const DeformationGraph&, const NodeTransforms& transforms, co
     return out * (1.0 / sum);
 }
 
-AffineSkinning::AffineSkinning(const DeformationGraph& graph, const NodeTransforms& x) : mNodes(graph.nodeCount())
+std::vector<NodeAffine> nodeAffines(const DeformationGraph& graph, const NodeTransforms& x)
 {
-    for (std::size_t j = 0; j < mNodes.size(); ++j) {
+    std::vector<NodeAffine> nodes(graph.nodeCount());
+    for (std::size_t j = 0; j < nodes.size(); ++j) {
         const Vec3d& g = graph.nodes()[j];
         const Vec3d b = g + x.t[j] - x.A[j] * g;
         for (int r = 0; r < 3; ++r) {
-            for (int c = 0; c < 3; ++c) mNodes[j].a[r][c] = x.A[j][r][c];
-            mNodes[j].b[r] = b[r];
+            for (int c = 0; c < 3; ++c) nodes[j].a[r][c] = x.A[j][r][c];
+            nodes[j].b[r] = b[r];
         }
     }
+    return nodes;
 }
+
+AffineSkinning::AffineSkinning(const DeformationGraph& graph, const NodeTransforms& x) : mNodes(nodeAffines(graph, x)) {}
 
 Vec3d AffineSkinning::point(const SkinWeights& w, std::size_t q, const Vec3d& v) const
 {
-    const std::size_t k = std::size_t(w.k);
-    double o0 = 0.0, o1 = 0.0, o2 = 0.0, sum = 0.0;
-    for (std::size_t e = q * k; e < (q + 1) * k; ++e) {
-        const double wt = double(w.weights[e]);
-        const NodeAffine& n = mNodes[std::size_t(w.nodes[e])];
-        o0 += wt * (n.a[0][0] * v.x + n.a[0][1] * v.y + n.a[0][2] * v.z + n.b[0]);
-        o1 += wt * (n.a[1][0] * v.x + n.a[1][1] * v.y + n.a[1][2] * v.z + n.b[1]);
-        o2 += wt * (n.a[2][0] * v.x + n.a[2][1] * v.y + n.a[2][2] * v.z + n.b[2]);
-        sum += wt;
-    }
-    // Divide by the sum of the float weights (1 up to rounding) so rigid motions stay exact in double.
-    const double inv = 1.0 / sum;
-    return Vec3d(o0 * inv, o1 * inv, o2 * inv);
+    return skinAffinePoint(mNodes.data(), w.nodes.data(), w.weights.data(), std::size_t(w.k), q, v);
 }
 
 Mat3d AffineSkinning::gradient(const SkinWeights& w, std::size_t q) const
 {
-    const std::size_t k = std::size_t(w.k);
-    Mat3d out;
-    double sum = 0.0;
-    for (std::size_t e = q * k; e < (q + 1) * k; ++e) {
-        const double wt = double(w.weights[e]);
-        const NodeAffine& n = mNodes[std::size_t(w.nodes[e])];
-        for (int r = 0; r < 3; ++r)
-            for (int c = 0; c < 3; ++c) out.m[r][c] += wt * n.a[r][c];
-        sum += wt;
-    }
-    return out * (1.0 / sum);
+    return skinAffineGradient(mNodes.data(), w.nodes.data(), w.weights.data(), std::size_t(w.k), q);
 }
 
 } // namespace splatwarp

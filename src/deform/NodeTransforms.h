@@ -7,6 +7,7 @@
 
 #include "core/SmallMath.h"
 #include "deform/DeformationGraph.h"
+#include "deform/SkinningKernel.h"
 
 namespace splatwarp {
 
@@ -28,6 +29,9 @@ Vec3d skinPoint(const DeformationGraph& graph, const NodeTransforms& transforms,
 Mat3d skinGradient(const DeformationGraph& graph, const NodeTransforms& transforms, const SkinWeights& weights,
                    std::size_t i);
 
+/// @brief The node transforms as affine maps A_j v + b_j, [J] (the layout of the skinning kernels).
+std::vector<NodeAffine> nodeAffines(const DeformationGraph& graph, const NodeTransforms& transforms);
+
 /// @brief The node transforms as affine maps A_j v + b_j (b_j = g_j + t_j - A_j g_j), precomputed
 ///        once, so each skinned point costs one 3x4 product per node. Same values as skinPoint()
 ///        and skinGradient() up to rounding; those stay as the plain reference.
@@ -38,12 +42,10 @@ public:
     Vec3d point(const SkinWeights& weights, std::size_t i, const Vec3d& v) const;
     /// @brief Local deformation gradient of point i: sum_j w_j A_j.
     Mat3d gradient(const SkinWeights& weights, std::size_t i) const;
+    /// @brief The affine maps, [J].
+    const std::vector<NodeAffine>& affines() const { return mNodes; }
 
 private:
-    struct NodeAffine {
-        double a[3][3];
-        double b[3];
-    };
     std::vector<NodeAffine> mNodes;
 };
 

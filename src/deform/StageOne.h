@@ -43,7 +43,18 @@ struct StageOneResult {
     std::vector<std::uint8_t> moving;  ///< [N] 1 if any of its 7 points has weight on a moving node
     std::size_t movingCount = 0;
     StageOneTimings timings;
+    const char* device = "cpu";        ///< where the update ran ("cpu" or "cuda")
 };
+
+struct StageOneParams; // deform/StageOneKernel.h
+
+/// @brief The options and model extent as the per-Gaussian update takes them.
+StageOneParams stageOneParams(const StageOneOptions& options, double extent);
+
+/// @brief Check that rig, transforms and moving flags fit the model and graph.
+/// @throws InputError naming the mismatch
+void checkStageOneInputs(const GaussianCloud& rest, const StageOneRig& rig, const DeformationGraph& graph,
+                         const NodeTransforms& transforms, const std::vector<std::uint8_t>& nodeMoving);
 
 /// @brief Endpoints and weights for a rest model on a graph (once per model and graph).
 StageOneRig prepareStageOne(const GaussianCloud& rest, const DeformationGraph& graph, const StageOneOptions& options = {});
@@ -53,7 +64,8 @@ StageOneResult applyStageOne(const GaussianCloud& rest, const StageOneRig& rig, 
                              const NodeTransforms& transforms, const std::vector<std::uint8_t>& nodeMoving,
                              const StageOneOptions& options = {});
 
-/// @brief prepareStageOne + applyStageOne for a solved deformation.
+/// @brief prepareStageOne + applyStageOne for a solved deformation, on the CPU (runStageOneOn(),
+///        deform/StageOneDevice.h, picks the device).
 StageOneResult runStageOne(const GaussianCloud& rest, const Deformation& deformation, const StageOneOptions& options = {});
 
 } // namespace splatwarp

@@ -5,7 +5,7 @@
 #include <tbb/parallel_for.h>
 
 #include "core/Error.h"
-#include "core/Polar.h"
+#include "deform/WarpKernel.h"
 
 namespace splatwarp {
 
@@ -20,19 +20,17 @@ void warpPoints(const DeformationGraph& graph, const NodeTransforms& transforms,
 {
     if (transforms.size() != graph.nodeCount())
         throw InputError(msg("warpPoints: ", transforms.size(), " node transforms for ", graph.nodeCount(), " nodes"));
-    const AffineSkinning skinning(graph, transforms);
+    const std::vector<NodeAffine> nodes = nodeAffines(graph, transforms);
+    const NodeAffine* affines = nodes.data();
     for (std::size_t b0 = 0; b0 < count; b0 += kBatch) {
         const std::size_t b1 = std::min(count, b0 + kBatch);
         const SkinWeights w = graph.skinWeights(points + 3 * b0, b1 - b0, threaded);
+        const std::size_t k = std::size_t(w.k);
         auto body = [&](std::size_t b, std::size_t e) {
             for (std::size_t p = b; p < e; ++p) {
-                const float* x = points + 3 * p;
-                const Vec3d y = skinning.point(w, p - b0, Vec3d(x[0], x[1], x[2]));
-                for (int k = 0; k < 3; ++k) warped[3 * p + k] = float(y[k]);
-                if (!rotations) continue;
-                const Mat3d r = polarRotationFast(skinning.gradient(w, p - b0));
-                for (int i = 0; i < 3; ++i)
-                    for (int j = 0; j < 3; ++j) rotations[9 * p + 3 * i + j] = float(r.m[i][j]);
+                // Batch-relative arrays: the weights are rows 0.. of this batch.
+                warpPoint(affines, w.nodes.data(), w.weights.data(), k, points + 3 * b0, p - b0, warped + 3 * b0,
+                          rotations ? rotations + 9 * b0 : nullptr);
             }
         };
         if (threaded)

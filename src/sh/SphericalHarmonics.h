@@ -67,6 +67,12 @@ SPLATWARP_HOST_DEVICE Vec3<T> evalShColor(int degree, const C* coeffs, const Vec
     return s;
 }
 
+/// @brief Band matrices that rotate SH coefficients by one rotation (built by buildShBands() in
+///        sh/ShRotationKernel.h): band l is (2l+1) x (2l+1) row-major; band 0 unused.
+struct ShBands {
+    double band[4][49];
+};
+
 /// @brief The per-band matrices that rotate SH coefficients by a rotation R: after apply(),
 ///        eval(coeffs', R d) == eval(coeffs, d) for every direction d. Band 0 is invariant.
 /// @note  Built per rotation (once per Gaussian or sample), so construction is kept cheap:
@@ -80,13 +86,13 @@ public:
     void apply(int degree, float* coeffs) const;
     void apply(int degree, double* coeffs) const;
     /// @brief Band matrix entry D_l[i][j] (l = 1..built degree), mainly for tests.
-    double band(int l, int i, int j) const { return mBand[l][i * (2 * l + 1) + j]; }
+    double band(int l, int i, int j) const { return mBands.band[l][i * (2 * l + 1) + j]; }
 
 private:
     template <typename T>
     void applyImpl(int degree, T* coeffs) const;
     int mDegree;
-    double mBand[4][49]; ///< band l: (2l+1) x (2l+1) row-major; band 0 unused
+    ShBands mBands; ///< built by buildShBands() (sh/ShRotationKernel.h)
 };
 
 /// @brief Rotate the SH of every Gaussian of a cloud by the same rotation (rigid motions, tests).

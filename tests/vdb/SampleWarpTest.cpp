@@ -3,7 +3,7 @@
 #include <cmath>
 
 #include "SampleGrid.h"
-#include "SampleWarp.h"
+#include "deform/SampleWarp.h"
 #include "core/Polar.h"
 #include "deform/DeformSpec.h"
 #include "samples/SampleModels.h"

@@ -8,7 +8,7 @@
 #include <tuple>
 
 #include "SampleGrid.h"
-#include "SampleWarp.h"
+#include "deform/SampleWarp.h"
 #include "VdbExport.h"
 #include "core/Error.h"
 #include "io/GaussianIO.h"

@@ -1,4 +1,4 @@
-#include "SampleWarp.h"
+#include "deform/SampleWarp.h"
 
 #include <algorithm>
 #include <tbb/blocked_range.h>
@@ -6,7 +6,7 @@
 
 #include "core/Error.h"
 #include "deform/WarpPoints.h"
-#include "sh/SphericalHarmonics.h"
+#include "deform/WarpKernel.h"
 
 namespace splatwarp {
 
@@ -29,29 +29,32 @@ void forRange(std::size_t b, std::size_t e, bool threaded, const Body& body)
 
 } // namespace
 
-void warpSamples(SampleSet& samples, const DeformationGraph& graph, const NodeTransforms& transforms, bool threaded)
+void checkWarpSamples(const SampleSet& samples, const DeformationGraph& graph, const NodeTransforms& transforms)
 {
     const std::size_t m = samples.sampleCount();
     if (samples.restPositions.size() != 3 * m || samples.targetF.size() != m * std::size_t(samples.featureStride()))
         throw InputError("warpSamples: the sample set's arrays disagree in size");
     if (transforms.size() != graph.nodeCount())
         throw InputError(msg("warpSamples: ", transforms.size(), " node transforms for ", graph.nodeCount(), " nodes"));
+}
+
+void warpSamples(SampleSet& samples, const DeformationGraph& graph, const NodeTransforms& transforms, bool threaded)
+{
+    checkWarpSamples(samples, graph, transforms);
+    const std::size_t m = samples.sampleCount();
     samples.warpedPositions.resize(3 * m);
     const std::size_t stride = std::size_t(samples.featureStride());
     const bool rotate = samples.shDegree > 0;
     std::vector<float> rotations(rotate ? 9 * std::min(m, kWarpBatch) : 0);
+    const ShRotationTables& tables = shRotationTables();
     for (std::size_t b0 = 0; b0 < m; b0 += kWarpBatch) {
         const std::size_t b1 = std::min(m, b0 + kWarpBatch);
         warpPoints(graph, transforms, &samples.restPositions[3 * b0], b1 - b0, &samples.warpedPositions[3 * b0],
                    rotate ? rotations.data() : nullptr, threaded);
         if (!rotate) continue;
         forRange(b0, b1, threaded, [&](std::size_t b, std::size_t e) {
-            for (std::size_t s = b; s < e; ++s) {
-                const float* r = &rotations[9 * (s - b0)];
-                Mat3d rot;
-                for (int i = 0; i < 9; ++i) rot.m[i / 3][i % 3] = r[i];
-                ShRotation(rot, samples.shDegree).apply(samples.shDegree, &samples.targetF[s * stride]);
-            }
+            for (std::size_t s = b; s < e; ++s)
+                rotateSampleFeatures(tables, &rotations[9 * (s - b0)], samples.shDegree, &samples.targetF[s * stride]);
         });
     }
     computeCellGradients(samples, threaded);
@@ -71,34 +74,8 @@ void computeCellGradients(SampleSet& samples, bool threaded)
         throw InputError("computeCellGradients: needs >= 2 samples per axis and warped positions for every cell");
     samples.cellGradient.resize(9 * cells);
     forRange(0, cells, threaded, [&](std::size_t b, std::size_t e) {
-        for (std::size_t c = b; c < e; ++c) {
-            Vec3d rest[8], warped[8], restMean, warpedMean;
-            int q = 0;
-            for (int a = 0; a < n; a += n - 1)
-                for (int bb = 0; bb < n; bb += n - 1)
-                    for (int cc = 0; cc < n; cc += n - 1, ++q) {
-                        const std::size_t s = c * perCell + std::size_t((a * n + bb) * n + cc);
-                        rest[q] = Vec3d(samples.restPositions[3 * s], samples.restPositions[3 * s + 1], samples.restPositions[3 * s + 2]);
-                        warped[q] = Vec3d(samples.warpedPositions[3 * s], samples.warpedPositions[3 * s + 1],
-                                          samples.warpedPositions[3 * s + 2]);
-                        restMean += rest[q];
-                        warpedMean += warped[q];
-                    }
-            restMean *= 1.0 / 8.0;
-            warpedMean *= 1.0 / 8.0;
-            Mat3d pq, qq;
-            for (int k = 0; k < 8; ++k) {
-                const Vec3d p = warped[k] - warpedMean, r = rest[k] - restMean;
-                for (int i = 0; i < 3; ++i)
-                    for (int j = 0; j < 3; ++j) {
-                        pq.m[i][j] += p[i] * r[j];
-                        qq.m[i][j] += r[i] * r[j];
-                    }
-            }
-            const Mat3d f = pq * qq.inverse();
-            for (int i = 0; i < 3; ++i)
-                for (int j = 0; j < 3; ++j) samples.cellGradient[9 * c + 3 * i + j] = float(f.m[i][j]);
-        }
+        for (std::size_t c = b; c < e; ++c)
+            cellGradient(samples.restPositions.data(), samples.warpedPositions.data(), n, c, &samples.cellGradient[9 * c]);
     });
 }
 

@@ -1,0 +1,155 @@
+#include "WarpCuda.h"
+
+#include <algorithm>
+#include <vector>
+
+#include "CudaLaunch.cuh"
+#include "DeviceBuffer.h"
+#include "deform/WarpKernel.h"
+
+namespace splatwarp::cuda {
+namespace {
+
+/// Points whose skin weights are computed (CPU) and uploaded at a time: bounds the host and
+/// device weight arrays ([batch,k] nodes and weights, 8 k bytes per point).
+constexpr std::size_t kBatch = std::size_t(1) << 20;
+
+/// One thread per point of a batch (arrays batch-relative; rotations may be null).
+__global__ void warpPointsKernel(std::size_t n, const NodeAffine* affines, const std::int32_t* nodes,
+                                 const float* weights, std::size_t k, const float* points, float* warped,
+                                 float* rotations)
+{
+    const std::size_t p = globalIndex();
+    if (p >= n) return;
+    warpPoint(affines, nodes, weights, k, points, p, warped, rotations);
+}
+
+/// One thread per sample of a batch: warpPointsKernel + the target SH rotation (shDegree > 0).
+__global__ void warpSamplesKernel(std::size_t n, const NodeAffine* affines, const std::int32_t* nodes,
+                                  const float* weights, std::size_t k, const float* points, float* warped,
+                                  float* rotations, const ShRotationTables* tables, int shDegree, std::size_t stride,
+                                  float* features)
+{
+    const std::size_t p = globalIndex();
+    if (p >= n) return;
+    warpPoint(affines, nodes, weights, k, points, p, warped, rotations);
+    rotateSampleFeatures(*tables, rotations + 9 * p, shDegree, features + p * stride);
+}
+
+/// One thread per cell: F_k from the warped corner samples.
+__global__ void cellGradientKernel(std::size_t cells, const float* rest, const float* warped, int n, float* out)
+{
+    const std::size_t c = globalIndex();
+    if (c >= cells) return;
+    cellGradient(rest, warped, n, c, out + 9 * c);
+}
+
+/// Skin weights of points [b0, b1) on the CPU, uploaded; waits for the upload (the host
+/// arrays die with this call). Returns k.
+std::size_t uploadWeights(const DeformationGraph& graph, const float* points, std::size_t b0, std::size_t b1,
+                          bool threaded, DeviceBuffer<std::int32_t>& nodes, DeviceBuffer<float>& weights,
+                          cudaStream_t st)
+{
+    const SkinWeights w = graph.skinWeights(points + 3 * b0, b1 - b0, threaded);
+    nodes.upload(w.nodes, st);
+    weights.upload(w.weights, st);
+    SPLATWARP_CUDA_CHECK(cudaStreamSynchronize(st));
+    return std::size_t(w.k);
+}
+
+/// Copy host data to a device buffer of n elements.
+template <typename T>
+void uploadRaw(DeviceBuffer<T>& to, const T* from, std::size_t n, cudaStream_t st)
+{
+    to.resize(n);
+    if (n) SPLATWARP_CUDA_CHECK(cudaMemcpyAsync(to.data(), from, n * sizeof(T), cudaMemcpyHostToDevice, st));
+}
+
+} // namespace
+
+void warpPointsCuda(const DeformationGraph& graph, const NodeTransforms& transforms, const float* points,
+                    std::size_t count, float* warped, float* rotations, bool threaded)
+{
+    if (transforms.size() != graph.nodeCount())
+        throw InputError(msg("warpPoints: ", transforms.size(), " node transforms for ", graph.nodeCount(), " nodes"));
+    if (count == 0) return;
+    StreamHolder stream;
+    const cudaStream_t st = stream.stream;
+    const std::vector<NodeAffine> affines = nodeAffines(graph, transforms);
+    DeviceBuffer<NodeAffine> dAffines("warp node transforms");
+    dAffines.upload(affines, st);
+    DeviceBuffer<float> dPoints("warp points"), dWarped(3 * count, "warped points"),
+        dRotations(rotations ? 9 * count : 0, "warp rotations");
+    uploadRaw(dPoints, points, 3 * count, st);
+    DeviceBuffer<std::int32_t> dNodes("skin-weight nodes");
+    DeviceBuffer<float> dWeights("skin weights");
+    for (std::size_t b0 = 0; b0 < count; b0 += kBatch) {
+        const std::size_t b1 = std::min(count, b0 + kBatch);
+        const std::size_t k = uploadWeights(graph, points, b0, b1, threaded, dNodes, dWeights, st);
+        launch("warpPointsKernel", warpPointsKernel, b1 - b0, st, b1 - b0, (const NodeAffine*)dAffines.data(),
+               (const std::int32_t*)dNodes.data(), (const float*)dWeights.data(), k,
+               (const float*)dPoints.data() + 3 * b0, dWarped.data() + 3 * b0,
+               rotations ? dRotations.data() + 9 * b0 : nullptr);
+    }
+    dWarped.download(warped, 3 * count, st);
+    if (rotations) dRotations.download(rotations, 9 * count, st);
+}
+
+void warpSamplesCuda(SampleSet& samples, const DeformationGraph& graph, const NodeTransforms& transforms, bool threaded)
+{
+    checkWarpSamples(samples, graph, transforms);
+    const std::size_t m = samples.sampleCount();
+    const int n = samples.samplesPerAxis;
+    const std::size_t cells = samples.cellCount();
+    if (n < 2 || m != cells * std::size_t(n) * std::size_t(n) * std::size_t(n))
+        throw InputError("computeCellGradients: needs >= 2 samples per axis and warped positions for every cell");
+    const std::size_t stride = std::size_t(samples.featureStride());
+    const bool rotate = samples.shDegree > 0;
+    StreamHolder stream;
+    const cudaStream_t st = stream.stream;
+    const std::vector<NodeAffine> affines = nodeAffines(graph, transforms);
+    const std::vector<ShRotationTables> tables{shRotationTables()};
+    DeviceBuffer<NodeAffine> dAffines("warp node transforms");
+    DeviceBuffer<ShRotationTables> dTables("SH rotation tables");
+    dAffines.upload(affines, st);
+    dTables.upload(tables, st);
+    DeviceBuffer<float> dRest("sample rest positions"), dWarped(3 * m, "warped sample positions"),
+        dFeatures("sample target features"), dGradient(9 * cells, "cell gradients"),
+        dRotations(rotate ? 9 * std::min(m, kBatch) : 0, "sample rotations");
+    dRest.upload(samples.restPositions, st);
+    if (rotate) dFeatures.upload(samples.targetF, st);
+    DeviceBuffer<std::int32_t> dNodes("skin-weight nodes");
+    DeviceBuffer<float> dWeights("skin weights");
+    const float* rest = samples.restPositions.data();
+    for (std::size_t b0 = 0; b0 < m; b0 += kBatch) {
+        const std::size_t b1 = std::min(m, b0 + kBatch), nb = b1 - b0;
+        const std::size_t k = uploadWeights(graph, rest, b0, b1, threaded, dNodes, dWeights, st);
+        const NodeAffine* a = dAffines.data();
+        const std::int32_t* nodes = dNodes.data();
+        const float* w = dWeights.data();
+        const float* points = dRest.data() + 3 * b0;
+        if (rotate)
+            launch("warpSamplesKernel", warpSamplesKernel, nb, st, nb, a, nodes, w, k, points, dWarped.data() + 3 * b0,
+                   dRotations.data(), (const ShRotationTables*)dTables.data(), samples.shDegree, stride,
+                   dFeatures.data() + b0 * stride);
+        else
+            launch("warpPointsKernel", warpPointsKernel, nb, st, nb, a, nodes, w, k, points, dWarped.data() + 3 * b0,
+                   (float*)nullptr);
+        // The rotation buffer is reused by the next batch: stream order keeps them apart.
+    }
+    launch("cellGradientKernel", cellGradientKernel, cells, st, cells, (const float*)dRest.data(),
+           (const float*)dWarped.data(), n, dGradient.data());
+    // Download everything before touching the samples, so a failure leaves them as they were.
+    std::vector<float> warped(3 * m), features, gradient(9 * cells);
+    dWarped.download(warped.data(), warped.size(), st);
+    if (rotate) {
+        features.resize(samples.targetF.size());
+        dFeatures.download(features.data(), features.size(), st);
+    }
+    dGradient.download(gradient.data(), gradient.size(), st);
+    samples.warpedPositions = std::move(warped);
+    if (rotate) samples.targetF = std::move(features);
+    samples.cellGradient = std::move(gradient);
+}
+
+} // namespace splatwarp::cuda

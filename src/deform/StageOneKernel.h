@@ -1,0 +1,143 @@
+#pragma once
+/// @file StageOneKernel.h
+/// @brief The Stage I per-Gaussian update on raw arrays in the GPU layout, host/device: the one
+///        implementation behind applyStageOne() (CPU) and the CUDA Stage I (kernels/StageOneCuda).
+#include <cstddef>
+#include <cstdint>
+
+#include "core/HostDevice.h"
+#include "core/Polar.h"
+#include "core/SmallMath.h"
+#include "deform/SkinningKernel.h"
+#include "sh/ShRotationKernel.h"
+
+namespace splatwarp {
+
+/// Skinned points per Gaussian: the centre, then the endpoints +x,-x,+y,-y,+z,-z of its own axes.
+constexpr std::size_t kStageOnePoints = 7;
+
+/// @brief The numbers of StageOneOptions the update needs, plus the model extent (plain data).
+struct StageOneParams {
+    double endpointSigmas = 2.0;
+    double flatEpsilon = 1e-3;
+    double absoluteEpsilon = 1e-6;
+    double minStretch = 1e-6;
+    double extent = 1.0; ///< largest extent of the rest centres' bounding box
+};
+
+/// @brief Rest frame of a Gaussian: rotation (normalised quaternion), endpoint sigmas and centre.
+struct StageOneRestFrame {
+    Mat3d r0;
+    Vec3d sigma;
+    Vec3d centre;
+};
+
+SPLATWARP_HOST_DEVICE double stageOneMax(double a, double b) { return a < b ? b : a; } // std::max's choice
+
+/// @brief Rest frame of Gaussian i from means [N,3], raw quaternions w,x,y,z [N,4], logScales [N,3].
+SPLATWARP_HOST_DEVICE StageOneRestFrame stageOneRestFrame(const float* means, const float* rotations,
+                                                          const float* logScales, std::size_t i,
+                                                          const StageOneParams& p)
+{
+    const float* q = rotations + 4 * i;
+    StageOneRestFrame f;
+    f.r0 = quatToMatrix(Quatd{double(q[0]), double(q[1]), double(q[2]), double(q[3])});
+    f.centre = Vec3d(means[3 * i], means[3 * i + 1], means[3 * i + 2]);
+    const Vec3d s(std::exp(double(logScales[3 * i])), std::exp(double(logScales[3 * i + 1])),
+                  std::exp(double(logScales[3 * i + 2])));
+    // sigma = scale + eps: flat Gaussians keep a frame (relative eps), near-zero ones too (absolute).
+    const double eps = stageOneMax(p.flatEpsilon * stageOneMax(stageOneMax(s.x, s.y), s.z), p.absoluteEpsilon * p.extent);
+    f.sigma = Vec3d(s.x + eps, s.y + eps, s.z + eps);
+    return f;
+}
+
+/// @brief Rest endpoint e (0..5: +x,-x,+y,-y,+z,-z of the Gaussian's own axes).
+SPLATWARP_HOST_DEVICE Vec3d stageOneEndpoint(const StageOneRestFrame& f, int e, double sigmas)
+{
+    const int a = e / 2;
+    const double sign = (e % 2 == 0) ? 1.0 : -1.0;
+    const Vec3d axis(f.r0[0][a], f.r0[1][a], f.r0[2][a]);
+    return f.centre + axis * (sign * sigmas * f.sigma[a]);
+}
+
+/// @brief Read-only inputs of the update, GPU layout (N Gaussians, K = (shDegree+1)^2).
+struct StageOneInputs {
+    const float* means = nullptr;         ///< [N,3] rest
+    const float* rotations = nullptr;     ///< [N,4] rest, raw w,x,y,z
+    const float* logScales = nullptr;     ///< [N,3] rest
+    const std::int32_t* nodes = nullptr;  ///< [N*7,k] skin-weight nodes of the 7 points
+    const float* weights = nullptr;       ///< [N*7,k] skin weights
+    std::size_t k = 0;
+    const NodeAffine* affines = nullptr;  ///< [J] node transforms
+    const std::uint8_t* nodeMoving = nullptr; ///< [J] 0 for nodes at identity
+    const ShRotationTables* shTables = nullptr;
+    int shDegree = 0;
+};
+
+/// @brief Outputs, initialised by the caller to the rest values (static Gaussians are not written).
+struct StageOneOutputs {
+    float* means = nullptr;      ///< [N,3]
+    float* rotations = nullptr;  ///< [N,4] unit quaternion, w >= 0
+    float* logScales = nullptr;  ///< [N,3]
+    float* sh = nullptr;         ///< [N,K,3], rotated in place
+    std::uint8_t* moving = nullptr; ///< [N] 1 if any of its 7 points has weight on a moving node
+};
+
+/// @brief Update Gaussian i: skin its centre and endpoints, M = (P Q^T)(Q Q^T)^-1, polar M = R S,
+///        then mean, rotation R R0, log-scales + log stretch and SH rotated by R.
+SPLATWARP_HOST_DEVICE void stageOneUpdate(const StageOneInputs& in, const StageOneParams& p, std::size_t i,
+                                          const StageOneOutputs& out)
+{
+    const std::size_t k = in.k;
+    bool moving = false;
+    for (std::size_t q = i * kStageOnePoints * k; q < (i + 1) * kStageOnePoints * k && !moving; ++q)
+        moving = in.weights[q] > 0.0f && in.nodeMoving[std::size_t(in.nodes[q])];
+    out.moving[i] = moving ? 1 : 0;
+    if (!moving) return;
+    const StageOneRestFrame f = stageOneRestFrame(in.means, in.rotations, in.logScales, i, p);
+    const std::size_t base = i * kStageOnePoints;
+    const Vec3d centre = skinAffinePoint(in.affines, in.nodes, in.weights, k, base, f.centre);
+    // With Q the symmetric endpoint offsets +-c sigma_a r_a, (P Q^T)(Q Q^T)^-1 reduces to
+    // M r_a = (p_a+ - p_a-) / (2 c sigma_a): the same least-squares M without the 3x3 inverse.
+    Mat3d mr; // columns M r_a
+    for (int a = 0; a < 3; ++a) {
+        const Vec3d plus = skinAffinePoint(in.affines, in.nodes, in.weights, k, base + 1 + std::size_t(2 * a),
+                                           stageOneEndpoint(f, 2 * a, p.endpointSigmas));
+        const Vec3d minus = skinAffinePoint(in.affines, in.nodes, in.weights, k, base + 2 + std::size_t(2 * a),
+                                            stageOneEndpoint(f, 2 * a + 1, p.endpointSigmas));
+        const Vec3d col = (plus - minus) / (2.0 * p.endpointSigmas * f.sigma[a]);
+        for (int r = 0; r < 3; ++r) mr[r][a] = col[r];
+    }
+    // M = mr R0^T = R S gives mr = (R R0)(R0^T S R0): the polar factors of mr are the
+    // deformed frame R R0 directly, and S's stretch along r_a is (R0^T S R0)_aa.
+    Mat3d rr0; // R R0
+    Vec3d stretch;
+    if (polarRotationNewton(mr, rr0)) {
+        for (int a = 0; a < 3; ++a)
+            stretch[a] = rr0[0][a] * mr[0][a] + rr0[1][a] * mr[1][a] + rr0[2][a] * mr[2][a];
+    } else {
+        Mat3d r, s;
+        polarDecomposition(mr * f.r0.transposed(), r, s);
+        rr0 = r * f.r0;
+        for (int a = 0; a < 3; ++a) {
+            const Vec3d ra(f.r0[0][a], f.r0[1][a], f.r0[2][a]);
+            stretch[a] = dot(ra, s * ra);
+        }
+    }
+    const Quatd q = matrixToQuat(rr0);
+    for (int a = 0; a < 3; ++a) out.means[3 * i + std::size_t(a)] = float(centre[a]);
+    float* rot = out.rotations + 4 * i;
+    rot[0] = float(q.w);
+    rot[1] = float(q.x);
+    rot[2] = float(q.y);
+    rot[3] = float(q.z);
+    for (int a = 0; a < 3; ++a)
+        out.logScales[3 * i + std::size_t(a)] =
+            float(double(in.logScales[3 * i + std::size_t(a)]) + std::log(stageOneMax(stretch[a], p.minStretch)));
+    if (in.shDegree > 0) {
+        const std::size_t stride = std::size_t(3 * (in.shDegree + 1) * (in.shDegree + 1));
+        rotateSh(*in.shTables, rr0 * f.r0.transposed(), in.shDegree, out.sh + i * stride);
+    }
+}
+
+} // namespace splatwarp

@@ -1,0 +1,34 @@
+#pragma once
+/// @file WarpDevice.h
+/// @brief Point and sample warping on the chosen device: the CPU warpPoints()/warpSamples() or
+///        the CUDA versions the kernels register at start-up (the core library cannot link them).
+///        Skin weights are computed on the CPU (nanoflann) in both cases; the GPU skins, rotates
+///        and computes F_k.
+#include <cstddef>
+
+#include "core/Device.h"
+#include "deform/Deformation.h"
+#include "deform/SampleWarp.h"
+#include "deform/WarpPoints.h"
+
+namespace splatwarp {
+
+/// @brief Signature of warpPoints(). A GPU version writes warped/rotations only on success.
+using WarpPointsFunction = void (*)(const DeformationGraph&, const NodeTransforms&, const float*, std::size_t, float*,
+                                    float*, bool);
+/// @brief Signature of warpSamples(). A GPU version leaves the samples untouched when it throws.
+using WarpSamplesFunction = void (*)(SampleSet&, const DeformationGraph&, const NodeTransforms&, bool);
+
+/// @brief Register the CUDA warping (nullptr unregisters). Called by cuda::registerBackends().
+void registerWarpCuda(WarpPointsFunction points, WarpSamplesFunction samples);
+
+/// @brief warpPoints() on a device (Auto: CUDA when available, CPU on out-of-GPU-memory with a
+///        progress line; Cuda: errors propagate). Returns the device that ran ("cpu"/"cuda").
+/// @throws InputError when Cuda is requested but unavailable (see resolveDevice())
+const char* warpPointsOn(Device device, const DeformationGraph& graph, const NodeTransforms& transforms,
+                         const float* points, std::size_t count, float* warped, float* rotations, bool threaded = true);
+
+/// @brief warpSamples() on a device, as warpPointsOn(). Returns the device that ran.
+const char* warpSamplesOn(Device device, SampleSet& samples, const Deformation& deformation, bool threaded = true);
+
+} // namespace splatwarp
