@@ -5,13 +5,14 @@
 
 #include "CudaLaunch.cuh"
 #include "DeviceBuffer.h"
+#include "deform/SkinWeightKernel.h"
 #include "deform/WarpKernel.h"
 
 namespace splatwarp::cuda {
 namespace {
 
-/// Points whose skin weights are computed (CPU) and uploaded at a time: bounds the host and
-/// device weight arrays ([batch,k] nodes and weights, 8 k bytes per point).
+/// Points skinned per batch: bounds the device weight arrays ([batch,k] nodes and weights, 8 k
+/// bytes per point) and rotations.
 constexpr std::size_t kBatch = std::size_t(1) << 20;
 
 /// One thread per point of a batch (arrays batch-relative; rotations may be null).
@@ -44,18 +45,41 @@ __global__ void cellGradientKernel(std::size_t cells, const float* rest, const f
     cellGradient(rest, warped, n, c, out + 9 * c);
 }
 
-/// Skin weights of points [b0, b1) on the CPU, uploaded; waits for the upload (the host
-/// arrays die with this call). Returns k.
-std::size_t uploadWeights(const DeformationGraph& graph, const float* points, std::size_t b0, std::size_t b1,
-                          bool threaded, DeviceBuffer<std::int32_t>& nodes, DeviceBuffer<float>& weights,
-                          cudaStream_t st)
+/// One thread per point of a batch: brute-force k nearest of the J nodes and their weights.
+__global__ void skinWeightsKernel(std::size_t n, const double* graphNodes, std::size_t j, std::size_t k,
+                                  const float* points, std::int32_t* nodes, float* weights)
 {
-    const SkinWeights w = graph.skinWeights(points + 3 * b0, b1 - b0, threaded);
-    nodes.upload(w.nodes, st);
-    weights.upload(w.weights, st);
-    SPLATWARP_CUDA_CHECK(cudaStreamSynchronize(st));
-    return std::size_t(w.k);
+    const std::size_t p = globalIndex();
+    if (p >= n) return;
+    skinWeightsBrute(graphNodes, j, k, points, p, nodes, weights);
 }
+
+/// The graph nodes [J,3] on the device, for skinWeightsKernel.
+struct DeviceGraph {
+    DeviceBuffer<double> nodes{"graph nodes"};
+    std::size_t j = 0, k = 0;
+    DeviceGraph(const DeformationGraph& graph, cudaStream_t st)
+    {
+        j = graph.nodeCount();
+        k = std::min<std::size_t>(std::size_t(graph.k()), j);
+        if (j == 0 || k == 0) throw InputError("skin weights: the graph has no nodes");
+        if (k > kMaxSkinK) throw InputError(msg("skin weights on the GPU: k ", k, " is above ", kMaxSkinK));
+        std::vector<double> flat(3 * j);
+        for (std::size_t n = 0; n < j; ++n)
+            for (int a = 0; a < 3; ++a) flat[3 * n + std::size_t(a)] = graph.nodes()[n][a];
+        nodes.upload(flat, st);
+        SPLATWARP_CUDA_CHECK(cudaStreamSynchronize(st)); // flat dies here
+    }
+    /// Weights of device points [n,3] into nodes/weights ([n,k], resized); asynchronous.
+    void weigh(const float* points, std::size_t n, DeviceBuffer<std::int32_t>& outNodes, DeviceBuffer<float>& outWeights,
+               cudaStream_t st) const
+    {
+        outNodes.resize(n * k);
+        outWeights.resize(n * k);
+        launch("skinWeightsKernel", skinWeightsKernel, n, st, n, nodes.data(), j, k, points, outNodes.data(),
+               outWeights.data());
+    }
+};
 
 /// Copy host data to a device buffer of n elements.
 template <typename T>
@@ -67,14 +91,35 @@ void uploadRaw(DeviceBuffer<T>& to, const T* from, std::size_t n, cudaStream_t s
 
 } // namespace
 
+SkinWeights skinWeightsCuda(const DeformationGraph& graph, const float* points, std::size_t count)
+{
+    StreamHolder stream;
+    const cudaStream_t st = stream.stream;
+    const DeviceGraph dGraph(graph, st);
+    SkinWeights w;
+    w.k = int(dGraph.k);
+    if (count == 0) return w;
+    DeviceBuffer<float> dPoints("skin-weight points");
+    uploadRaw(dPoints, points, 3 * count, st);
+    DeviceBuffer<std::int32_t> dNodes("skin-weight nodes");
+    DeviceBuffer<float> dWeights("skin weights");
+    dGraph.weigh(dPoints.data(), count, dNodes, dWeights, st);
+    w.nodes.resize(count * dGraph.k);
+    w.weights.resize(count * dGraph.k);
+    dNodes.download(w.nodes.data(), w.nodes.size(), st);
+    dWeights.download(w.weights.data(), w.weights.size(), st);
+    return w;
+}
+
 void warpPointsCuda(const DeformationGraph& graph, const NodeTransforms& transforms, const float* points,
-                    std::size_t count, float* warped, float* rotations, bool threaded)
+                    std::size_t count, float* warped, float* rotations, bool /*threaded: the CPU does nothing here*/)
 {
     if (transforms.size() != graph.nodeCount())
         throw InputError(msg("warpPoints: ", transforms.size(), " node transforms for ", graph.nodeCount(), " nodes"));
     if (count == 0) return;
     StreamHolder stream;
     const cudaStream_t st = stream.stream;
+    const DeviceGraph dGraph(graph, st);
     const std::vector<NodeAffine> affines = nodeAffines(graph, transforms);
     DeviceBuffer<NodeAffine> dAffines("warp node transforms");
     dAffines.upload(affines, st);
@@ -85,17 +130,20 @@ void warpPointsCuda(const DeformationGraph& graph, const NodeTransforms& transfo
     DeviceBuffer<float> dWeights("skin weights");
     for (std::size_t b0 = 0; b0 < count; b0 += kBatch) {
         const std::size_t b1 = std::min(count, b0 + kBatch);
-        const std::size_t k = uploadWeights(graph, points, b0, b1, threaded, dNodes, dWeights, st);
+        dGraph.weigh(dPoints.data() + 3 * b0, b1 - b0, dNodes, dWeights, st);
+        const std::size_t k = dGraph.k;
         launch("warpPointsKernel", warpPointsKernel, b1 - b0, st, b1 - b0, (const NodeAffine*)dAffines.data(),
                (const std::int32_t*)dNodes.data(), (const float*)dWeights.data(), k,
                (const float*)dPoints.data() + 3 * b0, dWarped.data() + 3 * b0,
                rotations ? dRotations.data() + 9 * b0 : nullptr);
     }
+    // The host affines must live until the upload ran; the downloads below wait for everything.
     dWarped.download(warped, 3 * count, st);
     if (rotations) dRotations.download(rotations, 9 * count, st);
 }
 
-void warpSamplesCuda(SampleSet& samples, const DeformationGraph& graph, const NodeTransforms& transforms, bool threaded)
+void warpSamplesCuda(SampleSet& samples, const DeformationGraph& graph, const NodeTransforms& transforms,
+                     bool /*threaded: the CPU does nothing here*/)
 {
     checkWarpSamples(samples, graph, transforms);
     const std::size_t m = samples.sampleCount();
@@ -107,6 +155,7 @@ void warpSamplesCuda(SampleSet& samples, const DeformationGraph& graph, const No
     const bool rotate = samples.shDegree > 0;
     StreamHolder stream;
     const cudaStream_t st = stream.stream;
+    const DeviceGraph dGraph(graph, st);
     const std::vector<NodeAffine> affines = nodeAffines(graph, transforms);
     const std::vector<ShRotationTables> tables{shRotationTables()};
     DeviceBuffer<NodeAffine> dAffines("warp node transforms");
@@ -120,10 +169,10 @@ void warpSamplesCuda(SampleSet& samples, const DeformationGraph& graph, const No
     if (rotate) dFeatures.upload(samples.targetF, st);
     DeviceBuffer<std::int32_t> dNodes("skin-weight nodes");
     DeviceBuffer<float> dWeights("skin weights");
-    const float* rest = samples.restPositions.data();
     for (std::size_t b0 = 0; b0 < m; b0 += kBatch) {
         const std::size_t b1 = std::min(m, b0 + kBatch), nb = b1 - b0;
-        const std::size_t k = uploadWeights(graph, rest, b0, b1, threaded, dNodes, dWeights, st);
+        dGraph.weigh(dRest.data() + 3 * b0, nb, dNodes, dWeights, st);
+        const std::size_t k = dGraph.k;
         const NodeAffine* a = dAffines.data();
         const std::int32_t* nodes = dNodes.data();
         const float* w = dWeights.data();
@@ -135,7 +184,7 @@ void warpSamplesCuda(SampleSet& samples, const DeformationGraph& graph, const No
         else
             launch("warpPointsKernel", warpPointsKernel, nb, st, nb, a, nodes, w, k, points, dWarped.data() + 3 * b0,
                    (float*)nullptr);
-        // The rotation buffer is reused by the next batch: stream order keeps them apart.
+        // The weight and rotation buffers are reused by the next batch: stream order keeps them apart.
     }
     launch("cellGradientKernel", cellGradientKernel, cells, st, cells, (const float*)dRest.data(),
            (const float*)dWarped.data(), n, dGradient.data());

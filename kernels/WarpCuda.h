@@ -1,14 +1,18 @@
 #pragma once
 /// @file WarpCuda.h
-/// @brief Point and sample warping on the GPU (double precision skinning, like the CPU): skin
-///        weights come from the CPU (DeformationGraph::skinWeights, in batches) and are uploaded;
-///        the GPU skins, takes the polar rotation, rotates the target SH and computes F_k. No CUDA
-///        types here.
+/// @brief Point and sample warping on the GPU (double precision, like the CPU): skin weights by
+///        brute force over the graph nodes (deform/SkinWeightKernel.h, same formula as
+///        DeformationGraph::skinWeights; exact distance ties may pick other nodes than nanoflann),
+///        skinning, polar rotation, target SH rotation and F_k. No CUDA types here.
 #include <cstddef>
 
 #include "deform/WarpDevice.h"
 
 namespace splatwarp::cuda {
+
+/// @brief DeformationGraph::skinWeights() on the current CUDA device (graph k <= kMaxSkinK).
+/// @throws InputError for an empty graph or k > kMaxSkinK; DeviceMemoryError when a buffer does not fit
+SkinWeights skinWeightsCuda(const DeformationGraph& graph, const float* points, std::size_t count);
 
 /// @brief warpPoints() on the current CUDA device; warped/rotations are written only on success.
 /// @throws InputError as warpPoints(); DeviceMemoryError when a buffer does not fit

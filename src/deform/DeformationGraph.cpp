@@ -10,6 +10,7 @@
 #include <tbb/parallel_reduce.h>
 
 #include "core/Error.h"
+#include "deform/SkinWeightKernel.h"
 
 namespace splatwarp {
 
@@ -155,19 +156,8 @@ SkinWeights DeformationGraph::skinWeights(const float* points, std::size_t count
         for (std::size_t p = r.begin(); p != r.end(); ++p) {
             const double q[3] = {points[3 * p], points[3 * p + 1], points[3 * p + 2]};
             mIndex->nearest(q, query, ip, dp);
-            const double dNext = query > k ? std::sqrt(dp[k]) : 2.0 * std::sqrt(dp[k - 1]);
-            double sum = 0.0;
-            for (std::size_t i = 0; i < k; ++i) {
-                const double t = dNext > 0.0 ? 1.0 - std::sqrt(dp[i]) / dNext : 0.0;
-                wp[i] = t > 0.0 ? t * t : 0.0;
-                sum += wp[i];
-            }
-            // d_{k+1} == 0 or all k+1 nodes equidistant: no preference, share equally.
-            const bool uniform = !(sum > 0.0);
-            for (std::size_t i = 0; i < k; ++i) {
-                w.nodes[p * k + i] = ip[i];
-                w.weights[p * k + i] = float(uniform ? 1.0 / double(k) : wp[i] / sum);
-            }
+            skinWeightsFromDistances(dp, query, k, wp, &w.weights[p * k]);
+            for (std::size_t i = 0; i < k; ++i) w.nodes[p * k + i] = ip[i];
         }
     };
     const tbb::blocked_range<std::size_t> range(0, count, 1024);

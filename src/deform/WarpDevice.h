@@ -2,8 +2,8 @@
 /// @file WarpDevice.h
 /// @brief Point and sample warping on the chosen device: the CPU warpPoints()/warpSamples() or
 ///        the CUDA versions the kernels register at start-up (the core library cannot link them).
-///        Skin weights are computed on the CPU (nanoflann) in both cases; the GPU skins, rotates
-///        and computes F_k.
+///        The GPU also computes the skin weights (brute force, same formula; exact distance ties
+///        may pick other nodes than the CPU's nanoflann).
 #include <cstddef>
 
 #include "core/Device.h"

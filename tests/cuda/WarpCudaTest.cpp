@@ -84,3 +84,34 @@ TEST(WarpCuda, SamplesMatchCpu)
     EXPECT_EQ(countMismatches(gpu.cellGradient, cpu.cellGradient, kGradientAbs, "cellGradient"), 0u);
     EXPECT_EQ(gpu.targetO, cpu.targetO);
 }
+
+TEST(WarpCuda, SkinWeightsMatchCpuExceptExactTies)
+{
+    SPLATWARP_REQUIRE_GPU();
+    const GaussianCloud rest = makeSample("stripes");
+    const DeformationGraph graph = DeformationGraph::build(rest, GraphOptions{});
+    std::mt19937 rng(5);
+    std::uniform_real_distribution<float> u(-2.5f, 2.5f);
+    std::vector<float> points(3 * 100000);
+    for (float& x : points) x = u(rng);
+    const std::size_t count = points.size() / 3;
+    const SkinWeights cpu = graph.skinWeights(points.data(), count);
+    const SkinWeights gpu = cuda::skinWeightsCuda(graph, points.data(), count);
+    ASSERT_EQ(gpu.k, cpu.k);
+    ASSERT_EQ(gpu.nodes.size(), cpu.nodes.size());
+    // Random points have no exact ties, so the node sets agree; an FMA in the GPU's squared
+    // distance could reorder two nodes within ~1e-16 relative of each other (then the sets still
+    // agree) and moves each weight by ~1e-16 relative, below float rounding except at a boundary:
+    // one float ulp allowed.
+    const std::size_t k = std::size_t(cpu.k);
+    std::size_t bad = 0;
+    for (std::size_t p = 0; p < count; ++p) {
+        std::vector<std::int32_t> a(gpu.nodes.begin() + p * k, gpu.nodes.begin() + (p + 1) * k),
+            b(cpu.nodes.begin() + p * k, cpu.nodes.begin() + (p + 1) * k);
+        std::sort(a.begin(), a.end());
+        std::sort(b.begin(), b.end());
+        if (a != b && bad++ < 10) ADD_FAILURE() << "point " << p << ": node sets differ";
+    }
+    EXPECT_EQ(countMismatches(gpu.weights, cpu.weights, 1e-7, "weights"), 0u);
+    EXPECT_EQ(bad, 0u);
+}
