@@ -15,6 +15,7 @@
 #include <cmath>
 #include <string>
 
+#include "BendSpec.h"
 #include "CudaTestSupport.h"
 #include "StageOneCuda.h"
 #include "deform/StageOneDevice.h"
@@ -35,7 +36,7 @@ struct BendProblem {
     StageOneRig rig;
     BendProblem()
     {
-        const DeformSpec spec = loadDeformSpec(std::string(SPLATWARP_SOURCE_DIR) + "/samples/specs/bend.json");
+        const DeformSpec spec = test::loadBendSpec();
         d = solveDeformation(rest, spec);
         rig = prepareStageOne(rest, d.graph);
     }

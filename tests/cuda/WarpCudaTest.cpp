@@ -14,6 +14,7 @@
 #include <cmath>
 #include <random>
 
+#include "BendSpec.h"
 #include "CudaTestSupport.h"
 #include "SampleGrid.h"
 #include "WarpCuda.h"
@@ -30,7 +31,7 @@ constexpr double kGradientAbs = 1e-3;  // F_k entries (dimensionless, ~1), see t
 
 Deformation bend(const GaussianCloud& rest)
 {
-    const DeformSpec spec = loadDeformSpec(std::string(SPLATWARP_SOURCE_DIR) + "/samples/specs/bend.json");
+    const DeformSpec spec = test::loadBendSpec();
     return solveDeformation(rest, spec);
 }
 
