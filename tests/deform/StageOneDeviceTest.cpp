@@ -1,0 +1,164 @@
+// Stage I update and warping dispatch in a CPU-only process (this binary never links the CUDA
+// kernels): CUDA requested without support fails clearly, auto runs on the CPU, and a registered
+// GPU implementation running out of memory falls back to the CPU under auto only.
+#include <gtest/gtest.h>
+
+#include <memory>
+
+#include "core/Device.h"
+#include "deform/StageOneDevice.h"
+#include "deform/WarpDevice.h"
+#include "samples/SampleModels.h"
+
+using namespace splatwarp;
+
+namespace {
+
+bool gpu() { return true; }
+
+int gApplyCalls = 0;
+
+/// An engine whose update runs out of GPU memory, or returns a marked result.
+class FakeEngine : public StageOneEngine {
+public:
+    explicit FakeEngine(bool outOfMemory) : mOutOfMemory(outOfMemory) {}
+    StageOneResult apply(const std::vector<NodeAffine>&, const std::vector<std::uint8_t>&) override
+    {
+        ++gApplyCalls;
+        if (mOutOfMemory) throw DeviceMemoryError("CUDA: out of GPU memory for Stage I SH (99 bytes)");
+        StageOneResult r;
+        r.movingCount = 424242; // marks this fake's result
+        return r;
+    }
+
+private:
+    bool mOutOfMemory;
+};
+
+std::unique_ptr<StageOneEngine> oomOnApply(const GaussianCloud&, const StageOneRig&, std::size_t, const StageOneOptions&)
+{
+    return std::make_unique<FakeEngine>(true);
+}
+std::unique_ptr<StageOneEngine> oomOnUpload(const GaussianCloud&, const StageOneRig&, std::size_t, const StageOneOptions&)
+{
+    throw DeviceMemoryError("CUDA: out of GPU memory for Stage I rest SH (99 bytes)");
+}
+std::unique_ptr<StageOneEngine> works(const GaussianCloud&, const StageOneRig&, std::size_t, const StageOneOptions&)
+{
+    return std::make_unique<FakeEngine>(false);
+}
+
+void oomWarp(const DeformationGraph&, const NodeTransforms&, const float*, std::size_t, float*, float*, bool)
+{
+    throw DeviceMemoryError("CUDA: out of GPU memory for warped points (99 bytes)");
+}
+
+/// Registers fakes for one test and always restores the CPU-only state.
+struct FakeCuda {
+    FakeCuda(StageOneEngineFactory stageOne, WarpPointsFunction warp = nullptr)
+    {
+        registerCudaProbe(&gpu);
+        registerStageOneCuda(stageOne);
+        registerWarpCuda(warp, nullptr);
+    }
+    ~FakeCuda()
+    {
+        registerCudaProbe(nullptr);
+        registerStageOneCuda(nullptr);
+        registerWarpCuda(nullptr, nullptr);
+    }
+};
+
+struct Problem {
+    GaussianCloud rest = makeSample("stripes", SampleOptions{1500, 1});
+    Deformation d;
+    StageOneRig rig;
+    Problem()
+    {
+        DeformSpec spec = loadDeformSpec(std::string(SPLATWARP_SOURCE_DIR) + "/samples/specs/bend.json");
+        spec.graph.nodes = 48;
+        d = solveDeformation(rest, spec);
+        rig = prepareStageOne(rest, d.graph);
+    }
+    StageOneResult cpu() const { return applyStageOne(rest, rig, d.graph, d.transforms, d.nodeMoving); }
+};
+
+bool sameModel(const GaussianCloud& a, const GaussianCloud& b)
+{
+    return a.means == b.means && a.rotations == b.rotations && a.logScales == b.logScales && a.sh == b.sh;
+}
+
+} // namespace
+
+TEST(StageOneDevice, CpuAndAutoWithoutGpuRunTheCpuPath)
+{
+    const Problem p;
+    const StageOneResult ref = p.cpu();
+    for (Device dev : {Device::Cpu, Device::Auto}) {
+        StageOneUpdater u(dev, p.rest, p.rig, p.d.graph);
+        EXPECT_EQ(u.device(), Device::Cpu);
+        const StageOneResult r = u.apply(p.d.transforms, p.d.nodeMoving);
+        EXPECT_STREQ(r.device, "cpu");
+        EXPECT_TRUE(sameModel(r.deformed, ref.deformed));
+        EXPECT_EQ(r.moving, ref.moving);
+    }
+    EXPECT_THROW(StageOneUpdater(Device::Cuda, p.rest, p.rig, p.d.graph), InputError);
+}
+
+TEST(StageOneDevice, OutOfMemoryFallsBackUnderAutoOnly)
+{
+    const Problem p;
+    const StageOneResult ref = p.cpu();
+    {
+        const FakeCuda fake(&oomOnApply);
+        gApplyCalls = 0;
+        StageOneUpdater autoU(Device::Auto, p.rest, p.rig, p.d.graph);
+        EXPECT_EQ(autoU.device(), Device::Cuda);
+        const StageOneResult r = autoU.apply(p.d.transforms, p.d.nodeMoving);
+        EXPECT_EQ(gApplyCalls, 1);
+        EXPECT_STREQ(r.device, "cpu");
+        EXPECT_TRUE(sameModel(r.deformed, ref.deformed));
+        EXPECT_EQ(autoU.device(), Device::Cpu); // later steps stay on the CPU
+        StageOneUpdater cudaU(Device::Cuda, p.rest, p.rig, p.d.graph);
+        EXPECT_THROW(cudaU.apply(p.d.transforms, p.d.nodeMoving), DeviceMemoryError);
+    }
+    {
+        const FakeCuda fake(&oomOnUpload);
+        StageOneUpdater autoU(Device::Auto, p.rest, p.rig, p.d.graph);
+        EXPECT_EQ(autoU.device(), Device::Cpu);
+        EXPECT_TRUE(sameModel(autoU.apply(p.d.transforms, p.d.nodeMoving).deformed, ref.deformed));
+        EXPECT_THROW(StageOneUpdater(Device::Cuda, p.rest, p.rig, p.d.graph), DeviceMemoryError);
+    }
+    {
+        const FakeCuda fake(&works);
+        StageOneUpdater u(Device::Cuda, p.rest, p.rig, p.d.graph);
+        const StageOneResult r = u.apply(p.d.transforms, p.d.nodeMoving);
+        EXPECT_EQ(r.movingCount, 424242u);
+        EXPECT_STREQ(r.device, "cuda");
+        // Mismatched transforms are rejected before reaching the device.
+        EXPECT_THROW(u.apply(NodeTransforms::identity(3), p.d.nodeMoving), InputError);
+    }
+}
+
+TEST(WarpDevice, OutOfMemoryFallsBackUnderAutoOnly)
+{
+    const Problem p;
+    const std::size_t n = p.rest.size();
+    std::vector<float> ref(3 * n), refRot(9 * n), got(3 * n), gotRot(9 * n);
+    warpPoints(p.d.graph, p.d.transforms, p.rest.means.data(), n, ref.data(), refRot.data());
+    EXPECT_STREQ(warpPointsOn(Device::Auto, p.d.graph, p.d.transforms, p.rest.means.data(), n, got.data(),
+                              gotRot.data()),
+                 "cpu");
+    EXPECT_EQ(got, ref);
+    EXPECT_THROW(warpPointsOn(Device::Cuda, p.d.graph, p.d.transforms, p.rest.means.data(), n, got.data(), nullptr),
+                 InputError);
+    const FakeCuda fake(&works, &oomWarp);
+    std::fill(got.begin(), got.end(), 0.0f);
+    EXPECT_STREQ(warpPointsOn(Device::Auto, p.d.graph, p.d.transforms, p.rest.means.data(), n, got.data(),
+                              gotRot.data()),
+                 "cpu");
+    EXPECT_EQ(got, ref);
+    EXPECT_EQ(gotRot, refRot);
+    EXPECT_THROW(warpPointsOn(Device::Cuda, p.d.graph, p.d.transforms, p.rest.means.data(), n, got.data(), nullptr),
+                 DeviceMemoryError);
+}
