@@ -2,6 +2,7 @@
 
 #include <cuda_runtime.h>
 
+#include "FeaturesCuda.h"
 #include "RasterizerCuda.h"
 #include "StageTwoCuda.h"
 #include "core/Device.h"
@@ -26,6 +27,7 @@ void registerBackends()
     registerCudaProbe(&cudaDeviceAvailable);
     registerStageTwoCuda(&optimiseStageTwoCuda);
     registerRenderCuda(&renderGaussiansCuda);
+    registerSampleTargetsCuda(&evaluateSampleTargetsCuda);
 }
 
 } // namespace splatwarp::cuda

@@ -101,7 +101,7 @@ nlohmann::json runDeformJob(const DeformJobOptions& o)
     if (!o.stage1Only) {
         // The rest field sampled into sparse cells, then warped by the same deformation.
         clock.reset();
-        SampleGrid grid(rest, o.grid);
+        SampleGrid grid(rest, withDevice(o.grid, o.device));
         report["timingsMs"]["sampleGrid"] = clock.ms();
         clock.reset();
         warpSamples(grid.samples(), deformation, o.grid.threaded);
@@ -149,7 +149,7 @@ nlohmann::json runDeformJob(const DeformJobOptions& o)
 
         if (o.writeVdb) {
             clock.reset();
-            SampleGridOptions go = o.grid;
+            SampleGridOptions go = withDevice(o.grid, o.device);
             const SampleGrid fieldGrid(fitted, go);
             VdbExportOptions vo;
             vo.source = deformed;

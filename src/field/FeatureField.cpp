@@ -7,6 +7,7 @@
 #include <algorithm>
 
 #include "core/Error.h"
+#include "field/CellTargetKernels.h"
 
 namespace splatwarp {
 namespace {
@@ -54,23 +55,11 @@ void evaluatePreparedFeatures(const std::vector<PreparedGaussian>& gaussians, co
         for (std::size_t p = r.begin(); p != r.end(); ++p) {
             const Vec3f x(points[3 * p], points[3 * p + 1], points[3 * p + 2]);
             float* f = features ? features + p * std::size_t(shStride) : nullptr;
-            if (f) std::fill(f, f + shStride, 0.0f);
             float o = 0.0f;
             const std::uint32_t* cand = nullptr;
             const std::size_t count = bins.candidates(x, &cand);
             c.tested += count;
-            for (std::size_t k = 0; k < count; ++k) {
-                const std::uint32_t i = cand[k];
-                const PreparedGaussian& g = gaussians[i];
-                const float w = g.weight(x - g.mean, cutoff);
-                if (w == 0.0f) continue;
-                ++c.contributing;
-                o += w;
-                if (f) {
-                    const float* h = sh + std::size_t(i) * std::size_t(shStride);
-                    for (int s = 0; s < shStride; ++s) f[s] += w * h[s];
-                }
-            }
+            c.contributing += accumulateFeatures(x, cand, count, gaussians.data(), sh, shStride, cutoff, f, o);
             if (opacity) opacity[p] = o;
         }
     };
