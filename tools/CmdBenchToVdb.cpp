@@ -44,7 +44,7 @@ const CommandRegistrar reg(1040, [](CLI::App& app) {
     sub->add_option("--degrees", args->degrees, "SH degrees to run at (bands dropped or zero-padded)")
         ->capture_default_str()
         ->check(CLI::Range(0, 3));
-    addDeviceOption(sub, args->device, "the rest targets (topology and export stay on the CPU)");
+    addDeviceOption(sub, args->device, "the rest targets run (topology and export stay on the CPU)");
     sub->callback([args] {
         args->grid.device = parseDevice(args->device);
         const GaussianCloud source = args->input.empty() ? makeSample("stripes") : readGaussians(args->input);

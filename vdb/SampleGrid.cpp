@@ -100,6 +100,8 @@ SampleGrid::SampleGrid(const GaussianCloud& cloud, const SampleGridOptions& opti
     if (!(options.cellSize >= 0.0f) || (options.cellSize <= 0.0f && options.cells < 1))
         throw InputError("sample grid: give a positive cell count or cell size");
 
+    if (options.device == Device::Cuda) resolveDevice(options.device); // fail before any work without a GPU
+
     Impl& im = *mImpl;
     im.options = options;
     SampleSet& set = im.set;
