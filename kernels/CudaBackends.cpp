@@ -28,6 +28,7 @@ void registerBackends()
     registerStageTwoCuda(&optimiseStageTwoCuda);
     registerRenderCuda(&renderGaussiansCuda);
     registerSampleTargetsCuda(&evaluateSampleTargetsCuda);
+    registerFeaturesCuda(&evaluateFeaturesCuda);
 }
 
 } // namespace splatwarp::cuda

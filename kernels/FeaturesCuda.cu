@@ -1,15 +1,19 @@
-// Rest sample targets on the GPU: (cell, Gaussian) pairs from NanoVDB lookups, a stable radix
-// sort by cell, per-cell ranges, then one thread per sample summing its cell's Gaussians in
-// ascending order (the CPU path's contributing set and order). Every kernel is a thin wrapper
-// around a function of field/CellTargetKernels.h, which the CPU tests run over host arrays.
+// Features on the GPU. Rest sample targets: (cell, Gaussian) pairs from NanoVDB lookups, a
+// stable radix sort by cell, per-cell ranges, then one thread per sample summing its cell's
+// Gaussians in ascending order (the CPU path's contributing set and order). Arbitrary points:
+// the Gaussians' pruning boxes binned (BoxBins), one thread per point summing its bin's
+// Gaussians in ascending order. The per-element work is field/CellTargetKernels.h, which the
+// CPU path and the CPU tests share.
 #include "FeaturesCuda.h"
 
 #include <cub/cub.cuh>
 
 #include <algorithm>
 #include <cstdint>
+#include <type_traits>
 #include <vector>
 
+#include "BoxBinsCuda.cuh"
 #include "CudaCheck.h"
 #include "CudaLaunch.cuh"
 #include "DeviceBuffer.h"
@@ -63,14 +67,33 @@ __global__ void cellTargetKernel(std::size_t m, CellTargetView view, float* feat
     opacity[s] = o;
 }
 
-/// Run a CUB device algorithm (size query, then run) with a temporary buffer that grows.
-template <typename F>
-void cubCall(DeviceBuffer<unsigned char>& temp, const F& f)
+__global__ void preparedBoxKernel(std::size_t n, const PreparedGaussian* gaussians, float* lo, float* hi)
 {
-    std::size_t bytes = 0;
-    SPLATWARP_CUDA_CHECK(f(nullptr, bytes));
-    temp.resize(std::max<std::size_t>(bytes, 1));
-    SPLATWARP_CUDA_CHECK(f(temp.data(), bytes));
+    const std::size_t i = globalIndex();
+    if (i >= n) return;
+    preparedBox(gaussians[i], lo + 3 * i, hi + 3 * i);
+}
+
+/// One thread per point: its bin's boxes (= Gaussian indices, ascending) are the candidates.
+template <int Stride>
+__global__ void pointFeatureKernel(std::size_t m, const float* points, float inv, const unsigned long long* keys,
+                                   const std::uint32_t* boxes, std::size_t entries, const PreparedGaussian* gaussians,
+                                   const float* sh, float cutoff, float* features, float* opacity,
+                                   std::uint32_t* tested, std::uint32_t* contributing)
+{
+    const std::size_t p = globalIndex();
+    if (p >= m) return;
+    const Vec3f x(points[3 * p], points[3 * p + 1], points[3 * p + 2]);
+    const unsigned long long key = packKey(binCoord(x.x, inv), binCoord(x.y, inv), binCoord(x.z, inv));
+    const std::size_t first = lowerBound(keys, entries, key);
+    std::size_t last = first;
+    while (last < entries && keys[last] == key) ++last;
+    float f[Stride];
+    float o = 0.0f;
+    contributing[p] = accumulateFeatures(x, boxes + first, last - first, gaussians, sh, Stride, cutoff, f, o);
+    tested[p] = std::uint32_t(last - first);
+    for (int k = 0; k < Stride; ++k) features[p * Stride + k] = f[k];
+    opacity[p] = o;
 }
 
 /// Bits of the largest cell index (at least 1): the radix sort looks at no more.
@@ -81,11 +104,55 @@ int keyBits(std::size_t cells)
     return bits;
 }
 
+/// The prepared Gaussians and their SH on the device.
+struct DeviceCloud {
+    DeviceBuffer<PreparedGaussian> gaussians{"prepared Gaussians"};
+    DeviceBuffer<float> sh{"Gaussian SH coefficients"};
+    void upload(const PreparedCloudView& c, cudaStream_t st);
+};
+
 template <typename T>
 void uploadArray(DeviceBuffer<T>& buffer, const T* host, std::size_t n, cudaStream_t stream)
 {
     buffer.resize(n);
     if (n) SPLATWARP_CUDA_CHECK(cudaMemcpyAsync(buffer.data(), host, n * sizeof(T), cudaMemcpyHostToDevice, stream));
+}
+
+void DeviceCloud::upload(const PreparedCloudView& c, cudaStream_t st)
+{
+    uploadArray(gaussians, c.gaussians, c.count, st);
+    uploadArray(sh, c.sh, c.count * std::size_t(c.shStride), st);
+}
+
+void checkStride(int stride, const char* who)
+{
+    if (stride != 3 && stride != 12 && stride != 27 && stride != 48)
+        throw InputError(msg(who, ": unsupported SH stride ", stride, " (degree 0..3)"));
+}
+
+/// f(std::integral_constant<int, stride>) for a stride checked by checkStride().
+template <typename F>
+void dispatchStride(int stride, const F& f)
+{
+    switch (stride) {
+    case 3: f(std::integral_constant<int, 3>()); break;
+    case 12: f(std::integral_constant<int, 12>()); break;
+    case 27: f(std::integral_constant<int, 27>()); break;
+    case 48: f(std::integral_constant<int, 48>()); break;
+    default: break;
+    }
+}
+
+/// Sum of a per-element uint32 counter (one synchronising read-back).
+unsigned long long deviceSum(DeviceBuffer<unsigned char>& temp, const std::uint32_t* values, std::size_t n,
+                             cudaStream_t st)
+{
+    if (n == 0) return 0;
+    DeviceBuffer<unsigned long long> total(1, "counter total");
+    cubCall(temp, [&](void* t, std::size_t& b) { return cub::DeviceReduce::Sum(t, b, values, total.data(), n, st); });
+    unsigned long long out = 0;
+    total.download(&out, 1, st);
+    return out;
 }
 
 } // namespace
@@ -94,24 +161,21 @@ void evaluateSampleTargetsCuda(const SampleTargetsProblem& p, float* features, f
 {
     if (!p.index || !nanoCellGrid(*p.index))
         throw InputError("sample targets (CUDA): the cell index grid is not a NanoVDB Int32 grid");
-    if (p.shStride != 3 && p.shStride != 12 && p.shStride != 27 && p.shStride != 48)
-        throw InputError(msg("sample targets (CUDA): unsupported SH stride ", p.shStride, " (degree 0..3)"));
+    checkStride(p.cloud.shStride, "sample targets (CUDA)");
     if (!(p.cellSize > 0.0)) throw InputError(msg("sample targets (CUDA): bad cell size ", p.cellSize));
     if (p.samples > 0 && (p.cells == 0 || p.samples % p.cells != 0 || !p.positions || !p.sampleCell))
         throw InputError(msg("sample targets (CUDA): ", p.samples, " samples do not fill ", p.cells, " cells evenly"));
-    if (p.gaussianCount > 0 && (!p.gaussians || !p.sh))
+    if (p.cloud.count > 0 && (!p.cloud.gaussians || !p.cloud.sh))
         throw InputError("sample targets (CUDA): Gaussians without prepared kernels or SH");
-    const std::size_t n = p.gaussianCount, m = p.samples, stride = std::size_t(p.shStride);
+    const std::size_t n = p.cloud.count, m = p.samples, stride = std::size_t(p.cloud.shStride);
     StreamHolder holder;
     const cudaStream_t st = holder.stream;
 
     // Inputs. The host arrays outlive the stream synchronisation below (downloads synchronise).
     DeviceBuffer<unsigned char> grid("NanoVDB cell index grid");
     uploadArray(grid, static_cast<const unsigned char*>(p.index->data()), p.index->bytes(), st);
-    DeviceBuffer<PreparedGaussian> gaussians("prepared Gaussians");
-    uploadArray(gaussians, p.gaussians, n, st);
-    DeviceBuffer<float> sh("Gaussian SH coefficients");
-    uploadArray(sh, p.sh, n * stride, st);
+    DeviceCloud cloud;
+    cloud.upload(p.cloud, st);
     DeviceBuffer<float> positions("sample positions");
     uploadArray(positions, p.positions, 3 * m, st);
     DeviceBuffer<std::int32_t> sampleCell("sample cells");
@@ -123,7 +187,7 @@ void evaluateSampleTargetsCuda(const SampleTargetsProblem& p, float* features, f
     // (cell, Gaussian) pairs: count, scan, fill (in Gaussian order).
     DeviceBuffer<unsigned char> temp("CUB temporary storage");
     DeviceBuffer<unsigned long long> offsets(n + 1, "pair offsets per Gaussian");
-    launch("cellPairCountKernel", cellPairCountKernel, n + 1, st, n, (const PreparedGaussian*)gaussians.data(),
+    launch("cellPairCountKernel", cellPairCountKernel, n + 1, st, n, (const PreparedGaussian*)cloud.gaussians.data(),
            p.cellSize, nano, offsets.data());
     cubCall(temp, [&](void* t, std::size_t& b) {
         return cub::DeviceScan::ExclusiveSum(t, b, offsets.data(), offsets.data(), n + 1, st);
@@ -136,7 +200,7 @@ void evaluateSampleTargetsCuda(const SampleTargetsProblem& p, float* features, f
 
     DeviceBuffer<std::uint32_t> cells(pairs, "pair cells"), owners(pairs, "pair Gaussians");
     DeviceBuffer<std::uint32_t> sortedCells(pairs, "sorted pair cells"), sortedOwners(pairs, "sorted pair Gaussians");
-    launch("cellPairFillKernel", cellPairFillKernel, n, st, n, (const PreparedGaussian*)gaussians.data(), p.cellSize,
+    launch("cellPairFillKernel", cellPairFillKernel, n, st, n, (const PreparedGaussian*)cloud.gaussians.data(), p.cellSize,
            nano, (const unsigned long long*)offsets.data(), cells.data(), owners.data());
     // Stable LSD radix sort: Gaussians stay ascending within a cell (filled in Gaussian order).
     if (pairs > 0)
@@ -158,34 +222,21 @@ void evaluateSampleTargetsCuda(const SampleTargetsProblem& p, float* features, f
     // Targets, one thread per sample.
     DeviceBuffer<float> outF(m * stride, "sample features"), outO(m, "sample opacity");
     DeviceBuffer<std::uint32_t> contributing(m, "contributing pairs per sample");
-    DeviceBuffer<unsigned long long> contributingTotal(1, "contributing pair total");
     CellTargetView view;
-    view.gaussians = gaussians.data();
-    view.sh = sh.data();
-    view.shStride = p.shStride;
-    view.cutoff = p.cutoff;
+    view.gaussians = cloud.gaussians.data();
+    view.sh = cloud.sh.data();
+    view.shStride = p.cloud.shStride;
+    view.cutoff = p.cloud.cutoff;
     view.positions = positions.data();
     view.sampleCell = sampleCell.data();
     view.cellStart = cellStart.data();
     view.cellEnd = cellEnd.data();
     view.cellGaussians = sortedOwners.data();
-    const auto targets = [&](auto kernel, const char* name) {
-        launch(name, kernel, m, st, m, view, outF.data(), outO.data(), contributing.data());
-    };
-    switch (p.shStride) {
-    case 3: targets(cellTargetKernel<3>, "cellTargetKernel<3>"); break;
-    case 12: targets(cellTargetKernel<12>, "cellTargetKernel<12>"); break;
-    case 27: targets(cellTargetKernel<27>, "cellTargetKernel<27>"); break;
-    case 48: targets(cellTargetKernel<48>, "cellTargetKernel<48>"); break;
-    default: break; // rejected above
-    }
-    unsigned long long contributed = 0;
-    if (m) {
-        cubCall(temp, [&](void* t, std::size_t& b) {
-            return cub::DeviceReduce::Sum(t, b, (const std::uint32_t*)contributing.data(), contributingTotal.data(), m, st);
-        });
-        contributingTotal.download(&contributed, 1, st);
-    }
+    dispatchStride(p.cloud.shStride, [&](auto tag) {
+        launch("cellTargetKernel", cellTargetKernel<decltype(tag)::value>, m, st, m, view, outF.data(), outO.data(),
+               contributing.data());
+    });
+    const unsigned long long contributed = deviceSum(temp, contributing.data(), m, st);
     if (features) outF.download(features, m * stride, st);
     if (opacity) outO.download(opacity, m, st);
     if (stats) {
@@ -195,6 +246,48 @@ void evaluateSampleTargetsCuda(const SampleTargetsProblem& p, float* features, f
         stats->pairsContributing += contributed;
         stats->binEntries = pairs;
         stats->binCellSize = float(p.cellSize);
+    }
+}
+
+void evaluateFeaturesCuda(const FeaturePointsProblem& p, float* features, float* opacity, FeatureStats* stats)
+{
+    checkStride(p.cloud.shStride, "features (CUDA)");
+    if ((p.count > 0 && !p.points) || (p.cloud.count > 0 && (!p.cloud.gaussians || !p.cloud.sh)))
+        throw InputError("features (CUDA): missing points, prepared Gaussians or SH");
+    if (p.cloud.count > 0xffffffffull) throw InputError("features (CUDA): too many Gaussians for 32-bit indices");
+    const std::size_t n = p.cloud.count, m = p.count, stride = std::size_t(p.cloud.shStride);
+    StreamHolder holder;
+    const cudaStream_t st = holder.stream;
+    DeviceCloud cloud;
+    cloud.upload(p.cloud, st);
+    DeviceBuffer<float> points("feature points");
+    uploadArray(points, p.points, 3 * m, st);
+
+    // Bins of the pruning boxes; box k is Gaussian k (never-contributing ones are empty boxes).
+    DeviceBuffer<float> lo(3 * n, "Gaussian boxes (lo)"), hi(3 * n, "Gaussian boxes (hi)");
+    launch("preparedBoxKernel", preparedBoxKernel, n, st, n, (const PreparedGaussian*)cloud.gaussians.data(), lo.data(),
+           hi.data());
+    BoxBins bins;
+    const bool any = bins.build(n, lo.data(), hi.data(), st, "features (CUDA)");
+
+    DeviceBuffer<float> outF(m * stride, "point features"), outO(m, "point opacity");
+    DeviceBuffer<std::uint32_t> tested(m, "tested pairs per point"), contributing(m, "contributing pairs per point");
+    dispatchStride(p.cloud.shStride, [&](auto tag) {
+        launch("pointFeatureKernel", pointFeatureKernel<decltype(tag)::value>, m, st, m, (const float*)points.data(),
+               any ? bins.inv() : 1.0f, bins.keys(), bins.boxes(), any ? bins.entries() : std::size_t(0),
+               (const PreparedGaussian*)cloud.gaussians.data(), (const float*)cloud.sh.data(), p.cloud.cutoff, outF.data(), outO.data(),
+               tested.data(), contributing.data());
+    });
+    DeviceBuffer<unsigned char> temp("CUB temporary storage");
+    const unsigned long long testedTotal = deviceSum(temp, tested.data(), m, st);
+    const unsigned long long contributed = deviceSum(temp, contributing.data(), m, st);
+    if (features) outF.download(features, m * stride, st);
+    if (opacity) outO.download(opacity, m, st);
+    if (stats) {
+        stats->pairsTested += testedTotal;
+        stats->pairsContributing += contributed;
+        stats->binEntries = any ? bins.entries() : 0;
+        stats->binCellSize = any ? 1.0f / bins.inv() : 0.0f;
     }
 }
 

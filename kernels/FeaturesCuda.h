@@ -15,4 +15,10 @@ namespace splatwarp::cuda {
 void evaluateSampleTargetsCuda(const SampleTargetsProblem& problem, float* features, float* opacity,
                                FeatureStats* stats);
 
+/// @brief evaluateFeatures() at arbitrary points on the current CUDA device (see
+///        FeaturesFunction in field/FeatureDevice.h): the Gaussians' pruning boxes binned on the
+///        GPU (BoxBins), each point sums its bin's Gaussians in ascending index order.
+/// @throws InputError for bad inputs; DeviceMemoryError when a buffer does not fit; Error else
+void evaluateFeaturesCuda(const FeaturePointsProblem& problem, float* features, float* opacity, FeatureStats* stats);
+
 } // namespace splatwarp::cuda

@@ -112,7 +112,7 @@ nlohmann::json runDeformJob(const DeformJobOptions& o)
         if (o.evaluate || o.evalEvery > 0) {
             clock.reset();
             heldOut = makeHeldOutPoints(grid, deformation, o.heldOut);
-            const FieldErrorReport e1 = evaluateHeldOut(rest, stage1.deformed, *heldOut);
+            const FieldErrorReport e1 = evaluateHeldOut(rest, stage1.deformed, *heldOut, o.device);
             report["stage1"]["field_error"] = fieldErrorJson(e1);
             report["timingsMs"]["evaluate"] = clock.ms();
             progress(msg("Stage I held-out field error: opacity ", e1.opacity, ", color ", e1.color));
@@ -122,7 +122,7 @@ nlohmann::json runDeformJob(const DeformJobOptions& o)
         GaussianCloud fitted = stage1.deformed;
         nlohmann::json curve = nlohmann::json::array();
         auto onEval = [&](int iteration, const GaussianCloud& current) {
-            const FieldErrorReport e = evaluateHeldOut(rest, current, *heldOut);
+            const FieldErrorReport e = evaluateHeldOut(rest, current, *heldOut, o.device);
             nlohmann::json j = fieldErrorJson(e);
             j["iteration"] = iteration;
             curve.push_back(j);
@@ -137,7 +137,7 @@ nlohmann::json runDeformJob(const DeformJobOptions& o)
         report["timingsMs"]["stage2"] = r2.msTotal;
         if (o.evalEvery > 0) report["stage2"]["eval_curve"] = curve;
         if (heldOut) {
-            const FieldErrorReport e2 = evaluateHeldOut(rest, fitted, *heldOut);
+            const FieldErrorReport e2 = evaluateHeldOut(rest, fitted, *heldOut, o.device);
             report["stage2"]["field_error"] = fieldErrorJson(e2);
             progress(msg("Stage II held-out field error: opacity ", e2.opacity, ", color ", e2.color));
         }

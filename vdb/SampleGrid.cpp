@@ -218,11 +218,7 @@ SampleGrid::SampleGrid(const GaussianCloud& cloud, const SampleGridOptions& opti
             const std::vector<PreparedGaussian> g = prepareCloud(cloud, double(fo.filterVariance), fo.cutoff, fo.threaded);
             const CellIndexGrid index = nanoIndexGrid();
             SampleTargetsProblem p;
-            p.gaussians = g.data();
-            p.gaussianCount = g.size();
-            p.sh = cloud.sh.data();
-            p.shStride = cloud.shStride();
-            p.cutoff = fo.cutoff;
+            p.cloud = preparedView(g, cloud, fo.cutoff);
             p.index = &index;
             p.cellSize = double(set.cellSize);
             p.positions = set.restPositions.data();

@@ -36,11 +36,7 @@ void binPreparedGaussians(const std::vector<PreparedGaussian>& gaussians, float 
 {
     const std::size_t n = gaussians.size();
     std::vector<float> lo(3 * n), hi(3 * n);
-    for (std::size_t i = 0; i < n; ++i)
-        for (int k = 0; k < 3; ++k) {
-            lo[3 * i + k] = gaussians[i].mean[k] - gaussians[i].halfExtent[k];
-            hi[3 * i + k] = gaussians[i].mean[k] + gaussians[i].halfExtent[k];
-        }
+    for (std::size_t i = 0; i < n; ++i) preparedBox(gaussians[i], &lo[3 * i], &hi[3 * i]);
     if (cellSize <= 0.0f) cellSize = GaussianBins::suggestCellSize(lo.data(), hi.data(), n);
     bins.build(lo.data(), hi.data(), n, cellSize, threaded);
 }
@@ -75,12 +71,17 @@ void evaluatePreparedFeatures(const std::vector<PreparedGaussian>& gaussians, co
     }
 }
 
-void evaluateFeatures(const GaussianCloud& cloud, const float* points, std::size_t m, const FeatureOptions& options,
-                      float* features, float* opacity, FeatureStats* stats)
+void checkFeatureOptions(const FeatureOptions& options)
 {
     if (!(options.cutoff > 0.0f)) throw InputError(msg("feature cutoff ", options.cutoff, " must be positive"));
     if (options.filterVariance < 0.0f)
         throw InputError(msg("low-pass filter variance ", options.filterVariance, " must not be negative"));
+}
+
+void evaluateFeatures(const GaussianCloud& cloud, const float* points, std::size_t m, const FeatureOptions& options,
+                      float* features, float* opacity, FeatureStats* stats)
+{
+    checkFeatureOptions(options);
     const std::vector<PreparedGaussian> prepared =
         prepareCloud(cloud, options.filterVariance, options.cutoff, options.threaded);
     GaussianBins bins;

@@ -13,6 +13,8 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <random>
+#include <vector>
 
 #include "CudaBackends.h"
 #include "CudaTestSupport.h"
@@ -51,6 +53,7 @@ void expectParity(const GaussianCloud& cloud, SampleGridOptions options)
     options.device = Device::Cuda;
     const SampleGrid gpu(cloud, options);
     registerSampleTargetsCuda(nullptr);
+    registerFeaturesCuda(nullptr);
     registerCudaProbe(nullptr);
     ASSERT_EQ(gpu.stats().device, Device::Cuda);
     ASSERT_EQ(gpu.stats().samples, cpu.stats().samples);
@@ -92,7 +95,7 @@ TEST(SampleTargetsCuda, MatchesCpuOnRandomCloud)
 TEST(SampleTargetsCuda, BadIndexGridIsAnInputError)
 {
     SampleTargetsProblem p;
-    p.shStride = 3;
+    p.cloud.shStride = 3;
     p.cellSize = 1.0;
     EXPECT_THROW(cuda::evaluateSampleTargetsCuda(p, nullptr, nullptr, nullptr), InputError);
     CellIndexGrid junk;
@@ -114,6 +117,58 @@ TEST(SampleTargetsCuda, DispatchWithoutGpu)
     o.device = Device::Auto;
     const SampleGrid g(makeSample("stripes"), o);
     EXPECT_EQ(g.stats().device, Device::Cpu);
+    std::vector<float> opacity(1);
+    const float point[3] = {0.0f, 0.0f, 0.0f};
+    FeatureOptions fo;
+    fo.device = Device::Cuda;
+    EXPECT_THROW(evaluateFeaturesOn(makeSample("stripes"), point, 1, fo, nullptr, opacity.data()), InputError);
+    fo.device = Device::Auto;
+    EXPECT_EQ(evaluateFeaturesOn(makeSample("stripes"), point, 1, fo, nullptr, opacity.data()), Device::Cpu);
+    registerSampleTargetsCuda(nullptr);
+    registerFeaturesCuda(nullptr);
+    registerCudaProbe(nullptr);
+}
+
+// Features at arbitrary points (eval / held-out): GPU bins vs the CPU's GaussianBins. Different
+// bins, same contributing set (the decision is alpha*G >= cutoff) summed in ascending Gaussian
+// order on both sides, so the same a-priori tolerances apply; pairsTested differs by design.
+TEST(FeaturesCuda, MatchesCpuAtRandomPoints)
+{
+    SPLATWARP_REQUIRE_GPU();
+    cuda::registerBackends();
+    for (const int degree : {0, 3}) {
+        SCOPED_TRACE(degree);
+        const GaussianCloud cloud = test::randomCloud(3000, degree, 7u + std::uint32_t(degree), 1.0f);
+        std::mt19937 rng(3);
+        std::uniform_real_distribution<float> u(-1.2f, 1.2f);
+        const std::size_t m = 50000;
+        std::vector<float> points(3 * m);
+        for (float& v : points) v = u(rng);
+        FeatureOptions o;
+        o.filterVariance = 1e-4f;
+        const std::size_t stride = std::size_t(cloud.shStride());
+        std::vector<float> fc(m * stride), oc(m), fg(m * stride), og(m);
+        FeatureStats sc, sg;
+        o.device = Device::Cpu;
+        EXPECT_EQ(evaluateFeaturesOn(cloud, points.data(), m, o, fc.data(), oc.data(), &sc), Device::Cpu);
+        o.device = Device::Cuda;
+        EXPECT_EQ(evaluateFeaturesOn(cloud, points.data(), m, o, fg.data(), og.data(), &sg), Device::Cuda);
+        EXPECT_LT(relativeError(fg, fc), kFeatureRel);
+        EXPECT_LT(relativeError(og, oc), kOpacityRel);
+        EXPECT_GT(sc.pairsContributing, 0u);
+        const std::uint64_t a = sg.pairsContributing, b = sc.pairsContributing;
+        EXPECT_LE(a > b ? a - b : b - a, kPairFlips) << "gpu " << a << " cpu " << b;
+        EXPECT_GE(sg.pairsTested, sg.pairsContributing);
+    }
+    registerFeaturesCuda(nullptr);
     registerSampleTargetsCuda(nullptr);
     registerCudaProbe(nullptr);
+}
+
+// Validation happens before any CUDA call.
+TEST(FeaturesCuda, UnsupportedStrideIsAnInputError)
+{
+    FeaturePointsProblem p;
+    p.cloud.shStride = 5;
+    EXPECT_THROW(cuda::evaluateFeaturesCuda(p, nullptr, nullptr, nullptr), InputError);
 }
