@@ -5,8 +5,16 @@
 ///        point finds its candidate boxes by binary search of its own cell's key.
 #include <cuda_runtime.h>
 
+#include <cub/cub.cuh>
+
+#include <algorithm>
 #include <cstddef>
 #include <cstdint>
+
+#include "CudaCheck.h"
+#include "CudaLaunch.cuh"
+#include "DeviceBuffer.h"
+#include "core/Error.h"
 
 namespace splatwarp::cuda {
 namespace {
@@ -85,6 +93,111 @@ __global__ void binFillKernel(std::size_t g, const float* lo, const float* hi, f
                 ++e;
             }
 }
+
+/// Run a CUB device algorithm (size query, then run) with a temporary buffer that grows.
+template <typename F>
+void cubCall(DeviceBuffer<unsigned char>& temp, const F& f)
+{
+    std::size_t bytes = 0;
+    SPLATWARP_CUDA_CHECK(f(nullptr, bytes));
+    temp.resize(std::max<std::size_t>(bytes, 1));
+    SPLATWARP_CUDA_CHECK(f(temp.data(), bytes));
+}
+
+struct EdgeSum {
+    double edge = 0;          ///< sum of the largest box edges
+    unsigned long long n = 0; ///< non-empty boxes
+};
+struct EdgeSumOp {
+    __host__ __device__ EdgeSum operator()(const EdgeSum& a, const EdgeSum& b) const { return {a.edge + b.edge, a.n + b.n}; }
+};
+
+__global__ void edgeKernel(std::size_t g, const float* lo /* [G,3] */, const float* hi /* [G,3] */, EdgeSum* out /* [G] */)
+{
+    const std::size_t k = std::size_t(blockIdx.x) * blockDim.x + threadIdx.x;
+    if (k >= g) return;
+    const float* a = lo + 3 * k;
+    const float* b = hi + 3 * k;
+    EdgeSum e;
+    if (!emptyBox(a, b)) {
+        e.edge = double(fmaxf(b[0] - a[0], fmaxf(b[1] - a[1], b[2] - a[2])));
+        e.n = 1;
+    }
+    out[k] = e;
+}
+
+/// @brief Device boxes binned into a uniform grid: (cell key, box) entries sorted by key, boxes
+///        ascending within a cell (stable sort of entries filled in box order). Buffers settle at
+///        their largest size over rebuilds. Used by Stage II's coverage and the feature evaluator.
+class BoxBins {
+public:
+    /// Bin entries allowed per box before the cell doubles: the CPU coverage bins at half
+    /// GaussianBins::suggestCellSize (<= 32 entries per box), so up to 8x that.
+    static constexpr double kMaxEntriesPerBox = 256.0;
+
+    /// @brief Bin g boxes lo, hi [G,3] (device; empty boxes, lo > hi, are left out). Cell edge:
+    ///        half the mean box edge, doubled while the entries would exceed kMaxEntriesPerBox
+    ///        per box. Reads back two counts. `who` names the caller in errors.
+    /// @return false when no box is non-empty (no entries)
+    bool build(std::size_t g, const float* lo, const float* hi, cudaStream_t st, const char* who)
+    {
+        mEntries = 0;
+        if (g == 0) return false;
+        mEdges.resize(g);
+        launch("edgeKernel", edgeKernel, g, st, g, lo, hi, mEdges.data());
+        mEdgeTotal.resize(1);
+        cubCall(mTemp, [&](void* t, std::size_t& b) {
+            return cub::DeviceReduce::Reduce(t, b, mEdges.data(), mEdgeTotal.data(), g, EdgeSumOp(), EdgeSum(), st);
+        });
+        EdgeSum edges;
+        mEdgeTotal.download(&edges, 1, st);
+        if (edges.n == 0) return false;
+        double cell = std::max(0.5 * edges.edge / double(edges.n), 1e-12);
+        unsigned long long entries = 0;
+        mStart.resize(g + 1);
+        for (int round = 0;; ++round) {
+            mInv = 1.0f / float(cell);
+            launch("binCountKernel", binCountKernel, g + 1, st, g, lo, hi, mInv, mStart.data());
+            cubCall(mTemp, [&](void* t, std::size_t& b) {
+                return cub::DeviceScan::ExclusiveSum(t, b, mStart.data(), mStart.data(), g + 1, st);
+            });
+            SPLATWARP_CUDA_CHECK(cudaMemcpyAsync(&entries, mStart.data() + g, sizeof(entries), cudaMemcpyDeviceToHost, st));
+            SPLATWARP_CUDA_CHECK(cudaStreamSynchronize(st));
+            if (double(entries) <= kMaxEntriesPerBox * double(edges.n) || round >= 64) break;
+            cell *= 2;
+        }
+        if (entries > 0xffffffffull)
+            throw InputError(msg(who, ": bins would hold ", entries, " entries; too many for 32-bit indices"));
+        mInv = 1.0f / float(cell);
+        mKeys.resize(entries);
+        mKeysSorted.resize(entries);
+        mBoxes.resize(entries);
+        mBoxesSorted.resize(entries);
+        launch("binFillKernel", binFillKernel, g, st, g, lo, hi, mInv, (const unsigned long long*)mStart.data(),
+               mKeys.data(), mBoxes.data());
+        // Stable LSD radix sort: within a cell the boxes stay ascending (filled in box order).
+        cubCall(mTemp, [&](void* t, std::size_t& b) {
+            return cub::DeviceRadixSort::SortPairs(t, b, (const unsigned long long*)mKeys.data(), mKeysSorted.data(),
+                                                   (const std::uint32_t*)mBoxes.data(), mBoxesSorted.data(), entries, 0,
+                                                   63, st);
+        });
+        mEntries = entries;
+        return true;
+    }
+
+    float inv() const { return mInv; }                 ///< 1 / cell edge of the last build
+    std::size_t entries() const { return mEntries; }  ///< E (0 after a build that returned false)
+    const unsigned long long* keys() const { return mKeysSorted.data(); }  ///< [E] sorted cell keys
+    const std::uint32_t* boxes() const { return mBoxesSorted.data(); }     ///< [E] box of each entry
+
+private:
+    DeviceBuffer<EdgeSum> mEdges{"box edges"}, mEdgeTotal{"box edge sum"};
+    DeviceBuffer<unsigned long long> mStart{"bin entry offsets"}, mKeys{"bin keys"}, mKeysSorted{"sorted bin keys"};
+    DeviceBuffer<std::uint32_t> mBoxes{"bin boxes"}, mBoxesSorted{"sorted bin boxes"};
+    DeviceBuffer<unsigned char> mTemp{"CUB temporary storage"};
+    float mInv = 0.0f;
+    std::size_t mEntries = 0;
+};
 
 } // namespace
 } // namespace splatwarp::cuda

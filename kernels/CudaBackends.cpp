@@ -2,6 +2,7 @@
 
 #include <cuda_runtime.h>
 
+#include "FeaturesCuda.h"
 #include "RasterizerCuda.h"
 #include "StageOneCuda.h"
 #include "StageTwoCuda.h"
@@ -32,6 +33,8 @@ void registerBackends()
     registerWarpCuda(&warpPointsCuda, &warpSamplesCuda);
     registerStageTwoCuda(&optimiseStageTwoCuda);
     registerRenderCuda(&renderGaussiansCuda);
+    registerSampleTargetsCuda(&evaluateSampleTargetsCuda);
+    registerFeaturesCuda(&evaluateFeaturesCuda);
 }
 
 } // namespace splatwarp::cuda

@@ -26,9 +26,6 @@ constexpr int kWarp = 32;         // CUDA warp width (backward: one warp per Gau
 constexpr int kReduceBlocks = 264; // energy reduction partials: 2 per SM of an H100 (132 SMs); fixed so sums are deterministic
 // Packed parameters per moving Gaussian, as the CPU's Adam layout: mean 3, rotation 4, logScale 3, logit 1, SH.
 constexpr int kMean = 0, kRot = 3, kLogScale = 7, kLogit = 10, kSh = 11;
-// Bin entries allowed per box before the cell doubles: the CPU coverage bins at half
-// GaussianBins::suggestCellSize (<= 32 entries per box), so up to 8x that.
-constexpr double kMaxEntriesPerBox = 256.0;
 
 // ---------------------------------------------------------------------------------------------
 // Small host helpers
@@ -117,28 +114,6 @@ __global__ void boxKernel(std::size_t g, int perG, const float* params /* [G,PER
     if (k >= g) return;
     stageTwoCoverageBox(unpackParams(params + k * std::size_t(perG)), loadFilter(filter + 9 * k), steps, move, options,
                         lo + 3 * k, hi + 3 * k);
-}
-
-struct EdgeSum {
-    double edge = 0;          ///< sum of the largest box edges
-    unsigned long long n = 0; ///< non-empty boxes
-};
-struct EdgeSumOp {
-    __host__ __device__ EdgeSum operator()(const EdgeSum& a, const EdgeSum& b) const { return {a.edge + b.edge, a.n + b.n}; }
-};
-
-__global__ void edgeKernel(std::size_t g, const float* lo /* [G,3] */, const float* hi /* [G,3] */, EdgeSum* out /* [G] */)
-{
-    const std::size_t k = std::size_t(blockIdx.x) * blockDim.x + threadIdx.x;
-    if (k >= g) return;
-    const float* a = lo + 3 * k;
-    const float* b = hi + 3 * k;
-    EdgeSum e;
-    if (!emptyBox(a, b)) {
-        e.edge = double(fmaxf(b[0] - a[0], fmaxf(b[1] - a[1], b[2] - a[2])));
-        e.n = 1;
-    }
-    out[k] = e;
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -437,7 +412,6 @@ public:
         mKernels.resize(mG);
         mBoxLo.resize(3 * mG);
         mBoxHi.resize(3 * mG);
-        mEdges.resize(mG);
         mGrad.resize(mG * std::size_t(mPerG));
         mAdamM.resize(mG * std::size_t(mPerG));
         mAdamV.resize(mG * std::size_t(mPerG));
@@ -482,52 +456,17 @@ public:
             return;
         }
         // Cell edge: half the mean box edge (the CPU uses half the median; any size gives the
-        // same pairs), doubled while the entries would exceed kMaxEntriesPerBox per box.
-        launch("edgeKernel", edgeKernel, mG, st, mG, (const float*)mBoxLo.data(), (const float*)mBoxHi.data(), mEdges.data());
-        mEdgeTotal.resize(1);
-        cubCall([&](void* t, std::size_t& b) {
-            return cub::DeviceReduce::Reduce(t, b, mEdges.data(), mEdgeTotal.data(), mG, EdgeSumOp(), EdgeSum(), st);
-        });
-        EdgeSum edges;
-        mEdgeTotal.download(&edges, 1, st);
-        if (edges.n == 0) {
+        // same pairs), see BoxBins.
+        if (!mBins.build(mG, (const float*)mBoxLo.data(), (const float*)mBoxHi.data(), st, "Stage II (CUDA) coverage")) {
             clearPairs();
             return;
         }
-        double cell = std::max(0.5 * edges.edge / double(edges.n), 1e-12);
-        unsigned long long entries = 0;
-        mBinStart.resize(mG + 1);
-        for (int round = 0;; ++round) {
-            const float inv = 1.0f / float(cell);
-            launch("binCountKernel", binCountKernel, mG + 1, st, mG, (const float*)mBoxLo.data(),
-                   (const float*)mBoxHi.data(), inv, mBinStart.data());
-            cubCall([&](void* t, std::size_t& b) {
-                return cub::DeviceScan::ExclusiveSum(t, b, mBinStart.data(), mBinStart.data(), mG + 1, st);
-            });
-            SPLATWARP_CUDA_CHECK(cudaMemcpyAsync(&entries, mBinStart.data() + mG, sizeof(entries), cudaMemcpyDeviceToHost, st));
-            SPLATWARP_CUDA_CHECK(cudaStreamSynchronize(st));
-            if (double(entries) <= kMaxEntriesPerBox * double(edges.n) || round >= 64) break;
-            cell *= 2;
-        }
-        if (entries > 0xffffffffull)
-            throw InputError(msg("Stage II (CUDA): coverage bins would hold ", entries, " entries; too many for 32-bit indices"));
-        const float inv = 1.0f / float(cell);
-        mBinKeys.resize(entries);
-        mBinKeysSorted.resize(entries);
-        mBinBoxes.resize(entries);
-        mBinBoxesSorted.resize(entries);
-        launch("binFillKernel", binFillKernel, mG, st, mG, (const float*)mBoxLo.data(), (const float*)mBoxHi.data(), inv,
-               (const unsigned long long*)mBinStart.data(), mBinKeys.data(), mBinBoxes.data());
-        // Stable LSD radix sort: within a cell the boxes stay ascending (filled in box order).
-        cubCall([&](void* t, std::size_t& b) {
-            return cub::DeviceRadixSort::SortPairs(t, b, (const unsigned long long*)mBinKeys.data(), mBinKeysSorted.data(),
-                                                   (const std::uint32_t*)mBinBoxes.data(), mBinBoxesSorted.data(),
-                                                   entries, 0, 63, st);
-        });
+        const float inv = mBins.inv();
+        const unsigned long long entries = mBins.entries();
         // Samples: count, scan, fill.
         mSampleCount.resize(mS + 1);
         launch("coverageKernel<count>", coverageKernel<false>, mS + 1, st, mS, (const float*)mX.data(), inv,
-               (const unsigned long long*)mBinKeysSorted.data(), (const std::uint32_t*)mBinBoxesSorted.data(),
+               mBins.keys(), mBins.boxes(),
                std::size_t(entries), (const float*)mBoxLo.data(), (const float*)mBoxHi.data(), mSampleCount.data(),
                (std::uint32_t*)nullptr, (std::uint32_t*)nullptr);
         cubCall([&](void* t, std::size_t& b) {
@@ -544,7 +483,7 @@ public:
         mGaussianKeys.resize(pairs);
         mGaussianItems.resize(pairs);
         launch("coverageKernel<fill>", coverageKernel<true>, mS, st, mS, (const float*)mX.data(), inv,
-               (const unsigned long long*)mBinKeysSorted.data(), (const std::uint32_t*)mBinBoxesSorted.data(),
+               mBins.keys(), mBins.boxes(),
                std::size_t(entries), (const float*)mBoxLo.data(), (const float*)mBoxHi.data(), mSampleCount.data(),
                mSampleItems.data(), mPairSample.data());
         mSampleOffsets.resize(mS + 1);
@@ -741,10 +680,9 @@ private:
         mBoxLo{"coverage boxes"}, mBoxHi{"coverage boxes"};
     DeviceBuffer<double> mFilter{"low-pass filters"};
     DeviceBuffer<PreparedGaussian> mKernels{"prepared Gaussians"};
-    DeviceBuffer<EdgeSum> mEdges{"box edges"}, mEdgeTotal{"box edge sum"};
-    DeviceBuffer<unsigned long long> mBinStart{"bin entry offsets"}, mBinKeys{"bin keys"},
-        mBinKeysSorted{"sorted bin keys"}, mSampleCount{"coverage counts"};
-    DeviceBuffer<std::uint32_t> mBinBoxes{"bin boxes"}, mBinBoxesSorted{"sorted bin boxes"},
+    BoxBins mBins;
+    DeviceBuffer<unsigned long long> mSampleCount{"coverage counts"};
+    DeviceBuffer<std::uint32_t>
         mSampleOffsets{"coverage offsets"}, mSampleItems{"coverage pairs"}, mPairSample{"coverage pair samples"},
         mGaussianKeys{"Gaussian-major pair keys"}, mGaussianItems{"Gaussian-major pairs"},
         mGaussianOffsets{"Gaussian-major offsets"}, mPairCount{"per-sample pair counts"};

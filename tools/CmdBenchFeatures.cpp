@@ -1,9 +1,11 @@
-/// `splatwarp bench features`: throughput of the CPU radial-feature evaluation on the stripes sample.
+/// `splatwarp bench features`: throughput of the radial-feature evaluation on the stripes sample.
 #include <random>
 
 #include "Command.h"
+#include "GridArgs.h"
 #include "core/Error.h"
 #include "core/Progress.h"
+#include "field/FeatureDevice.h"
 #include "field/FeatureField.h"
 #include "samples/SampleModels.h"
 
@@ -14,14 +16,16 @@ struct BenchFeatureArgs {
     std::size_t points = 1000000;
     int degree = -1;
     bool serial = false;
+    std::string device = "auto";
 };
 
 const CommandRegistrar reg(1010, [](CLI::App& app) {
     auto args = std::make_shared<BenchFeatureArgs>();
-    CLI::App* sub = benchCommand(app)->add_subcommand("features", "CPU feature evaluation F, O on the stripes sample");
+    CLI::App* sub = benchCommand(app)->add_subcommand("features", "Feature evaluation F, O on the stripes sample (CPU or GPU)");
     sub->add_option("--points", args->points, "Points: random Gaussian centres plus N(0, 0.03) noise")->capture_default_str();
     sub->add_option("--degree", args->degree, "Truncate the sample's SH to this degree (-1: keep, 1)")->capture_default_str();
     sub->add_flag("--serial", args->serial, "Single thread (pairs per second per core)");
+    addDeviceOption(sub, args->device, "the evaluation runs (the timing includes preparation and binning)");
     sub->callback([args] {
         GaussianCloud g = makeSample("stripes");
         if (args->degree >= 0 && args->degree < g.shDegree) {
@@ -43,14 +47,15 @@ const CommandRegistrar reg(1010, [](CLI::App& app) {
         }
         FeatureOptions opt;
         opt.threaded = !args->serial;
+        opt.device = parseDevice(args->device);
         std::vector<float> f(args->points * std::size_t(g.shStride())), o(args->points);
         FeatureStats stats;
         Stopwatch sw;
-        evaluateFeatures(g, pts.data(), args->points, opt, f.data(), o.data(), &stats);
+        const Device used = evaluateFeaturesOn(g, pts.data(), args->points, opt, f.data(), o.data(), &stats);
         const double ms = sw.ms();
-        std::printf("features: %zu Gaussians SH%d, %zu points, %.1f ms, pairs tested %llu (%.1f M/s), "
+        std::printf("features on %s: %zu Gaussians SH%d, %zu points, %.1f ms, pairs tested %llu (%.1f M/s), "
                     "contributing %llu, bin cell %.4g, bin entries %llu\n",
-                    g.size(), g.shDegree, args->points, ms, (unsigned long long)stats.pairsTested,
+                    deviceName(used), g.size(), g.shDegree, args->points, ms, (unsigned long long)stats.pairsTested,
                     double(stats.pairsTested) / ms * 1e-3, (unsigned long long)stats.pairsContributing,
                     double(stats.binCellSize), (unsigned long long)stats.binEntries);
     });

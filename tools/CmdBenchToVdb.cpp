@@ -6,6 +6,7 @@
 #include <tbb/task_arena.h>
 
 #include "Command.h"
+#include "GridArgs.h"
 #include "SampleGrid.h"
 #include "VdbExport.h"
 #include "core/Error.h"
@@ -20,6 +21,7 @@ struct BenchToVdbArgs {
     std::string input;
     SampleGridOptions grid;
     std::vector<int> degrees{0, 2};
+    std::string device = "auto";
 };
 
 /// Peak resident set size of the process so far, MiB (Linux reports ru_maxrss in KiB).
@@ -42,7 +44,9 @@ const CommandRegistrar reg(1040, [](CLI::App& app) {
     sub->add_option("--degrees", args->degrees, "SH degrees to run at (bands dropped or zero-padded)")
         ->capture_default_str()
         ->check(CLI::Range(0, 3));
+    addDeviceOption(sub, args->device, "the rest targets run (topology and export stay on the CPU)");
     sub->callback([args] {
+        args->grid.device = parseDevice(args->device);
         const GaussianCloud source = args->input.empty() ? makeSample("stripes") : readGaussians(args->input);
         const std::string label = args->input.empty() ? std::string("stripes") : args->input;
         const int threads = tbb::this_task_arena::max_concurrency();
@@ -58,8 +62,9 @@ const CommandRegistrar reg(1040, [](CLI::App& app) {
             std::filesystem::remove(tmp);
             const SampleGridStats& s = grid.stats();
             const double featureS = s.featuresMs * 1e-3;
-            std::printf("to-vdb %s: %zu Gaussians SH%d, %d threads, %zu cells (%zu skipped), %zu samples\n", label.c_str(),
-                        cloud.size(), degree, threads, s.cells, s.skippedCells, s.samples);
+            std::printf("to-vdb %s: %zu Gaussians SH%d, %d threads, targets on %s, %zu cells (%zu skipped), %zu samples\n",
+                        label.c_str(), cloud.size(), degree, threads, deviceName(s.device), s.cells, s.skippedCells,
+                        s.samples);
             std::printf("  topology %.0f ms, features %.0f ms, export %.0f ms (%.1f MiB), total %.0f ms\n", s.topologyMs,
                         s.featuresMs, exportMs, double(bytes) / (1 << 20), totalMs);
             std::printf("  samples/s %.3g (features) %.3g (end to end); pairs tested %.3g (%.3g/s, %.3g/s/core), "

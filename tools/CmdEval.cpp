@@ -16,6 +16,7 @@ namespace {
 struct EvalArgs {
     std::string rest, deformed, spec;
     bool json = false;
+    std::string device = "auto";
     SampleGridOptions grid;
     HeldOutOptions heldOut;
 };
@@ -34,15 +35,17 @@ const CommandRegistrar reg(35, [](CLI::App& app) {
     sub->add_option("--seed", a->heldOut.seed, "Seed of the held-out points")->capture_default_str();
     addGridOptions(sub, a->grid);
     sub->add_flag("--json", a->json, "Print JSON (keys opacity, color, points, inside, outside)");
+    addDeviceOption(sub, a->device, "the feature evaluations run (the grid's topology stays on the CPU)");
     sub->callback([a] {
+        const Device device = parseDevice(a->device);
         const GaussianCloud rest = readGaussians(a->rest);
         const GaussianCloud deformed = readGaussians(a->deformed);
         if (deformed.shDegree != rest.shDegree)
             throw InputError(msg(a->deformed, ": SH degree ", deformed.shDegree, " differs from the rest model's ", rest.shDegree));
         const Deformation deformation = solveDeformation(rest, loadDeformSpec(a->spec));
-        const SampleGrid grid(rest, a->grid);
+        const SampleGrid grid(rest, withDevice(a->grid, device));
         const HeldOutPoints points = makeHeldOutPoints(grid, deformation, a->heldOut);
-        const FieldErrorReport r = evaluateHeldOut(rest, deformed, points);
+        const FieldErrorReport r = evaluateHeldOut(rest, deformed, points, device);
         if (a->json) {
             std::printf("%s\n", fieldErrorJson(r).dump(2).c_str());
             return;

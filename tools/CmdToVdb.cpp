@@ -14,6 +14,7 @@ namespace {
 
 struct ToVdbArgs {
     std::string input, output, spec;
+    std::string device = "auto";
     SampleGridOptions grid;
     VdbExportOptions vdb;
 };
@@ -25,6 +26,7 @@ const CommandRegistrar reg(40, [](CLI::App& app) {
     sub->add_option("input", args->input, "Input Gaussians (.ply, .splat, compressed .ply)")->required();
     sub->add_option("-o,--output", args->output, "Output .vdb path")->required();
     addGridOptions(sub, args->grid);
+    addDeviceOption(sub, args->device, "the rest targets run (topology and export stay on the CPU)");
     sub->add_flag("--sh-grids", args->vdb.shGrids, "Also write one Vec3S grid sh_<k> per SH coefficient of the radial features");
     sub->add_flag("--half", args->vdb.half, "Store float grids as 16-bit half floats");
     sub->add_option("--spec", args->spec,
@@ -33,7 +35,7 @@ const CommandRegistrar reg(40, [](CLI::App& app) {
     sub->callback([args] {
         const GaussianCloud cloud = readGaussians(args->input);
         progress(msg("read ", cloud.size(), " Gaussians (SH degree ", cloud.shDegree, ") from ", args->input));
-        SampleGrid grid(cloud, args->grid);
+        SampleGrid grid(cloud, withDevice(args->grid, parseDevice(args->device)));
         args->vdb.source = args->input;
         if (!args->spec.empty()) {
             const Deformation deformation = solveDeformation(cloud, loadDeformSpec(args->spec));

@@ -103,7 +103,7 @@ nlohmann::json runDeformJob(const DeformJobOptions& o)
     if (!o.stage1Only) {
         // The rest field sampled into sparse cells, then warped by the same deformation.
         clock.reset();
-        SampleGrid grid(rest, o.grid);
+        SampleGrid grid(rest, withDevice(o.grid, o.device));
         report["timingsMs"]["sampleGrid"] = clock.ms();
         clock.reset();
         const char* warpDevice = warpSamplesOn(o.device, grid.samples(), deformation, o.grid.threaded);
@@ -117,7 +117,7 @@ nlohmann::json runDeformJob(const DeformJobOptions& o)
             HeldOutOptions heldOutOptions = o.heldOut;
             heldOutOptions.device = o.device;
             heldOut = makeHeldOutPoints(grid, deformation, heldOutOptions);
-            const FieldErrorReport e1 = evaluateHeldOut(rest, stage1.deformed, *heldOut);
+            const FieldErrorReport e1 = evaluateHeldOut(rest, stage1.deformed, *heldOut, o.device);
             report["stage1"]["field_error"] = fieldErrorJson(e1);
             report["timingsMs"]["evaluate"] = clock.ms();
             progress(msg("Stage I held-out field error: opacity ", e1.opacity, ", color ", e1.color));
@@ -127,7 +127,7 @@ nlohmann::json runDeformJob(const DeformJobOptions& o)
         GaussianCloud fitted = stage1.deformed;
         nlohmann::json curve = nlohmann::json::array();
         auto onEval = [&](int iteration, const GaussianCloud& current) {
-            const FieldErrorReport e = evaluateHeldOut(rest, current, *heldOut);
+            const FieldErrorReport e = evaluateHeldOut(rest, current, *heldOut, o.device);
             nlohmann::json j = fieldErrorJson(e);
             j["iteration"] = iteration;
             curve.push_back(j);
@@ -142,7 +142,7 @@ nlohmann::json runDeformJob(const DeformJobOptions& o)
         report["timingsMs"]["stage2"] = r2.msTotal;
         if (o.evalEvery > 0) report["stage2"]["eval_curve"] = curve;
         if (heldOut) {
-            const FieldErrorReport e2 = evaluateHeldOut(rest, fitted, *heldOut);
+            const FieldErrorReport e2 = evaluateHeldOut(rest, fitted, *heldOut, o.device);
             report["stage2"]["field_error"] = fieldErrorJson(e2);
             progress(msg("Stage II held-out field error: opacity ", e2.opacity, ", color ", e2.color));
         }
@@ -154,7 +154,7 @@ nlohmann::json runDeformJob(const DeformJobOptions& o)
 
         if (o.writeVdb) {
             clock.reset();
-            SampleGridOptions go = o.grid;
+            SampleGridOptions go = withDevice(o.grid, o.device);
             const SampleGrid fieldGrid(fitted, go);
             VdbExportOptions vo;
             vo.source = deformed;

@@ -34,10 +34,13 @@ HeldOutPoints makeHeldOutPoints(const SampleGrid& grid, const Deformation& defor
     return out;
 }
 
-FieldErrorReport evaluateHeldOut(const GaussianCloud& rest, const GaussianCloud& deformed, const HeldOutPoints& points)
+FieldErrorReport evaluateHeldOut(const GaussianCloud& rest, const GaussianCloud& deformed, const HeldOutPoints& points,
+                                 Device device)
 {
+    FeatureOptions options = points.features;
+    options.device = device;
     return fieldError(rest, deformed, points.rest.data(), points.warped.data(), points.rotations.data(), points.size(),
-                      points.features);
+                      options);
 }
 
 nlohmann::json fieldErrorJson(const FieldErrorReport& r)

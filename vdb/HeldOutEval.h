@@ -34,8 +34,11 @@ struct HeldOutPoints {
 /// @brief Draw held-out points in the grid's active cells and warp them with the deformation.
 HeldOutPoints makeHeldOutPoints(const SampleGrid& grid, const Deformation& deformation, const HeldOutOptions& options = {});
 
-/// @brief Field error of `deformed` against `rest` pushed through the deformation, at the points.
-FieldErrorReport evaluateHeldOut(const GaussianCloud& rest, const GaussianCloud& deformed, const HeldOutPoints& points);
+/// @brief Field error of `deformed` against `rest` pushed through the deformation, at the points;
+///        the feature evaluations run on `device` (Auto: CUDA when available, CPU fallback on
+///        out-of-GPU-memory).
+FieldErrorReport evaluateHeldOut(const GaussianCloud& rest, const GaussianCloud& deformed, const HeldOutPoints& points,
+                                 Device device = Device::Cpu);
 
 /// @brief JSON of a report: opacity, color, points, inside{...}, outside{...}.
 nlohmann::json fieldErrorJson(const FieldErrorReport& report);

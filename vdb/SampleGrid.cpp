@@ -4,6 +4,7 @@
 #include <cmath>
 #include <limits>
 
+#include <nanovdb/util/OpenToNanoVDB.h>
 #include <openvdb/openvdb.h>
 #include <openvdb/tools/Morphology.h>
 #include <openvdb/tree/LeafManager.h>
@@ -15,6 +16,7 @@
 #include "VdbLibrary.h"
 #include "core/Error.h"
 #include "core/Progress.h"
+#include "field/FeatureDevice.h"
 #include "field/FeatureField.h"
 #include "field/PreparedGaussian.h"
 
@@ -97,6 +99,8 @@ SampleGrid::SampleGrid(const GaussianCloud& cloud, const SampleGridOptions& opti
     if (!(options.lambdaLpf >= 0.0f)) throw InputError(msg("sample grid: lambdaLpf must be >= 0, got ", options.lambdaLpf));
     if (!(options.cellSize >= 0.0f) || (options.cellSize <= 0.0f && options.cells < 1))
         throw InputError("sample grid: give a positive cell count or cell size");
+
+    if (options.device == Device::Cuda) resolveDevice(options.device); // fail before any work without a GPU
 
     Impl& im = *mImpl;
     im.options = options;
@@ -200,20 +204,43 @@ SampleGrid::SampleGrid(const GaussianCloud& cloud, const SampleGridOptions& opti
 
     // Rest targets with the rest isotropic filter.
     watch.reset();
-    FeatureOptions fo;
+    FeatureOptions& fo = im.targetOptions;
     fo.cutoff = options.cutoff;
     fo.filterVariance = float(filterVariance);
     fo.threaded = options.threaded;
     set.targetF.assign(m * std::size_t(set.featureStride()), 0.0f);
     set.targetO.assign(m, 0.0f);
-    FeatureStats fs;
-    evaluateFeatures(cloud, set.restPositions.data(), m, fo, set.targetF.data(), set.targetO.data(), &fs);
+    const SampleTargetsFunction cuda = sampleTargetsCuda();
+    const FeatureStats fs = runOnDevice(
+        options.device, "sample grid rest targets", cuda != nullptr,
+        [&] {
+            // The same prepared Gaussians as the CPU path's evaluateFeatures (filter rounded to float).
+            const std::vector<PreparedGaussian> g = prepareCloud(cloud, double(fo.filterVariance), fo.cutoff, fo.threaded);
+            const CellIndexGrid index = nanoIndexGrid();
+            SampleTargetsProblem p;
+            p.cloud = preparedView(g, cloud, fo.cutoff);
+            p.index = &index;
+            p.cellSize = double(set.cellSize);
+            p.positions = set.restPositions.data();
+            p.sampleCell = set.sampleCell.data();
+            p.samples = m;
+            p.cells = cells;
+            FeatureStats s;
+            cuda(p, set.targetF.data(), set.targetO.data(), &s);
+            return s;
+        },
+        [&] {
+            FeatureStats s;
+            evaluateFeatures(cloud, set.restPositions.data(), m, fo, set.targetF.data(), set.targetO.data(), &s);
+            return s;
+        },
+        &im.stats.device);
     im.stats.pairsTested = fs.pairsTested;
     im.stats.pairsContributing = fs.pairsContributing;
     im.stats.featuresMs = watch.ms();
 
     im.computeCellSkip();
-    progress(msg("sample grid: rest targets in ", int(im.stats.featuresMs), " ms; ", im.stats.skippedCells, " of ", cells,
+    progress(msg("sample grid: rest targets on ", deviceName(im.stats.device), " in ", int(im.stats.featuresMs), " ms; ", im.stats.skippedCells, " of ", cells,
                  " cells skipped (empty neighbourhood)"));
 }
 
@@ -267,5 +294,17 @@ std::int32_t SampleGrid::cellIndex(int i, int j, int k) const { return mImpl->in
 std::int32_t SampleGrid::cellIndexAt(const Vec3d& p) const { return mImpl->index->tree().getValue(mImpl->cellOf(p)); }
 
 int SampleGrid::cellCoordOf(double x) const { return mImpl->cellCoordOf(x); }
+
+const FeatureOptions& SampleGrid::targetOptions() const { return mImpl->targetOptions; }
+
+CellIndexGrid SampleGrid::nanoIndexGrid() const
+{
+    // No statistics or checksum: the grid is rebuilt per use and only looked up.
+    const nanovdb::GridHandle<nanovdb::HostBuffer> handle = nanovdb::openToNanoVDB<nanovdb::HostBuffer>(
+        *mImpl->index, nanovdb::StatsMode::Disable, nanovdb::ChecksumMode::Disable);
+    CellIndexGrid out;
+    out.assign(handle.data(), handle.size());
+    return out;
+}
 
 } // namespace splatwarp

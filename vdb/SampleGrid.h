@@ -8,8 +8,11 @@
 #include <memory>
 #include <vector>
 
+#include "core/Device.h"
 #include "core/GaussianCloud.h"
 #include "core/SmallMath.h"
+#include "field/CellIndexGrid.h"
+#include "field/FeatureField.h"
 #include "field/GaussianKernel.h"
 #include "field/SampleSet.h"
 
@@ -32,7 +35,19 @@ struct SampleGridOptions {
     float lambdaLpf = kDefaultLambdaLpf;
     /// Run the parallel loops with oneTBB (false: serial, deterministic debugging).
     bool threaded = true;
+    /// Where the rest targets are evaluated. The library default is Cpu (no GPU probe for tests
+    /// and tools that do not ask); the CLI passes `--device` (default auto). Cuda looks the
+    /// Gaussians' cells up in the NanoVDB index grid on the GPU; under Auto a GPU out-of-memory
+    /// falls back to the CPU. Both give the same targets to float rounding (expf, summation).
+    Device device = Device::Cpu;
 };
+
+/// @brief A copy of grid options with another target device (for callers holding const options).
+inline SampleGridOptions withDevice(SampleGridOptions options, Device device)
+{
+    options.device = device;
+    return options;
+}
 
 /// @brief Counts and timings of a build (for progress lines, reports and the benchmark).
 struct SampleGridStats {
@@ -43,6 +58,7 @@ struct SampleGridStats {
     double featuresMs = 0.0;        ///< rest targets F, O
     std::uint64_t pairsTested = 0;       ///< (sample, Gaussian) candidates the feature evaluation looked at
     std::uint64_t pairsContributing = 0; ///< pairs with alpha*G >= cutoff
+    Device device = Device::Cpu;         ///< the device that evaluated the rest targets
 };
 
 /// @brief Rest-space sparse sample grid of a Gaussian model.
@@ -75,6 +91,11 @@ public:
     std::int32_t cellIndexAt(const Vec3d& p) const;
     /// @brief Integer coordinate of the cell containing x along one axis: floor(x / h).
     int cellCoordOf(double x) const;
+    /// @brief The feature options the rest targets were evaluated with (cutoff, rest filter).
+    const FeatureOptions& targetOptions() const;
+    /// @brief The Int32 index grid converted to NanoVDB (same values as cellIndex(), background
+    ///        -1), for the GPU and other OpenVDB-free code (see field/CellTargetKernels.h).
+    CellIndexGrid nanoIndexGrid() const;
 
     struct Impl;
     /// @brief The OpenVDB side (vdb/ translation units only; opaque elsewhere).

@@ -12,6 +12,7 @@ struct SampleGrid::Impl {
     SampleGridOptions options;
     SampleGridStats stats;
     SampleSet set;
+    FeatureOptions targetOptions; ///< of the rest targets
     std::vector<std::int32_t> gaussianCell; ///< [N]
     std::vector<std::int32_t> cellCoords;   ///< [C,3]
     /// Cell index per active cell (background -1); transform: voxel size h, cell (i,j,k)

@@ -7,6 +7,7 @@
 #include <algorithm>
 
 #include "core/Error.h"
+#include "field/CellTargetKernels.h"
 
 namespace splatwarp {
 namespace {
@@ -35,11 +36,7 @@ void binPreparedGaussians(const std::vector<PreparedGaussian>& gaussians, float 
 {
     const std::size_t n = gaussians.size();
     std::vector<float> lo(3 * n), hi(3 * n);
-    for (std::size_t i = 0; i < n; ++i)
-        for (int k = 0; k < 3; ++k) {
-            lo[3 * i + k] = gaussians[i].mean[k] - gaussians[i].halfExtent[k];
-            hi[3 * i + k] = gaussians[i].mean[k] + gaussians[i].halfExtent[k];
-        }
+    for (std::size_t i = 0; i < n; ++i) preparedBox(gaussians[i], &lo[3 * i], &hi[3 * i]);
     if (cellSize <= 0.0f) cellSize = GaussianBins::suggestCellSize(lo.data(), hi.data(), n);
     bins.build(lo.data(), hi.data(), n, cellSize, threaded);
 }
@@ -54,23 +51,11 @@ void evaluatePreparedFeatures(const std::vector<PreparedGaussian>& gaussians, co
         for (std::size_t p = r.begin(); p != r.end(); ++p) {
             const Vec3f x(points[3 * p], points[3 * p + 1], points[3 * p + 2]);
             float* f = features ? features + p * std::size_t(shStride) : nullptr;
-            if (f) std::fill(f, f + shStride, 0.0f);
             float o = 0.0f;
             const std::uint32_t* cand = nullptr;
             const std::size_t count = bins.candidates(x, &cand);
             c.tested += count;
-            for (std::size_t k = 0; k < count; ++k) {
-                const std::uint32_t i = cand[k];
-                const PreparedGaussian& g = gaussians[i];
-                const float w = g.weight(x - g.mean, cutoff);
-                if (w == 0.0f) continue;
-                ++c.contributing;
-                o += w;
-                if (f) {
-                    const float* h = sh + std::size_t(i) * std::size_t(shStride);
-                    for (int s = 0; s < shStride; ++s) f[s] += w * h[s];
-                }
-            }
+            c.contributing += accumulateFeatures(x, cand, count, gaussians.data(), sh, shStride, cutoff, f, o);
             if (opacity) opacity[p] = o;
         }
     };
@@ -86,12 +71,17 @@ void evaluatePreparedFeatures(const std::vector<PreparedGaussian>& gaussians, co
     }
 }
 
-void evaluateFeatures(const GaussianCloud& cloud, const float* points, std::size_t m, const FeatureOptions& options,
-                      float* features, float* opacity, FeatureStats* stats)
+void checkFeatureOptions(const FeatureOptions& options)
 {
     if (!(options.cutoff > 0.0f)) throw InputError(msg("feature cutoff ", options.cutoff, " must be positive"));
     if (options.filterVariance < 0.0f)
         throw InputError(msg("low-pass filter variance ", options.filterVariance, " must not be negative"));
+}
+
+void evaluateFeatures(const GaussianCloud& cloud, const float* points, std::size_t m, const FeatureOptions& options,
+                      float* features, float* opacity, FeatureStats* stats)
+{
+    checkFeatureOptions(options);
     const std::vector<PreparedGaussian> prepared =
         prepareCloud(cloud, options.filterVariance, options.cutoff, options.threaded);
     GaussianBins bins;

@@ -9,6 +9,7 @@
 #include <cstdint>
 #include <vector>
 
+#include "core/Device.h"
 #include "core/GaussianCloud.h"
 #include "field/GaussianBins.h"
 #include "field/GaussianKernel.h"
@@ -24,6 +25,9 @@ struct FeatureOptions {
     /// filter is lambda_lpf * spacing^2. 0 = no filter.
     float filterVariance = 0.0f;
     bool threaded = true;          ///< oneTBB over points (results identical to serial)
+    /// Where evaluateFeaturesOn() (field/FeatureDevice.h) runs; evaluateFeatures() is always the
+    /// CPU. Library default Cpu; the CLI passes `--device`.
+    Device device = Device::Cpu;
 };
 
 /// @brief Work counters of an evaluation.
@@ -34,7 +38,10 @@ struct FeatureStats {
     float binCellSize = 0.0f;            ///< bin cell edge used
 };
 
-/// @brief Evaluate F and O at m points.
+/// @throws InputError for a non-positive cutoff or a negative filter variance
+void checkFeatureOptions(const FeatureOptions& options);
+
+/// @brief Evaluate F and O at m points on the CPU.
 /// @param points    [m,3]
 /// @param features  [m,K,3] output (K = cloud.shCoeffs()); may be null
 /// @param opacity   [m] output; may be null

@@ -4,6 +4,7 @@
 #include <vector>
 
 #include "core/Error.h"
+#include "field/FeatureDevice.h"
 #include "sh/SphericalHarmonics.h"
 
 namespace splatwarp {
@@ -16,8 +17,8 @@ FieldErrorReport fieldError(const GaussianCloud& rest, const GaussianCloud& defo
         throw InputError(msg("field error: rest SH degree ", rest.shDegree, " differs from deformed ", deformed.shDegree));
     const int stride = rest.shStride();
     std::vector<float> fRest(p * std::size_t(stride)), fDef(p * std::size_t(stride)), oRest(p), oDef(p);
-    evaluateFeatures(rest, restPoints, p, options, fRest.data(), oRest.data());
-    evaluateFeatures(deformed, warpedPoints, p, options, fDef.data(), oDef.data());
+    evaluateFeaturesOn(rest, restPoints, p, options, fRest.data(), oRest.data());
+    evaluateFeaturesOn(deformed, warpedPoints, p, options, fDef.data(), oDef.data());
 
     FieldErrorReport r;
     r.points = p;

@@ -27,7 +27,8 @@ struct FieldErrorReport {
 /// @param restPoints      [P,3] X
 /// @param warpedPoints    [P,3] x = phi(X)
 /// @param rotations       [P,9] row-major R_p rotating the rest SH to the warped frame; null = identity
-/// @param options         cutoff and filter for both evaluations
+/// @param options         cutoff and filter for both evaluations; options.device says where
+///                        they run (evaluateFeaturesOn())
 FieldErrorReport fieldError(const GaussianCloud& rest, const GaussianCloud& deformed, const float* restPoints,
                             const float* warpedPoints, const float* rotations, std::size_t p,
                             const FeatureOptions& options = {});

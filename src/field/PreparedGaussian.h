@@ -88,6 +88,16 @@ struct BasicPreparedGaussian {
 };
 using PreparedGaussian = BasicPreparedGaussian<float>;
 
+/// @brief The pruning AABB of a prepared Gaussian, mean -/+ halfExtent (lo > hi: it never
+///        contributes), as the feature bins (CPU and GPU) use it.
+SPLATWARP_HOST_DEVICE void preparedBox(const PreparedGaussian& g, float* lo, float* hi)
+{
+    for (int k = 0; k < 3; ++k) {
+        lo[k] = g.mean[k] - g.halfExtent[k];
+        hi[k] = g.mean[k] + g.halfExtent[k];
+    }
+}
+
 /// Relative padding of the pruning bounds, so rounding never prunes a pair whose alpha*G is
 /// (just) above the cutoff.
 constexpr double kPrunePad = 1e-3;

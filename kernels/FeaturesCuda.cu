@@ -1,0 +1,294 @@
+// Features on the GPU. Rest sample targets: (cell, Gaussian) pairs from NanoVDB lookups, a
+// stable radix sort by cell, per-cell ranges, then one thread per sample summing its cell's
+// Gaussians in ascending order (the CPU path's contributing set and order). Arbitrary points:
+// the Gaussians' pruning boxes binned (BoxBins), one thread per point summing its bin's
+// Gaussians in ascending order. The per-element work is field/CellTargetKernels.h, which the
+// CPU path and the CPU tests share.
+#include "FeaturesCuda.h"
+
+#include <cub/cub.cuh>
+
+#include <algorithm>
+#include <cstdint>
+#include <type_traits>
+#include <vector>
+
+#include "BoxBinsCuda.cuh"
+#include "CudaCheck.h"
+#include "CudaLaunch.cuh"
+#include "DeviceBuffer.h"
+#include "core/Error.h"
+#include "field/CellTargetKernels.h"
+
+namespace splatwarp::cuda {
+namespace {
+
+/// Pairs per Gaussian; thread n (one past the last) writes 0 so the exclusive scan's last entry
+/// is the total.
+__global__ void cellPairCountKernel(std::size_t n, const PreparedGaussian* gaussians, double cellSize,
+                                    const NanoCellGrid* grid, unsigned long long* counts)
+{
+    const std::size_t i = globalIndex();
+    if (i > n) return;
+    counts[i] = i < n ? gaussianCellPairs(std::uint32_t(i), gaussians[i], cellSize, *grid, nullptr, nullptr) : 0ull;
+}
+
+__global__ void cellPairFillKernel(std::size_t n, const PreparedGaussian* gaussians, double cellSize,
+                                   const NanoCellGrid* grid, const unsigned long long* offsets, std::uint32_t* cells,
+                                   std::uint32_t* owners)
+{
+    const std::size_t i = globalIndex();
+    if (i >= n) return;
+    gaussianCellPairs(std::uint32_t(i), gaussians[i], cellSize, *grid, cells + offsets[i],
+                      owners + offsets[i]);
+}
+
+__global__ void cellRangeKernel(std::size_t pairs, const std::uint32_t* sortedCells, std::uint32_t* cellStart,
+                                std::uint32_t* cellEnd)
+{
+    const std::size_t p = globalIndex();
+    if (p >= pairs) return;
+    markCellRange(p, sortedCells, pairs, cellStart, cellEnd);
+}
+
+/// One thread per sample. Stride is the SH stride as a constant, so the feature loops unroll
+/// and the sums stay in registers; each sample's features are written once at the end.
+template <int Stride>
+__global__ void cellTargetKernel(std::size_t m, CellTargetView view, float* features, float* opacity,
+                                 std::uint32_t* contributing)
+{
+    const std::size_t s = globalIndex();
+    if (s >= m) return;
+    view.shStride = Stride;
+    float f[Stride];
+    float o = 0.0f;
+    contributing[s] = evaluateCellSample(s, view, f, o);
+    for (int k = 0; k < Stride; ++k) features[s * Stride + k] = f[k];
+    opacity[s] = o;
+}
+
+__global__ void preparedBoxKernel(std::size_t n, const PreparedGaussian* gaussians, float* lo, float* hi)
+{
+    const std::size_t i = globalIndex();
+    if (i >= n) return;
+    preparedBox(gaussians[i], lo + 3 * i, hi + 3 * i);
+}
+
+/// One thread per point: its bin's boxes (= Gaussian indices, ascending) are the candidates.
+template <int Stride>
+__global__ void pointFeatureKernel(std::size_t m, const float* points, float inv, const unsigned long long* keys,
+                                   const std::uint32_t* boxes, std::size_t entries, const PreparedGaussian* gaussians,
+                                   const float* sh, float cutoff, float* features, float* opacity,
+                                   std::uint32_t* tested, std::uint32_t* contributing)
+{
+    const std::size_t p = globalIndex();
+    if (p >= m) return;
+    const Vec3f x(points[3 * p], points[3 * p + 1], points[3 * p + 2]);
+    const unsigned long long key = packKey(binCoord(x.x, inv), binCoord(x.y, inv), binCoord(x.z, inv));
+    const std::size_t first = lowerBound(keys, entries, key);
+    std::size_t last = first;
+    while (last < entries && keys[last] == key) ++last;
+    float f[Stride];
+    float o = 0.0f;
+    contributing[p] = accumulateFeatures(x, boxes + first, last - first, gaussians, sh, Stride, cutoff, f, o);
+    tested[p] = std::uint32_t(last - first);
+    for (int k = 0; k < Stride; ++k) features[p * Stride + k] = f[k];
+    opacity[p] = o;
+}
+
+/// Bits of the largest cell index (at least 1): the radix sort looks at no more.
+int keyBits(std::size_t cells)
+{
+    int bits = 1;
+    while (bits < 32 && (std::size_t(1) << bits) < cells) ++bits;
+    return bits;
+}
+
+/// The prepared Gaussians and their SH on the device.
+struct DeviceCloud {
+    DeviceBuffer<PreparedGaussian> gaussians{"prepared Gaussians"};
+    DeviceBuffer<float> sh{"Gaussian SH coefficients"};
+    void upload(const PreparedCloudView& c, cudaStream_t st);
+};
+
+template <typename T>
+void uploadArray(DeviceBuffer<T>& buffer, const T* host, std::size_t n, cudaStream_t stream)
+{
+    buffer.resize(n);
+    if (n) SPLATWARP_CUDA_CHECK(cudaMemcpyAsync(buffer.data(), host, n * sizeof(T), cudaMemcpyHostToDevice, stream));
+}
+
+void DeviceCloud::upload(const PreparedCloudView& c, cudaStream_t st)
+{
+    uploadArray(gaussians, c.gaussians, c.count, st);
+    uploadArray(sh, c.sh, c.count * std::size_t(c.shStride), st);
+}
+
+void checkStride(int stride, const char* who)
+{
+    if (stride != 3 && stride != 12 && stride != 27 && stride != 48)
+        throw InputError(msg(who, ": unsupported SH stride ", stride, " (degree 0..3)"));
+}
+
+/// f(std::integral_constant<int, stride>) for a stride checked by checkStride().
+template <typename F>
+void dispatchStride(int stride, const F& f)
+{
+    switch (stride) {
+    case 3: f(std::integral_constant<int, 3>()); break;
+    case 12: f(std::integral_constant<int, 12>()); break;
+    case 27: f(std::integral_constant<int, 27>()); break;
+    case 48: f(std::integral_constant<int, 48>()); break;
+    default: break;
+    }
+}
+
+/// Sum of a per-element uint32 counter (one synchronising read-back).
+unsigned long long deviceSum(DeviceBuffer<unsigned char>& temp, const std::uint32_t* values, std::size_t n,
+                             cudaStream_t st)
+{
+    if (n == 0) return 0;
+    DeviceBuffer<unsigned long long> total(1, "counter total");
+    cubCall(temp, [&](void* t, std::size_t& b) { return cub::DeviceReduce::Sum(t, b, values, total.data(), n, st); });
+    unsigned long long out = 0;
+    total.download(&out, 1, st);
+    return out;
+}
+
+} // namespace
+
+void evaluateSampleTargetsCuda(const SampleTargetsProblem& p, float* features, float* opacity, FeatureStats* stats)
+{
+    if (!p.index || !nanoCellGrid(*p.index))
+        throw InputError("sample targets (CUDA): the cell index grid is not a NanoVDB Int32 grid");
+    checkStride(p.cloud.shStride, "sample targets (CUDA)");
+    if (!(p.cellSize > 0.0)) throw InputError(msg("sample targets (CUDA): bad cell size ", p.cellSize));
+    if (p.samples > 0 && (p.cells == 0 || p.samples % p.cells != 0 || !p.positions || !p.sampleCell))
+        throw InputError(msg("sample targets (CUDA): ", p.samples, " samples do not fill ", p.cells, " cells evenly"));
+    if (p.cloud.count > 0 && (!p.cloud.gaussians || !p.cloud.sh))
+        throw InputError("sample targets (CUDA): Gaussians without prepared kernels or SH");
+    const std::size_t n = p.cloud.count, m = p.samples, stride = std::size_t(p.cloud.shStride);
+    StreamHolder holder;
+    const cudaStream_t st = holder.stream;
+
+    // Inputs. The host arrays outlive the stream synchronisation below (downloads synchronise).
+    DeviceBuffer<unsigned char> grid("NanoVDB cell index grid");
+    uploadArray(grid, static_cast<const unsigned char*>(p.index->data()), p.index->bytes(), st);
+    DeviceCloud cloud;
+    cloud.upload(p.cloud, st);
+    DeviceBuffer<float> positions("sample positions");
+    uploadArray(positions, p.positions, 3 * m, st);
+    DeviceBuffer<std::int32_t> sampleCell("sample cells");
+    uploadArray(sampleCell, p.sampleCell, m, st);
+
+    // The device copy of the validated host bytes (cudaMalloc aligns far beyond NanoVDB's 32).
+    const NanoCellGrid* nano = reinterpret_cast<const NanoCellGrid*>(grid.data());
+
+    // (cell, Gaussian) pairs: count, scan, fill (in Gaussian order).
+    DeviceBuffer<unsigned char> temp("CUB temporary storage");
+    DeviceBuffer<unsigned long long> offsets(n + 1, "pair offsets per Gaussian");
+    launch("cellPairCountKernel", cellPairCountKernel, n + 1, st, n, (const PreparedGaussian*)cloud.gaussians.data(),
+           p.cellSize, nano, offsets.data());
+    cubCall(temp, [&](void* t, std::size_t& b) {
+        return cub::DeviceScan::ExclusiveSum(t, b, offsets.data(), offsets.data(), n + 1, st);
+    });
+    unsigned long long pairs = 0;
+    SPLATWARP_CUDA_CHECK(cudaMemcpyAsync(&pairs, offsets.data() + n, sizeof(pairs), cudaMemcpyDeviceToHost, st));
+    SPLATWARP_CUDA_CHECK(cudaStreamSynchronize(st)); // the pair count sizes the next buffers
+    if (pairs >= 0xffffffffull) // cell ranges are 32-bit [start, end)
+        throw DeviceMemoryError(msg("sample targets (CUDA): ", pairs, " (cell, Gaussian) pairs exceed 32-bit indices"));
+
+    DeviceBuffer<std::uint32_t> cells(pairs, "pair cells"), owners(pairs, "pair Gaussians");
+    DeviceBuffer<std::uint32_t> sortedCells(pairs, "sorted pair cells"), sortedOwners(pairs, "sorted pair Gaussians");
+    launch("cellPairFillKernel", cellPairFillKernel, n, st, n, (const PreparedGaussian*)cloud.gaussians.data(), p.cellSize,
+           nano, (const unsigned long long*)offsets.data(), cells.data(), owners.data());
+    // Stable LSD radix sort: Gaussians stay ascending within a cell (filled in Gaussian order).
+    if (pairs > 0)
+        cubCall(temp, [&](void* t, std::size_t& b) {
+            return cub::DeviceRadixSort::SortPairs(t, b, (const std::uint32_t*)cells.data(), sortedCells.data(),
+                                                   (const std::uint32_t*)owners.data(), sortedOwners.data(), pairs, 0,
+                                                   keyBits(p.cells), st);
+        });
+
+    // Per-cell ranges; cells without pairs keep [0, 0).
+    DeviceBuffer<std::uint32_t> cellStart(p.cells, "cell pair starts"), cellEnd(p.cells, "cell pair ends");
+    if (p.cells) {
+        SPLATWARP_CUDA_CHECK(cudaMemsetAsync(cellStart.data(), 0, cellStart.bytes(), st));
+        SPLATWARP_CUDA_CHECK(cudaMemsetAsync(cellEnd.data(), 0, cellEnd.bytes(), st));
+    }
+    launch("cellRangeKernel", cellRangeKernel, pairs, st, std::size_t(pairs), (const std::uint32_t*)sortedCells.data(),
+           cellStart.data(), cellEnd.data());
+
+    // Targets, one thread per sample.
+    DeviceBuffer<float> outF(m * stride, "sample features"), outO(m, "sample opacity");
+    DeviceBuffer<std::uint32_t> contributing(m, "contributing pairs per sample");
+    CellTargetView view;
+    view.gaussians = cloud.gaussians.data();
+    view.sh = cloud.sh.data();
+    view.shStride = p.cloud.shStride;
+    view.cutoff = p.cloud.cutoff;
+    view.positions = positions.data();
+    view.sampleCell = sampleCell.data();
+    view.cellStart = cellStart.data();
+    view.cellEnd = cellEnd.data();
+    view.cellGaussians = sortedOwners.data();
+    dispatchStride(p.cloud.shStride, [&](auto tag) {
+        launch("cellTargetKernel", cellTargetKernel<decltype(tag)::value>, m, st, m, view, outF.data(), outO.data(),
+               contributing.data());
+    });
+    const unsigned long long contributed = deviceSum(temp, contributing.data(), m, st);
+    if (features) outF.download(features, m * stride, st);
+    if (opacity) outO.download(opacity, m, st);
+    if (stats) {
+        // Every sample of a cell tests every Gaussian of the cell's list.
+        const std::uint64_t perCell = p.cells ? std::uint64_t(m / p.cells) : 0;
+        stats->pairsTested += std::uint64_t(pairs) * perCell;
+        stats->pairsContributing += contributed;
+        stats->binEntries = pairs;
+        stats->binCellSize = float(p.cellSize);
+    }
+}
+
+void evaluateFeaturesCuda(const FeaturePointsProblem& p, float* features, float* opacity, FeatureStats* stats)
+{
+    checkStride(p.cloud.shStride, "features (CUDA)");
+    if ((p.count > 0 && !p.points) || (p.cloud.count > 0 && (!p.cloud.gaussians || !p.cloud.sh)))
+        throw InputError("features (CUDA): missing points, prepared Gaussians or SH");
+    if (p.cloud.count > 0xffffffffull) throw InputError("features (CUDA): too many Gaussians for 32-bit indices");
+    const std::size_t n = p.cloud.count, m = p.count, stride = std::size_t(p.cloud.shStride);
+    StreamHolder holder;
+    const cudaStream_t st = holder.stream;
+    DeviceCloud cloud;
+    cloud.upload(p.cloud, st);
+    DeviceBuffer<float> points("feature points");
+    uploadArray(points, p.points, 3 * m, st);
+
+    // Bins of the pruning boxes; box k is Gaussian k (never-contributing ones are empty boxes).
+    DeviceBuffer<float> lo(3 * n, "Gaussian boxes (lo)"), hi(3 * n, "Gaussian boxes (hi)");
+    launch("preparedBoxKernel", preparedBoxKernel, n, st, n, (const PreparedGaussian*)cloud.gaussians.data(), lo.data(),
+           hi.data());
+    BoxBins bins;
+    const bool any = bins.build(n, lo.data(), hi.data(), st, "features (CUDA)");
+
+    DeviceBuffer<float> outF(m * stride, "point features"), outO(m, "point opacity");
+    DeviceBuffer<std::uint32_t> tested(m, "tested pairs per point"), contributing(m, "contributing pairs per point");
+    dispatchStride(p.cloud.shStride, [&](auto tag) {
+        launch("pointFeatureKernel", pointFeatureKernel<decltype(tag)::value>, m, st, m, (const float*)points.data(),
+               any ? bins.inv() : 1.0f, bins.keys(), bins.boxes(), any ? bins.entries() : std::size_t(0),
+               (const PreparedGaussian*)cloud.gaussians.data(), (const float*)cloud.sh.data(), p.cloud.cutoff, outF.data(), outO.data(),
+               tested.data(), contributing.data());
+    });
+    DeviceBuffer<unsigned char> temp("CUB temporary storage");
+    const unsigned long long testedTotal = deviceSum(temp, tested.data(), m, st);
+    const unsigned long long contributed = deviceSum(temp, contributing.data(), m, st);
+    if (features) outF.download(features, m * stride, st);
+    if (opacity) outO.download(opacity, m, st);
+    if (stats) {
+        stats->pairsTested += testedTotal;
+        stats->pairsContributing += contributed;
+        stats->binEntries = any ? bins.entries() : 0;
+        stats->binCellSize = any ? 1.0f / bins.inv() : 0.0f;
+    }
+}
+
+} // namespace splatwarp::cuda

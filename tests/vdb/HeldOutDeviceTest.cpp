@@ -1,0 +1,32 @@
+// evaluateHeldOut() on a device, in a build without registered CUDA: Cpu and Auto give the same
+// report (the CPU path), Cuda is refused with InputError before any work.
+#include <gtest/gtest.h>
+
+#include <string>
+
+#include "HeldOutEval.h"
+#include "deform/DeformSpec.h"
+#include "samples/SampleModels.h"
+
+using namespace splatwarp;
+
+TEST(HeldOutDevice, CpuAndAutoAgreeAndCudaIsRefusedWithoutCuda)
+{
+    const GaussianCloud rest = makeSample("stripes");
+    SampleGridOptions go;
+    go.cells = 10;
+    const SampleGrid grid(rest, go);
+    const Deformation deformation =
+        solveDeformation(rest, loadDeformSpec(std::string(SPLATWARP_SOURCE_DIR) + "/samples/specs/bend.json"));
+    HeldOutOptions ho;
+    ho.points = 3000;
+    const HeldOutPoints points = makeHeldOutPoints(grid, deformation, ho);
+    // The rest model against itself pushed through a bend: a nonzero error to compare.
+    const FieldErrorReport cpu = evaluateHeldOut(rest, rest, points, Device::Cpu);
+    const FieldErrorReport autoRun = evaluateHeldOut(rest, rest, points, Device::Auto);
+    EXPECT_GT(cpu.opacity, 0.0);
+    EXPECT_EQ(autoRun.opacity, cpu.opacity);
+    EXPECT_EQ(autoRun.color, cpu.color);
+    EXPECT_EQ(autoRun.insidePoints, cpu.insidePoints);
+    EXPECT_THROW(evaluateHeldOut(rest, rest, points, Device::Cuda), InputError);
+}
