@@ -46,7 +46,7 @@ const CommandRegistrar reg(30, [](CLI::App& app) {
         ->check(CLI::NonNegativeNumber);
     sub->add_option("--eval-points", job.heldOut.points, "Held-out points for the field errors")->capture_default_str()->check(CLI::PositiveNumber);
     sub->add_flag("--no-eval", args->noEval, "Skip the held-out field errors");
-    sub->add_option("--device", args->device, "Where the Stage I per-Gaussian update and Stage II run: auto (CUDA when compiled in and a GPU is present), cpu, cuda")
+    sub->add_option("--device", args->device, "Where the computing stages run (Stage I update, field targets, sample and held-out warping, held-out evaluation, Stage II, --render): auto (CUDA when compiled in and a GPU is present; out of GPU memory falls back to the CPU), cpu, cuda")
         ->capture_default_str()
         ->check(CLI::IsMember({"auto", "cpu", "cuda"}));
     sub->add_flag("--vdb", job.writeVdb, "Also write field.vdb: the Stage II model's sampled field (as `to-vdb`)");

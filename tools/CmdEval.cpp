@@ -35,7 +35,7 @@ const CommandRegistrar reg(35, [](CLI::App& app) {
     sub->add_option("--seed", a->heldOut.seed, "Seed of the held-out points")->capture_default_str();
     addGridOptions(sub, a->grid);
     sub->add_flag("--json", a->json, "Print JSON (keys opacity, color, points, inside, outside)");
-    addDeviceOption(sub, a->device, "the feature evaluations run (the grid's topology stays on the CPU)");
+    addDeviceOption(sub, a->device, "the rest targets, the point warping and the feature evaluations run (the grid's topology stays on the CPU)");
     sub->callback([a] {
         const Device device = parseDevice(a->device);
         const GaussianCloud rest = readGaussians(a->rest);
@@ -44,7 +44,9 @@ const CommandRegistrar reg(35, [](CLI::App& app) {
             throw InputError(msg(a->deformed, ": SH degree ", deformed.shDegree, " differs from the rest model's ", rest.shDegree));
         const Deformation deformation = solveDeformation(rest, loadDeformSpec(a->spec));
         const SampleGrid grid(rest, withDevice(a->grid, device));
-        const HeldOutPoints points = makeHeldOutPoints(grid, deformation, a->heldOut);
+        HeldOutOptions heldOut = a->heldOut;
+        heldOut.device = device;
+        const HeldOutPoints points = makeHeldOutPoints(grid, deformation, heldOut);
         const FieldErrorReport r = evaluateHeldOut(rest, deformed, points, device);
         if (a->json) {
             std::printf("%s\n", fieldErrorJson(r).dump(2).c_str());

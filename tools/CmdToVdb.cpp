@@ -2,7 +2,7 @@
 #include "Command.h"
 #include "GridArgs.h"
 #include "SampleGrid.h"
-#include "SampleWarp.h"
+#include "deform/WarpDevice.h"
 #include "VdbExport.h"
 #include "core/Error.h"
 #include "core/Progress.h"
@@ -26,7 +26,7 @@ const CommandRegistrar reg(40, [](CLI::App& app) {
     sub->add_option("input", args->input, "Input Gaussians (.ply, .splat, compressed .ply)")->required();
     sub->add_option("-o,--output", args->output, "Output .vdb path")->required();
     addGridOptions(sub, args->grid);
-    addDeviceOption(sub, args->device, "the rest targets run (topology and export stay on the CPU)");
+    addDeviceOption(sub, args->device, "the rest targets and the --spec warping run (topology and export stay on the CPU)");
     sub->add_flag("--sh-grids", args->vdb.shGrids, "Also write one Vec3S grid sh_<k> per SH coefficient of the radial features");
     sub->add_flag("--half", args->vdb.half, "Store float grids as 16-bit half floats");
     sub->add_option("--spec", args->spec,
@@ -35,12 +35,14 @@ const CommandRegistrar reg(40, [](CLI::App& app) {
     sub->callback([args] {
         const GaussianCloud cloud = readGaussians(args->input);
         progress(msg("read ", cloud.size(), " Gaussians (SH degree ", cloud.shDegree, ") from ", args->input));
-        SampleGrid grid(cloud, withDevice(args->grid, parseDevice(args->device)));
+        const Device device = parseDevice(args->device);
+        SampleGrid grid(cloud, withDevice(args->grid, device));
         args->vdb.source = args->input;
         if (!args->spec.empty()) {
             const Deformation deformation = solveDeformation(cloud, loadDeformSpec(args->spec));
             progress(msg("solved the deformation of ", args->spec, " (", deformation.graph.nodeCount(), " nodes)"));
-            warpSamples(grid.samples(), deformation);
+            const char* used = warpSamplesOn(device, grid.samples(), deformation);
+            progress(msg("warped ", grid.stats().samples, " samples on ", used));
             args->vdb.spec = args->spec;
             args->vdb.stretch = true;
         }

@@ -28,9 +28,7 @@ HeldOutPoints makeHeldOutPoints(const SampleGrid& grid, const Deformation& defor
     out.rotations.resize(3 * out.rest.size());
     warpPointsOn(options.device, deformation.graph, deformation.transforms, out.rest.data(), options.points,
                  out.warped.data(), out.rotations.data(), grid.options().threaded);
-    out.features.cutoff = grid.options().cutoff;
-    out.features.filterVariance = float(grid.options().lambdaLpf * grid.samples().spacing * grid.samples().spacing);
-    out.features.threaded = grid.options().threaded;
+    out.features = grid.targetOptions(); // the very cutoff and filter the rest targets used
     return out;
 }
 

@@ -79,7 +79,7 @@ public:
     const SampleGridStats& stats() const;
     /// @brief The flat view (warpedPositions = restPositions, cellGradient = identity until warped).
     const SampleSet& samples() const;
-    /// @brief Mutable view, for warpSamples() (vdb/SampleWarp.h).
+    /// @brief Mutable view, for warpSamples() (deform/SampleWarp.h).
     SampleSet& samples();
     /// @brief [N] index of the cell holding each Gaussian's centre (always active).
     const std::vector<std::int32_t>& gaussianCell() const;
