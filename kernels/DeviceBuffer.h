@@ -4,6 +4,7 @@
 ///        naming what did not fit, the bytes asked for and the bytes free, never crash.
 #include <cuda_runtime.h>
 
+#include <atomic>
 #include <cstddef>
 #include <utility>
 #include <vector>
@@ -11,6 +12,33 @@
 #include "CudaCheck.h"
 
 namespace splatwarp::cuda {
+
+namespace detail {
+/// Bytes held by all DeviceBuffers now, and the most held since the last resetDeviceBytesPeak().
+inline std::atomic<std::size_t>& deviceBytesNow()
+{
+    static std::atomic<std::size_t> bytes{0};
+    return bytes;
+}
+inline std::atomic<std::size_t>& deviceBytesMax()
+{
+    static std::atomic<std::size_t> bytes{0};
+    return bytes;
+}
+inline void countDeviceBytes(std::size_t added)
+{
+    const std::size_t now = deviceBytesNow().fetch_add(added) + added;
+    std::size_t peak = deviceBytesMax().load();
+    while (now > peak && !deviceBytesMax().compare_exchange_weak(peak, now)) {
+    }
+}
+} // namespace detail
+
+/// @brief Peak GPU memory held by DeviceBuffers since the last resetDeviceBytesPeak() (the
+///        project's own allocations, CUB temporaries included; not the CUDA context).
+inline std::size_t deviceBytesPeak() { return detail::deviceBytesMax().load(); }
+/// @brief Start a new peak measurement from what is held now.
+inline void resetDeviceBytesPeak() { detail::deviceBytesMax().store(detail::deviceBytesNow().load()); }
 
 template <typename T>
 class DeviceBuffer {
@@ -51,6 +79,7 @@ public:
             }
             mData = static_cast<T*>(p);
             mCapacity = n;
+            detail::countDeviceBytes(bytes);
         }
         mSize = n;
     }
@@ -84,7 +113,10 @@ public:
 private:
     void release()
     {
-        if (mData) cudaFree(mData); // no throw from destructors; a failing free only leaks
+        if (mData) {
+            cudaFree(mData); // no throw from destructors; a failing free only leaks
+            detail::deviceBytesNow().fetch_sub(mCapacity * sizeof(T));
+        }
         mData = nullptr;
         mSize = mCapacity = 0;
     }

@@ -700,6 +700,7 @@ StageTwoReport optimiseStageTwoCuda(GaussianCloud& cloud, const SampleSet& sampl
                                     const std::function<void(int, const GaussianCloud&)>& onEval, int evalEvery)
 {
     Stopwatch total, phase;
+    resetDeviceBytesPeak(); // the peak of this run's buffers (the solver's and their growth)
     Solver solver(cloud, samples, moving, gaussianCell, options);
     StageTwoReport report;
     report.device = "cuda";
@@ -766,6 +767,7 @@ StageTwoReport optimiseStageTwoCuda(GaussianCloud& cloud, const SampleSet& sampl
     report.msBackward = ms[PhaseTimer::Backward];
     report.msUpdate = ms[PhaseTimer::Update];
     report.msTotal = total.ms();
+    report.gpuPeakBytes = deviceBytesPeak();
     return report;
 }
 

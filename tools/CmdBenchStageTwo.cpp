@@ -111,6 +111,8 @@ const CommandRegistrar reg(1020, [](CLI::App& app) {
         std::printf("  counted pairs/iteration %.3g, candidate pairs %llu, %.1f M counted pairs/s (forward+backward)\n",
                     double(pairs) / it, (unsigned long long)r.coveragePairs,
                     double(pairs) / (r.msForward + r.msBackward) * 1e-3);
+        if (r.device == "cuda")
+            std::printf("  peak GPU memory of the run's buffers: %.1f MiB\n", double(r.gpuPeakBytes) / (1024.0 * 1024.0));
     });
 });
 

@@ -46,6 +46,7 @@ nlohmann::json stageTwoJson(const StageTwoReport& r, const SampleGrid& grid, con
             {"bestIteration", r.bestIteration},
             {"bestEnergy", r.bestEnergy},
             {"device", r.device},
+            {"gpuPeakBytes", r.gpuPeakBytes},
             {"sceneExtent", r.sceneExtent},
             {"parameters",
              {{"iterations", o.iterations}, {"lambdaOpacity", o.lambdaOpacity}, {"boundaryWeight", o.boundaryWeight},

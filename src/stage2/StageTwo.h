@@ -36,6 +36,7 @@ struct StageTwoReport {
     int coverageRebuilds = 0;
     int coverageForcedRebuilds = 0;               ///< of those, rebuilds because a Gaussian left its coverage early
     float sceneExtent = 0;                        ///< multiplies the position learning rate
+    std::uint64_t gpuPeakBytes = 0;               ///< CUDA: peak GPU memory of the run's buffers (not the context); CPU: 0
     // Time per phase in milliseconds.
     double msSetup = 0, msCoverage = 0, msForward = 0, msBackward = 0, msUpdate = 0, msTotal = 0;
 };
