@@ -1,15 +1,9 @@
 #include "core/Device.h"
 
-#include <atomic>
-
 namespace splatwarp {
 namespace {
 
-std::atomic<bool (*)()>& probeSlot()
-{
-    static std::atomic<bool (*)()> probe{nullptr};
-    return probe;
-}
+CudaSlot<bool (*)()> probeSlot;
 
 } // namespace
 
@@ -31,11 +25,11 @@ const char* deviceName(Device device)
     return "?";
 }
 
-bool cudaCompiledIn() { return probeSlot().load() != nullptr; }
+bool cudaCompiledIn() { return probeSlot.get() != nullptr; }
 
 bool cudaPresent()
 {
-    bool (*probe)() = probeSlot().load();
+    bool (*probe)() = probeSlot.get();
     return probe && probe();
 }
 
@@ -54,6 +48,6 @@ Device resolveDevice(Device requested)
     return Device::Cpu;
 }
 
-void registerCudaProbe(bool (*probe)()) { probeSlot().store(probe); }
+void registerCudaProbe(bool (*probe)()) { probeSlot.set(probe); }
 
 } // namespace splatwarp

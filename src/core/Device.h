@@ -4,6 +4,7 @@
 ///        cannot link the CUDA kernels, so the kernels register a probe (and their stage
 ///        implementations, see stage2/StageTwoDevice.h) at start-up; with nothing registered
 ///        this is a CPU-only build.
+#include <atomic>
 #include <string>
 
 #include "core/Error.h"
@@ -42,6 +43,20 @@ Device resolveDevice(Device requested);
 /// @brief Register the CUDA probe (returns whether a GPU is usable); nullptr unregisters.
 ///        Called by the kernels' registerBackends() (tests may register fakes).
 void registerCudaProbe(bool (*probe)());
+
+/// @brief Where the core library keeps one registered CUDA implementation (a function pointer F;
+///        null: none, a CPU-only build). The kernels store it at start-up (cuda::registerBackends,
+///        or a test's fake); the dispatcher loads it per call. Constant-initialised, so it can be
+///        used from any static initialiser.
+template <typename F>
+class CudaSlot {
+public:
+    void set(F f) { mF.store(f); }
+    F get() const { return mF.load(); }
+
+private:
+    std::atomic<F> mF{nullptr};
+};
 
 /// @brief Run a computation on a device: the registered CUDA implementation `cuda` (may be null:
 ///        no CUDA version compiled in) when `requested` resolves to CUDA, else `cpu`. Under Auto a

@@ -1,27 +1,21 @@
 #include "deform/StageOneDevice.h"
 
-#include <atomic>
-
 #include "core/Progress.h"
 
 namespace splatwarp {
 namespace {
 
-std::atomic<StageOneEngineFactory>& cudaSlot()
-{
-    static std::atomic<StageOneEngineFactory> f{nullptr};
-    return f;
-}
+CudaSlot<StageOneEngineFactory> cudaSlot;
 
 } // namespace
 
-void registerStageOneCuda(StageOneEngineFactory cuda) { cudaSlot().store(cuda); }
+void registerStageOneCuda(StageOneEngineFactory cuda) { cudaSlot.set(cuda); }
 
 StageOneUpdater::StageOneUpdater(Device device, const GaussianCloud& rest, const StageOneRig& rig,
                                  const DeformationGraph& graph, const StageOneOptions& options)
     : mRequested(device), mRest(rest), mRig(rig), mGraph(graph), mOptions(options)
 {
-    const StageOneEngineFactory cuda = cudaSlot().load();
+    const StageOneEngineFactory cuda = cudaSlot.get();
     mEngine = runOnDevice(
         device, "Stage I", cuda != nullptr, [&] { return cuda(rest, rig, graph.nodeCount(), options); },
         [] { return std::unique_ptr<StageOneEngine>(); });

@@ -1,34 +1,23 @@
 #include "deform/WarpDevice.h"
 
-#include <atomic>
-
 namespace splatwarp {
 namespace {
 
-std::atomic<WarpPointsFunction>& pointsSlot()
-{
-    static std::atomic<WarpPointsFunction> f{nullptr};
-    return f;
-}
-
-std::atomic<WarpSamplesFunction>& samplesSlot()
-{
-    static std::atomic<WarpSamplesFunction> f{nullptr};
-    return f;
-}
+CudaSlot<WarpPointsFunction> pointsSlot;
+CudaSlot<WarpSamplesFunction> samplesSlot;
 
 } // namespace
 
 void registerWarpCuda(WarpPointsFunction points, WarpSamplesFunction samples)
 {
-    pointsSlot().store(points);
-    samplesSlot().store(samples);
+    pointsSlot.set(points);
+    samplesSlot.set(samples);
 }
 
 const char* warpPointsOn(Device device, const DeformationGraph& graph, const NodeTransforms& transforms,
                          const float* points, std::size_t count, float* warped, float* rotations, bool threaded)
 {
-    const WarpPointsFunction cuda = pointsSlot().load();
+    const WarpPointsFunction cuda = pointsSlot.get();
     Device used = Device::Cpu;
     runOnDevice(
         device, "point warping", cuda != nullptr,
@@ -39,7 +28,7 @@ const char* warpPointsOn(Device device, const DeformationGraph& graph, const Nod
 
 const char* warpSamplesOn(Device device, SampleSet& samples, const Deformation& d, bool threaded)
 {
-    const WarpSamplesFunction cuda = samplesSlot().load();
+    const WarpSamplesFunction cuda = samplesSlot.get();
     Device used = Device::Cpu;
     runOnDevice(
         device, "sample warping", cuda != nullptr,

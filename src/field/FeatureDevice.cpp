@@ -1,35 +1,25 @@
 #include "field/FeatureDevice.h"
 
-#include <atomic>
 #include <vector>
 
 namespace splatwarp {
 namespace {
 
-std::atomic<SampleTargetsFunction>& targetsSlot()
-{
-    static std::atomic<SampleTargetsFunction> f{nullptr};
-    return f;
-}
-
-std::atomic<FeaturesFunction>& featuresSlot()
-{
-    static std::atomic<FeaturesFunction> f{nullptr};
-    return f;
-}
+CudaSlot<SampleTargetsFunction> targetsSlot;
+CudaSlot<FeaturesFunction> featuresSlot;
 
 } // namespace
 
-void registerSampleTargetsCuda(SampleTargetsFunction cuda) { targetsSlot().store(cuda); }
+void registerSampleTargetsCuda(SampleTargetsFunction cuda) { targetsSlot.set(cuda); }
 
-SampleTargetsFunction sampleTargetsCuda() { return targetsSlot().load(); }
+SampleTargetsFunction sampleTargetsCuda() { return targetsSlot.get(); }
 
-void registerFeaturesCuda(FeaturesFunction cuda) { featuresSlot().store(cuda); }
+void registerFeaturesCuda(FeaturesFunction cuda) { featuresSlot.set(cuda); }
 
 Device evaluateFeaturesOn(const GaussianCloud& cloud, const float* points, std::size_t m, const FeatureOptions& options,
                           float* features, float* opacity, FeatureStats* stats)
 {
-    const FeaturesFunction cuda = featuresSlot().load();
+    const FeaturesFunction cuda = featuresSlot.get();
     Device used = Device::Cpu;
     const FeatureStats s = runOnDevice(
         options.device, "features", cuda != nullptr,

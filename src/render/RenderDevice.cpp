@@ -1,26 +1,20 @@
 #include "render/RenderDevice.h"
 
-#include <atomic>
-
 #include "core/Progress.h"
 
 namespace splatwarp {
 namespace {
 
-std::atomic<RenderFunction>& cudaSlot()
-{
-    static std::atomic<RenderFunction> f{nullptr};
-    return f;
-}
+CudaSlot<RenderFunction> cudaSlot;
 
 } // namespace
 
-void registerRenderCuda(RenderFunction cuda) { cudaSlot().store(cuda); }
+void registerRenderCuda(RenderFunction cuda) { cudaSlot.set(cuda); }
 
 Image renderGaussians(Device device, const GaussianCloud& cloud, const Camera& camera, const RenderOptions& options,
                       Device* used)
 {
-    const RenderFunction cuda = cudaSlot().load();
+    const RenderFunction cuda = cudaSlot.get();
     return runOnDevice(
         device, "rasteriser", cuda != nullptr, [&] { return cuda(cloud, camera, options); },
         [&] { return renderGaussians(cloud, camera, options); }, used);

@@ -1,28 +1,22 @@
 #include "stage2/StageTwoDevice.h"
 
-#include <atomic>
-
 #include "core/Progress.h"
 
 namespace splatwarp {
 namespace {
 
-std::atomic<StageTwoFunction>& cudaSlot()
-{
-    static std::atomic<StageTwoFunction> f{nullptr};
-    return f;
-}
+CudaSlot<StageTwoFunction> cudaSlot;
 
 } // namespace
 
-void registerStageTwoCuda(StageTwoFunction cuda) { cudaSlot().store(cuda); }
+void registerStageTwoCuda(StageTwoFunction cuda) { cudaSlot.set(cuda); }
 
 StageTwoReport runStageTwo(Device device, GaussianCloud& cloud, const SampleSet& samples,
                            const std::vector<std::uint8_t>& moving, const std::vector<std::int32_t>& gaussianCell,
                            const StageTwoOptions& options,
                            const std::function<void(int, const GaussianCloud&)>& onEval, int evalEvery)
 {
-    const StageTwoFunction cuda = cudaSlot().load();
+    const StageTwoFunction cuda = cudaSlot.get();
     Device used = Device::Cpu;
     StageTwoReport r = runOnDevice(
         device, "Stage II", cuda != nullptr,
