@@ -113,12 +113,14 @@ nlohmann::json runDeformJob(const DeformJobOptions& o)
         progress(msg("warped ", grid.stats().samples, " samples in ", int(clock.ms()), " ms on ", warpDevice));
 
         std::optional<HeldOutPoints> heldOut;
+        std::optional<FieldErrorTarget> heldOutRest; // the rest side, computed once for every evaluation
         if (o.evaluate || o.evalEvery > 0) {
             clock.reset();
             HeldOutOptions heldOutOptions = o.heldOut;
             heldOutOptions.device = o.device;
             heldOut = makeHeldOutPoints(grid, deformation, heldOutOptions);
-            const FieldErrorReport e1 = evaluateHeldOut(rest, stage1.deformed, *heldOut, o.device);
+            heldOutRest = heldOutTarget(rest, *heldOut, o.device);
+            const FieldErrorReport e1 = evaluateHeldOut(*heldOutRest, stage1.deformed, *heldOut, o.device);
             report["stage1"]["field_error"] = fieldErrorJson(e1);
             report["timingsMs"]["evaluate"] = clock.ms();
             progress(msg("Stage I held-out field error: opacity ", e1.opacity, ", color ", e1.color));
@@ -128,7 +130,7 @@ nlohmann::json runDeformJob(const DeformJobOptions& o)
         GaussianCloud fitted = stage1.deformed;
         nlohmann::json curve = nlohmann::json::array();
         auto onEval = [&](int iteration, const GaussianCloud& current) {
-            const FieldErrorReport e = evaluateHeldOut(rest, current, *heldOut, o.device);
+            const FieldErrorReport e = evaluateHeldOut(*heldOutRest, current, *heldOut, o.device);
             nlohmann::json j = fieldErrorJson(e);
             j["iteration"] = iteration;
             curve.push_back(j);
@@ -143,7 +145,7 @@ nlohmann::json runDeformJob(const DeformJobOptions& o)
         report["timingsMs"]["stage2"] = r2.msTotal;
         if (o.evalEvery > 0) report["stage2"]["eval_curve"] = curve;
         if (heldOut) {
-            const FieldErrorReport e2 = evaluateHeldOut(rest, fitted, *heldOut, o.device);
+            const FieldErrorReport e2 = evaluateHeldOut(*heldOutRest, fitted, *heldOut, o.device);
             report["stage2"]["field_error"] = fieldErrorJson(e2);
             progress(msg("Stage II held-out field error: opacity ", e2.opacity, ", color ", e2.color));
         }

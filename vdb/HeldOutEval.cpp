@@ -32,13 +32,33 @@ HeldOutPoints makeHeldOutPoints(const SampleGrid& grid, const Deformation& defor
     return out;
 }
 
-FieldErrorReport evaluateHeldOut(const GaussianCloud& rest, const GaussianCloud& deformed, const HeldOutPoints& points,
-                                 Device device)
+namespace {
+FeatureOptions onDevice(const HeldOutPoints& points, Device device)
 {
     FeatureOptions options = points.features;
     options.device = device;
+    return options;
+}
+} // namespace
+
+FieldErrorTarget heldOutTarget(const GaussianCloud& rest, const HeldOutPoints& points, Device device)
+{
+    return fieldErrorTarget(rest, points.rest.data(), points.rotations.data(), points.size(), onDevice(points, device));
+}
+
+FieldErrorReport evaluateHeldOut(const FieldErrorTarget& target, const GaussianCloud& deformed,
+                                 const HeldOutPoints& points, Device device)
+{
+    if (target.size() != points.size())
+        throw InputError(msg("held-out evaluation: a rest side of ", target.size(), " points for ", points.size(), " points"));
+    return fieldError(target, deformed, points.warped.data(), onDevice(points, device));
+}
+
+FieldErrorReport evaluateHeldOut(const GaussianCloud& rest, const GaussianCloud& deformed, const HeldOutPoints& points,
+                                 Device device)
+{
     return fieldError(rest, deformed, points.rest.data(), points.warped.data(), points.rotations.data(), points.size(),
-                      options);
+                      onDevice(points, device));
 }
 
 nlohmann::json fieldErrorJson(const FieldErrorReport& r)

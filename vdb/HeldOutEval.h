@@ -40,6 +40,14 @@ HeldOutPoints makeHeldOutPoints(const SampleGrid& grid, const Deformation& defor
 FieldErrorReport evaluateHeldOut(const GaussianCloud& rest, const GaussianCloud& deformed, const HeldOutPoints& points,
                                  Device device = Device::Cpu);
 
+/// @brief The rest side of evaluateHeldOut() (rest features at the points, SH rotated), for
+///        judging several deformed models against one rest model without recomputing it.
+FieldErrorTarget heldOutTarget(const GaussianCloud& rest, const HeldOutPoints& points, Device device = Device::Cpu);
+
+/// @brief evaluateHeldOut() against a precomputed rest side (heldOutTarget() of the same points).
+FieldErrorReport evaluateHeldOut(const FieldErrorTarget& target, const GaussianCloud& deformed,
+                                 const HeldOutPoints& points, Device device = Device::Cpu);
+
 /// @brief JSON of a report: opacity, color, points, inside{...}, outside{...}.
 nlohmann::json fieldErrorJson(const FieldErrorReport& report);
 

@@ -9,48 +9,72 @@
 
 namespace splatwarp {
 
+FieldErrorTarget fieldErrorTarget(const GaussianCloud& rest, const float* restPoints, const float* rotations,
+                                  std::size_t p, const FeatureOptions& options)
+{
+    const int stride = rest.shStride();
+    FieldErrorTarget t;
+    t.shDegree = rest.shDegree;
+    std::vector<float> fRest(p * std::size_t(stride));
+    t.opacity.resize(p);
+    evaluateFeaturesOn(rest, restPoints, p, options, fRest.data(), t.opacity.data());
+    t.features.resize(p * std::size_t(stride));
+    for (std::size_t j = 0; j < p; ++j) {
+        const float* fr = fRest.data() + j * std::size_t(stride);
+        double* target = t.features.data() + j * std::size_t(stride);
+        for (int s = 0; s < stride; ++s) {
+            target[s] = fr[s];
+            t.sumFeatures += std::fabs(double(fr[s]));
+        }
+        if (rotations && rest.shDegree > 0) {
+            Mat3d rot;
+            for (int a = 0; a < 3; ++a)
+                for (int b = 0; b < 3; ++b) rot.m[a][b] = rotations[9 * j + std::size_t(3 * a + b)];
+            ShRotation(rot, rest.shDegree).apply(rest.shDegree, target);
+        }
+        t.sumOpacity += t.opacity[j];
+    }
+    return t;
+}
+
+FieldErrorReport fieldError(const FieldErrorTarget& t, const GaussianCloud& deformed, const float* warpedPoints,
+                            const FeatureOptions& options)
+{
+    if (t.shDegree != deformed.shDegree)
+        throw InputError(msg("field error: rest SH degree ", t.shDegree, " differs from deformed ", deformed.shDegree));
+    const std::size_t p = t.size();
+    const int stride = deformed.shStride();
+    std::vector<float> fDef(p * std::size_t(stride)), oDef(p);
+    evaluateFeaturesOn(deformed, warpedPoints, p, options, fDef.data(), oDef.data());
+
+    FieldErrorReport r;
+    r.points = p;
+    double dO[2] = {0, 0}, dF[2] = {0, 0};
+    for (std::size_t j = 0; j < p; ++j) {
+        const double* target = t.features.data() + j * std::size_t(stride);
+        const int side = t.opacity[j] > 0.0f ? 0 : 1;
+        ++(side == 0 ? r.insidePoints : r.outsidePoints);
+        dO[side] += std::fabs(double(oDef[j]) - double(t.opacity[j]));
+        const float* fd = fDef.data() + j * std::size_t(stride);
+        for (int s = 0; s < stride; ++s) dF[side] += std::fabs(double(fd[s]) - target[s]);
+    }
+    auto ratio = [](double a, double b) { return b > 0 ? a / b : 0.0; };
+    r.opacityInside = ratio(dO[0], t.sumOpacity);
+    r.opacityOutside = ratio(dO[1], t.sumOpacity);
+    r.opacity = ratio(dO[0] + dO[1], t.sumOpacity);
+    r.colorInside = ratio(dF[0], t.sumFeatures);
+    r.colorOutside = ratio(dF[1], t.sumFeatures);
+    r.color = ratio(dF[0] + dF[1], t.sumFeatures);
+    return r;
+}
+
 FieldErrorReport fieldError(const GaussianCloud& rest, const GaussianCloud& deformed, const float* restPoints,
                             const float* warpedPoints, const float* rotations, std::size_t p,
                             const FeatureOptions& options)
 {
     if (rest.shDegree != deformed.shDegree)
         throw InputError(msg("field error: rest SH degree ", rest.shDegree, " differs from deformed ", deformed.shDegree));
-    const int stride = rest.shStride();
-    std::vector<float> fRest(p * std::size_t(stride)), fDef(p * std::size_t(stride)), oRest(p), oDef(p);
-    evaluateFeaturesOn(rest, restPoints, p, options, fRest.data(), oRest.data());
-    evaluateFeaturesOn(deformed, warpedPoints, p, options, fDef.data(), oDef.data());
-
-    FieldErrorReport r;
-    r.points = p;
-    double sumO = 0, sumF = 0, dO[2] = {0, 0}, dF[2] = {0, 0};
-    std::vector<double> target(static_cast<std::size_t>(stride));
-    for (std::size_t j = 0; j < p; ++j) {
-        const float* fr = fRest.data() + j * std::size_t(stride);
-        for (int s = 0; s < stride; ++s) {
-            target[std::size_t(s)] = fr[s];
-            sumF += std::fabs(double(fr[s]));
-        }
-        if (rotations && rest.shDegree > 0) {
-            Mat3d rot;
-            for (int a = 0; a < 3; ++a)
-                for (int b = 0; b < 3; ++b) rot.m[a][b] = rotations[9 * j + std::size_t(3 * a + b)];
-            ShRotation(rot, rest.shDegree).apply(rest.shDegree, target.data());
-        }
-        const int side = oRest[j] > 0.0f ? 0 : 1;
-        ++(side == 0 ? r.insidePoints : r.outsidePoints);
-        sumO += oRest[j];
-        dO[side] += std::fabs(double(oDef[j]) - double(oRest[j]));
-        const float* fd = fDef.data() + j * std::size_t(stride);
-        for (int s = 0; s < stride; ++s) dF[side] += std::fabs(double(fd[s]) - target[std::size_t(s)]);
-    }
-    auto ratio = [](double a, double b) { return b > 0 ? a / b : 0.0; };
-    r.opacityInside = ratio(dO[0], sumO);
-    r.opacityOutside = ratio(dO[1], sumO);
-    r.opacity = ratio(dO[0] + dO[1], sumO);
-    r.colorInside = ratio(dF[0], sumF);
-    r.colorOutside = ratio(dF[1], sumF);
-    r.color = ratio(dF[0] + dF[1], sumF);
-    return r;
+    return fieldError(fieldErrorTarget(rest, restPoints, rotations, p, options), deformed, warpedPoints, options);
 }
 
 } // namespace splatwarp

@@ -4,6 +4,7 @@
 ///        compares the deformed model's features at warped points x = phi(X) with the rest
 ///        model's features at the rest points X (SH rotated by the local rotation R_p).
 #include <cstddef>
+#include <vector>
 
 #include "core/GaussianCloud.h"
 #include "field/FeatureField.h"
@@ -21,6 +22,26 @@ struct FieldErrorReport {
     double colorOutside = 0.0;
     std::size_t points = 0, insidePoints = 0, outsidePoints = 0;
 };
+
+/// @brief The rest side of the comparison: fixed for a rest model and a point set, so a run that
+///        judges several deformed models (Stage I, the Stage II curve, the result) computes it once.
+struct FieldErrorTarget {
+    int shDegree = 0;
+    std::vector<float> opacity;   ///< [P] O_rest(X)
+    std::vector<double> features; ///< [P,stride] R_p F_rest(X)
+    double sumOpacity = 0.0;      ///< sum O_rest(X)
+    double sumFeatures = 0.0;     ///< sum |F_rest(X)|_1
+    std::size_t size() const { return opacity.size(); }
+};
+
+/// @brief The rest features at X, SH rotated by R_p (arguments as fieldError()).
+FieldErrorTarget fieldErrorTarget(const GaussianCloud& rest, const float* restPoints, const float* rotations,
+                                  std::size_t p, const FeatureOptions& options = {});
+
+/// @brief Held-out field error of a deformed model against a precomputed rest side.
+/// @param warpedPoints [P,3] x = phi(X), P = target.size()
+FieldErrorReport fieldError(const FieldErrorTarget& target, const GaussianCloud& deformed, const float* warpedPoints,
+                            const FeatureOptions& options = {});
 
 /// @brief Held-out field error of a deformed model.
 /// @param rest, deformed  models (same SH degree)
