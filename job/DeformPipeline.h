@@ -2,7 +2,7 @@
 /// @file DeformPipeline.h
 /// @brief One `deform` run as a library call: read, Stage I, SampleGrid + warp, Stage II, held-out
 ///        field errors, outputs (baseline.ply, deformed.ply, report.json, field.vdb, compare.png).
-///        Lives in vdb/ because it drives the SampleGrid; the CLI only parses flags into it.
+///        Lives in job/ (above vdb/, whose SampleGrid it drives); the CLI only parses flags into it.
 #include <cstdint>
 #include <optional>
 #include <string>
