@@ -6,7 +6,7 @@ PACKAGES=(
   build-essential cmake ninja-build ccache pkg-config
   libopenvdb-dev libnanovdb-dev libopenvdb-tools python3-openvdb
   libtbb-dev libeigen3-dev libopenexr-dev libpng-dev
-  libgtest-dev libcli11-dev nlohmann-json3-dev libnanoflann-dev libboost-iostreams-dev
+  libgtest-dev libcli11-dev nlohmann-json3-dev libnanoflann-dev libboost-iostreams-dev zlib1g-dev
 )
 missing=()
 for p in "${PACKAGES[@]}"; do

@@ -15,7 +15,7 @@ struct ConvertArgs {
 const CommandRegistrar reg(21, [](CLI::App& app) {
     auto args = std::make_shared<ConvertArgs>();
     CLI::App* sub = app.add_subcommand(
-        "convert", "Convert a Gaussian file (any PLY layout, compressed PLY, .splat) to graphdeco binary PLY");
+        "convert", "Convert a Gaussian file (any PLY layout, compressed PLY, .splat, .spz) to graphdeco binary PLY");
     sub->add_option("input", args->input, "Input Gaussian file (format detected from the content)")->required();
     sub->add_option("output", args->output, "Output graphdeco .ply path (written atomically)")->required();
     sub->add_flag("--drop-invalid", args->options.dropInvalid,

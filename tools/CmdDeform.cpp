@@ -25,7 +25,7 @@ const CommandRegistrar reg(30, [](CLI::App& app) {
     CLI::App* sub = app.add_subcommand(
         "deform", "Deform a 3DGS model with a deformation spec: Stage I (embedded deformation) then Stage II "
                   "(fit the Gaussians to the warped radiance field)");
-    sub->add_option("input", job.input, "Input model (.ply graphdeco/compressed, .splat)")->required();
+    sub->add_option("input", job.input, "Input model (.ply graphdeco/compressed, .splat, .spz)")->required();
     sub->add_option("--spec", job.specPath, "Deformation spec JSON (see samples/specs/README.md)")->required();
     sub->add_option("-o,--output", job.outDir, "Output directory (created): baseline.ply, deformed.ply, report.json")->required();
     sub->add_flag("--stage1-only", job.stage1Only, "Stop after Stage I: write baseline.ply and report.json only");

@@ -23,7 +23,7 @@ const CommandRegistrar reg(40, [](CLI::App& app) {
     auto args = std::make_shared<ToVdbArgs>();
     CLI::App* sub = app.add_subcommand("to-vdb", "Sample a Gaussian model's radiance field into an OpenVDB file "
                                                  "(density fog volume, color, active cells, optional SH grids)");
-    sub->add_option("input", args->input, "Input Gaussians (.ply, .splat, compressed .ply)")->required();
+    sub->add_option("input", args->input, "Input Gaussians (.ply, .splat, compressed .ply, .spz)")->required();
     sub->add_option("-o,--output", args->output, "Output .vdb path")->required();
     addGridOptions(sub, args->grid);
     addDeviceOption(sub, args->device, "the rest targets and the --spec warping run (topology and export stay on the CPU)");

@@ -32,7 +32,17 @@ GaussianCloud readCompressedPly(const std::string& path, const PlyHeader& header
 
 /// @brief Bytes per `.splat` record.
 constexpr std::size_t kSplatRecordBytes = 32;
-/// @brief antimatter15 `.splat`: headerless 32-byte records.
+/// @brief Why `data` (a multiple of 32 bytes) does not read as `.splat` records, "" when at least
+///        90% of the records with finite values look like Gaussians.
+std::string splatImplausibility(const std::string& data);
+/// @brief antimatter15 `.splat`: headerless 32-byte records. The format has no magic: throws
+///        InputError unless nearly all records look like Gaussians (finite, |position| and
+///        scales <= 1e7, unit quaternion bytes), so text or a cut .vdb is not read as Gaussians.
 GaussianCloud readSplat(const std::string& path, const std::string& data, ReadReport& report);
+
+/// @brief True when the data starts like an `.spz`: gzip magic (versions 2, 3) or "NGSP" (version 4).
+bool hasSpzMagic(const std::string& data);
+/// @brief Niantic `.spz` versions 2 and 3 (gzip); the inflated size is capped by the header's count.
+GaussianCloud readSpz(const std::string& path, const std::string& data, ReadReport& report);
 
 } // namespace splatwarp

@@ -83,26 +83,31 @@ std::string shPropertyName(int shDegree, int j, int c)
     return "f_rest_" + std::to_string(c * (shCoeffCount(shDegree) - 1) + j - 1);
 }
 
-GaussianCloud readGaussians(const std::string& path, const ReadOptions& options, ReadReport* report)
+GaussianCloud readGaussiansFromBytes(const std::string& name, const std::string& data, const ReadOptions& options,
+                                     ReadReport* report)
 {
-    const std::string data = readWholeFile(path);
-    if (data.empty()) throw InputError(msg(path, ": empty file"));
+    if (data.empty()) throw InputError(msg(name, ": empty file"));
     ReadReport local;
     GaussianCloud g;
     if (hasPlyMagic(data)) {
-        const PlyHeader header = parsePlyHeader(path, data);
-        const PlyBody body(path, data, header);
-        g = isCompressedPly(header) ? readCompressedPly(path, header, body, local)
-                                    : readGraphdecoPly(path, header, body, local);
-    } else if (data.size() % kSplatRecordBytes == 0) {
-        g = readSplat(path, data, local);
+        const PlyHeader header = parsePlyHeader(name, data);
+        const PlyBody body(name, data, header);
+        g = isCompressedPly(header) ? readCompressedPly(name, header, body, local)
+                                    : readGraphdecoPly(name, header, body, local);
+    } else if (hasSpzMagic(data) && !(data.size() % kSplatRecordBytes == 0 && splatImplausibility(data).empty())) {
+        // A .splat may start with the gzip bytes by chance (1 in 65536); its records decide.
+        g = readSpz(name, data, local);
     } else {
-        throw InputError(msg(path, ": not a Gaussian file: no 'ply' magic line, and its size (", data.size(),
-                             " bytes) is not a multiple of ", kSplatRecordBytes, " as a .splat would be"));
+        g = readSplat(name, data, local);
     }
-    applyInvalidPolicy(path, g, options, local);
+    applyInvalidPolicy(name, g, options, local);
     if (report) *report = std::move(local);
     return g;
+}
+
+GaussianCloud readGaussians(const std::string& path, const ReadOptions& options, ReadReport* report)
+{
+    return readGaussiansFromBytes(path, readWholeFile(path), options, report);
 }
 
 } // namespace splatwarp

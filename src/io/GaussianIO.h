@@ -1,7 +1,7 @@
 #pragma once
 /// @file GaussianIO.h
 /// @brief Reading and writing Gaussian models: graphdeco PLY (read any layout, write exactly
-///        graphdeco), `.splat`, SuperSplat compressed PLY.
+///        graphdeco), `.splat`, SuperSplat compressed PLY, Niantic `.spz` (versions 2, 3).
 #include <string>
 #include <vector>
 
@@ -20,7 +20,7 @@ struct ReadOptions {
 
 /// @brief What a read found besides the Gaussians.
 struct ReadReport {
-    std::string format;               ///< "ply-binary-le", "ply-binary-be", "ply-ascii", "splat", "ply-compressed"
+    std::string format;               ///< "ply-binary-le", "ply-binary-be", "ply-ascii", "splat", "ply-compressed", "spz-v2", "spz-v3"
     std::size_t dropped = 0;          ///< Gaussians dropped by dropInvalid
     std::size_t invalidValues = 0;    ///< NaN/Inf values found (before any drop)
     std::size_t invalidGaussians = 0; ///< Gaussians holding at least one of them
@@ -28,12 +28,18 @@ struct ReadReport {
 };
 
 /// @brief Read any supported file, detected from its content (not its extension): PLY (graphdeco
-///        layout by property name, or SuperSplat compressed) when it starts with "ply", else
-///        `.splat` when its size is a multiple of 32 bytes.
+///        layout by property name, or SuperSplat compressed) when it starts with "ply", `.spz`
+///        when it starts with the gzip magic, else `.splat` when its size is a multiple of 32
+///        bytes and its records look like Gaussians.
 /// @throws InputError naming the file and what is wrong (a Gaussian with NaN/Inf is named with
 ///         its index and property unless options say to drop or keep it); IoError when it
 ///         cannot be read.
 GaussianCloud readGaussians(const std::string& path, const ReadOptions& options = {}, ReadReport* report = nullptr);
+
+/// @brief readGaussians() of bytes already in memory (fuzzers, in-memory callers); `name` stands
+///        for the file in messages.
+GaussianCloud readGaussiansFromBytes(const std::string& name, const std::string& data, const ReadOptions& options = {},
+                                     ReadReport* report = nullptr);
 
 /// @brief Write graphdeco 3DGS PLY (binary little-endian, normals = 0, float32) atomically.
 /// @throws InputError if the cloud holds NaN/Inf (a viewer would choke on it).

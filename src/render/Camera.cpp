@@ -291,15 +291,12 @@ std::vector<Camera> orbitCameras(const GaussianCloud& cloud, const OrbitOptions&
     return cams;
 }
 
-std::vector<Camera> readCameraFile(const std::string& path, const CameraFileOptions& options)
+std::vector<Camera> parseCameraFile(const std::string& jsonText, const std::string& path,
+                                    const CameraFileOptions& options)
 {
-    std::ifstream in(path, std::ios::binary);
-    if (!in) throw IoError(msg(path, ": cannot open camera file"));
-    std::stringstream text;
-    text << in.rdbuf();
     Json top;
     try {
-        top = Json::parse(text.str());
+        top = Json::parse(jsonText);
     } catch (const Json::parse_error& e) {
         throw InputError(msg(path, ": not valid JSON: ", e.what()));
     }
@@ -313,6 +310,15 @@ std::vector<Camera> readCameraFile(const std::string& path, const CameraFileOpti
         reader.fail("", "neither a graphdeco cameras.json (a list) nor a transforms.json (an object with 'frames')");
     if (cams.empty()) reader.fail("", "contains no cameras");
     return cams;
+}
+
+std::vector<Camera> readCameraFile(const std::string& path, const CameraFileOptions& options)
+{
+    std::ifstream in(path, std::ios::binary);
+    if (!in) throw IoError(msg(path, ": cannot open camera file"));
+    std::stringstream text;
+    text << in.rdbuf();
+    return parseCameraFile(text.str(), path, options);
 }
 
 } // namespace splatwarp

@@ -71,4 +71,8 @@ struct CameraFileOptions {
 /// @throws InputError naming the file and the element when it is malformed; IoError when unreadable.
 std::vector<Camera> readCameraFile(const std::string& path, const CameraFileOptions& options = {});
 
+/// @brief readCameraFile() of JSON text already in memory; `path` names it in messages.
+std::vector<Camera> parseCameraFile(const std::string& jsonText, const std::string& path,
+                                    const CameraFileOptions& options = {});
+
 } // namespace splatwarp

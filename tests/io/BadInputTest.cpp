@@ -5,7 +5,9 @@
 #include <chrono>
 #include <cmath>
 #include <filesystem>
+#include <cstring>
 #include <limits>
+#include <random>
 
 #include "PlyTestFiles.h"
 #include "core/Error.h"
@@ -188,6 +190,52 @@ TEST(BadInput, EmptyAndGarbageFiles)
     check(dir, "magic-only.ply", "ply\n", {"no 'end_header'"});
     // .splat records whose scale is 0 give log(0) = -Inf: refused as non-finite.
     std::string splat(64, '\0');
+    splat[28] = splat[60] = char(255); // quaternion bytes (255, 128, 128, 128): w = 127/128
+    for (int b : {29, 30, 31, 61, 62, 63}) splat[b] = char(128);
     check(dir, "zero.splat", splat, {"Gaussian 0", "'scale_0'"});
     EXPECT_EQ(runCli("convert " + dir.file("does-not-exist.ply") + " " + dir.file("o.ply")), 1);
+}
+
+namespace {
+
+// n plausible .splat records (position i, scale 0.01, identity quaternion bytes).
+std::string plausibleSplat(std::size_t n)
+{
+    std::string s;
+    for (std::size_t i = 0; i < n; ++i) {
+        const float f[6] = {float(i), 0.5f, -1.0f, 0.01f, 0.02f, 0.03f};
+        s.append(reinterpret_cast<const char*>(f), sizeof(f));
+        const unsigned char u[8] = {200, 100, 50, 255, 255, 128, 128, 128};
+        s.append(reinterpret_cast<const char*>(u), sizeof(u));
+    }
+    return s;
+}
+
+std::string multipleOf32(std::string s) { return s.substr(0, s.size() / 32 * 32); }
+
+} // namespace
+
+// Issue 11 group 5: text, a README, random bytes or a cut .vdb of a multiple of 32 bytes are not
+// read as .splat; a real .splat with a few degenerate records still is.
+TEST(BadInput, OnlyPlausibleRecordsReadAsSplat)
+{
+    TempDir dir;
+    const std::string readme = multipleOf32(readBytes(std::string(SPLATWARP_SOURCE_DIR) + "/README.md"));
+    ASSERT_GT(readme.size(), 1000u);
+    check(dir, "README.splat", readme, {"do not read as .splat records", "look like Gaussians"});
+    check(dir, "text.splat", multipleOf32(std::string(320, 'x')), {"do not read as .splat records"});
+    std::mt19937 rng(7);
+    std::string noise(32 * 200, '\0');
+    for (char& c : noise) c = char(rng() & 0xff);
+    check(dir, "noise.splat", noise, {"do not read as .splat records"});
+    check(dir, "nan.splat", std::string(64, char(0xff)), {"no record has finite values"});
+
+    std::string degenerate = plausibleSplat(20);
+    std::memset(&degenerate[32 * 3 + 28], 0, 4); // one zero quaternion written as bytes 0
+    writeBytes(dir.file("ok.splat"), degenerate);
+    EXPECT_EQ(readGaussians(dir.file("ok.splat")).size(), 20u);
+
+    const std::string vdb = dataPath("volumes/sphere.vdb");
+    if (vdb.empty()) GTEST_SKIP() << "../shared/data/volumes/sphere.vdb missing: cut .vdb case not run";
+    check(dir, "cut.splat", multipleOf32(readBytes(vdb).substr(0, 40000)), {"do not read as .splat records"});
 }
