@@ -8,10 +8,8 @@
 #include "core/Error.h"
 #include "core/Progress.h"
 #include "deform/DeformReport.h"
-#include "deform/StageOneDevice.h"
 #include "deform/WarpDevice.h"
 #include "image/ImageIO.h"
-#include "io/GaussianIO.h"
 #include "render/Camera.h"
 #include "render/ComparisonSheet.h"
 #include "stage2/StageTwoDevice.h"
@@ -57,6 +55,7 @@ nlohmann::json stageTwoJson(const StageTwoReport& r, const SampleGrid& grid, con
               {"update", r.msUpdate}, {"total", r.msTotal}}}};
 }
 
+
 /// Cameras that frame both the rest and the deformed shape.
 std::vector<Camera> comparisonCameras(const GaussianCloud& rest, const GaussianCloud& deformed, const DeformJobOptions& o)
 {
@@ -68,119 +67,179 @@ std::vector<Camera> comparisonCameras(const GaussianCloud& rest, const GaussianC
     return orbitCameras(both, orbit);
 }
 
+/// The optional outputs of Stage II's result: field.vdb and compare.png.
+void writeExtras(const DeformRest& rest, const GaussianCloud& stage1, const GaussianCloud& fitted,
+                 const DeformJobOptions& o, const FrameOutputs& out, nlohmann::json& report)
+{
+    Stopwatch clock;
+    if (!out.vdb.empty()) {
+        const SampleGrid fieldGrid(fitted, withDevice(o.grid, o.device));
+        VdbExportOptions vo;
+        vo.source = out.deformed;
+        vo.threaded = o.grid.threaded;
+        writeSampleGridVdb(out.vdb, fieldGrid, vo);
+        report["outputs"]["field"] = out.vdb;
+        report["timingsMs"]["vdb"] = clock.ms();
+    }
+    if (!out.compare.empty()) {
+        clock.reset();
+        ComparisonSheetOptions sheetOptions;
+        sheetOptions.device = o.device;
+        const Image sheet = renderComparisonSheet({&rest.model, &stage1, &fitted}, {"rest", "stage I", "stage II"},
+                                                  comparisonCameras(rest.model, fitted, o), sheetOptions);
+        writePng(out.compare, sheet);
+        report["outputs"]["compare"] = out.compare;
+        report["timingsMs"]["render"] = clock.ms();
+    }
+}
+
+/// Stage II on a warped copy of the rest samples, with the held-out errors; returns the fitted model.
+GaussianCloud stageTwo(DeformRest& rest, const Deformation& deformation, const StageOneResult& stage1,
+                       const DeformJobOptions& o, nlohmann::json& report)
+{
+    Stopwatch clock;
+    SampleSet samples = rest.grid->samples(); // the rest samples stay untouched for the next frame
+    const char* warpDevice = warpSamplesOn(o.device, samples, deformation, o.grid.threaded);
+    report["timingsMs"]["warpSamples"] = clock.ms();
+    report["warpDevice"] = warpDevice;
+    progress(msg("warped ", rest.grid->stats().samples, " samples in ", int(clock.ms()), " ms on ", warpDevice));
+
+    std::optional<HeldOutPoints> heldOut;
+    std::optional<FieldErrorTarget> target;
+    if (rest.heldOut) {
+        clock.reset();
+        heldOut = rest.heldOut;
+        warpHeldOutPoints(*heldOut, deformation, o.device, o.grid.threaded);
+        target = rotatedTarget(*rest.heldOutRest, *heldOut);
+        const FieldErrorReport e1 = evaluateHeldOut(*target, stage1.deformed, *heldOut, o.device);
+        report["stage1"]["field_error"] = fieldErrorJson(e1);
+        report["timingsMs"]["evaluate"] = rest.heldOutMs + clock.ms();
+        progress(msg("Stage I held-out field error: opacity ", e1.opacity, ", color ", e1.color));
+    }
+
+    GaussianCloud fitted = stage1.deformed;
+    nlohmann::json curve = nlohmann::json::array();
+    auto onEval = [&](int iteration, const GaussianCloud& current) {
+        const FieldErrorReport e = evaluateHeldOut(*target, current, *heldOut, o.device);
+        nlohmann::json j = fieldErrorJson(e);
+        j["iteration"] = iteration;
+        curve.push_back(j);
+        progress(msg("Stage II iteration ", iteration, ": held-out opacity error ", e.opacity));
+    };
+    progress(msg("Stage II: ", o.stage2.iterations, " iterations on ", stage1.movingCount, " moving Gaussians"));
+    const StageTwoReport r2 = runStageTwo(o.device, fitted, samples, stage1.moving, rest.grid->gaussianCell(), o.stage2,
+                                          o.evalEvery > 0 ? std::function<void(int, const GaussianCloud&)>(onEval)
+                                                          : std::function<void(int, const GaussianCloud&)>(),
+                                          o.evalEvery);
+    report["stage2"] = stageTwoJson(r2, *rest.grid, o.stage2);
+    report["timingsMs"]["stage2"] = r2.msTotal;
+    if (o.evalEvery > 0) report["stage2"]["eval_curve"] = curve;
+    if (heldOut) {
+        const FieldErrorReport e2 = evaluateHeldOut(*target, fitted, *heldOut, o.device);
+        report["stage2"]["field_error"] = fieldErrorJson(e2);
+        progress(msg("Stage II held-out field error: opacity ", e2.opacity, ", color ", e2.color));
+    }
+    return fitted;
+}
+
 } // namespace
 
-nlohmann::json runDeformJob(const DeformJobOptions& o)
+GraphOptions graphOptionsOf(const DeformSpec& spec, const DeformJobOptions& o)
+{
+    GraphOptions g = spec.graph;
+    if (o.nodes) g.nodes = *o.nodes;
+    if (o.k) g.k = *o.k;
+    if (o.seed) g.seed = *o.seed;
+    return g;
+}
+
+std::unique_ptr<DeformRest> prepareDeformRest(const DeformJobOptions& o, const GraphOptions& graph)
+{
+    resolveDevice(o.device); // fail before any work when the device cannot run
+    auto rest = std::make_unique<DeformRest>();
+    Stopwatch clock;
+    rest->model = readGaussians(o.input, ReadOptions{}, &rest->read);
+    rest->readMs = clock.ms();
+    progress(msg("read ", rest->model.size(), " Gaussians (SH degree ", rest->model.shDegree, ") from ", o.input));
+    clock.reset();
+    rest->graph = DeformationGraph::build(rest->model, graph, o.ed.threaded);
+    rest->graphMs = clock.ms();
+    progress(msg("deformation graph: ", rest->graph.nodeCount(), " nodes, k = ", rest->graph.k(), " (", int(rest->graphMs), " ms)"));
+    clock.reset();
+    rest->rig = prepareStageOne(rest->model, rest->graph, o.stage1);
+    rest->rigMs = clock.ms();
+    rest->stageOne = std::make_unique<StageOneUpdater>(o.device, rest->model, rest->rig, rest->graph, o.stage1);
+    if (o.stage1Only) return rest;
+    // The rest field sampled into sparse cells; every frame warps a copy of it.
+    clock.reset();
+    rest->grid = std::make_unique<SampleGrid>(rest->model, withDevice(o.grid, o.device));
+    rest->sampleGridMs = clock.ms();
+    if (o.evaluate || o.evalEvery > 0) {
+        clock.reset();
+        HeldOutOptions heldOutOptions = o.heldOut;
+        heldOutOptions.device = o.device;
+        rest->heldOut = drawHeldOutPoints(*rest->grid, heldOutOptions);
+        rest->heldOutRest = unrotatedTarget(rest->model, *rest->heldOut, o.device);
+        rest->heldOutMs = clock.ms();
+    }
+    return rest;
+}
+
+nlohmann::json runDeformFrame(DeformRest& rest, const DeformSpec& spec, const DeformJobOptions& o, const FrameOutputs& out,
+                              GaussianCloud* written)
 {
     Stopwatch total, clock;
-    resolveDevice(o.device); // fail before any work when the device cannot run
-    DeformSpec spec = loadDeformSpec(o.specPath);
-    if (o.nodes) spec.graph.nodes = *o.nodes;
-    if (o.k) spec.graph.k = *o.k;
-    if (o.seed) spec.graph.seed = *o.seed;
-    ReadReport readReport;
-    const GaussianCloud rest = readGaussians(o.input, ReadOptions{}, &readReport);
-    const double readMs = clock.ms();
-    progress(msg("read ", rest.size(), " Gaussians (SH degree ", rest.shDegree, ") from ", o.input));
-
-    std::error_code ec;
-    std::filesystem::create_directories(o.outDir, ec);
-    if (ec) throw IoError(msg(o.outDir, ": cannot create output directory: ", ec.message()));
-
-    // Stage I.
-    const Deformation deformation = solveDeformation(rest, spec, o.ed);
-    const StageOneResult stage1 = runStageOneOn(o.device, rest, deformation, o.stage1);
-    nlohmann::json report = stageOneReportJson(deformation, stage1, spec.graph, o.ed);
-    report["input"] = {{"path", o.input}, {"format", readReport.format}, {"gaussians", rest.size()},
-                       {"shDegree", rest.shDegree}};
+    Deformation deformation = solveDeformation(rest.graph, rest.model, spec, o.ed);
+    deformation.report.graphMs = rest.graphMs;
+    StageOneResult stage1 = rest.stageOne->apply(deformation.transforms, deformation.nodeMoving);
+    stage1.timings.rigMs = rest.rigMs;
+    progress(msg("Stage I: ", stage1.movingCount, " of ", rest.model.size(), " Gaussians moved (", int(rest.rigMs),
+                 " ms weights, ", int(stage1.timings.updateMs), " ms update on ", stage1.device, ")"));
+    nlohmann::json report = stageOneReportJson(deformation, stage1, graphOptionsOf(spec, o), o.ed);
+    report["input"] = {{"path", o.input}, {"format", rest.read.format}, {"gaussians", rest.model.size()},
+                       {"shDegree", rest.model.shDegree}};
     report["spec"] = o.specPath;
-    report["timingsMs"]["read"] = readMs;
-    const std::string baseline = outPath(o, "baseline.ply");
-    clock.reset();
-    writePly(baseline, stage1.deformed);
-    double writeMs = clock.ms();
-    report["outputs"]["baseline"] = baseline;
-
+    report["timingsMs"]["read"] = rest.readMs;
+    double writeMs = 0;
+    if (!out.baseline.empty()) {
+        clock.reset();
+        writePly(out.baseline, stage1.deformed);
+        writeMs = clock.ms();
+        report["outputs"]["baseline"] = out.baseline;
+    }
     if (!o.stage1Only) {
-        // The rest field sampled into sparse cells, then warped by the same deformation.
+        report["timingsMs"]["sampleGrid"] = rest.sampleGridMs;
+        const GaussianCloud fitted = stageTwo(rest, deformation, stage1, o, report);
         clock.reset();
-        SampleGrid grid(rest, withDevice(o.grid, o.device));
-        report["timingsMs"]["sampleGrid"] = clock.ms();
-        clock.reset();
-        const char* warpDevice = warpSamplesOn(o.device, grid.samples(), deformation, o.grid.threaded);
-        report["timingsMs"]["warpSamples"] = clock.ms();
-        report["warpDevice"] = warpDevice;
-        progress(msg("warped ", grid.stats().samples, " samples in ", int(clock.ms()), " ms on ", warpDevice));
-
-        std::optional<HeldOutPoints> heldOut;
-        std::optional<FieldErrorTarget> heldOutRest; // the rest side, computed once for every evaluation
-        if (o.evaluate || o.evalEvery > 0) {
-            clock.reset();
-            HeldOutOptions heldOutOptions = o.heldOut;
-            heldOutOptions.device = o.device;
-            heldOut = makeHeldOutPoints(grid, deformation, heldOutOptions);
-            heldOutRest = heldOutTarget(rest, *heldOut, o.device);
-            const FieldErrorReport e1 = evaluateHeldOut(*heldOutRest, stage1.deformed, *heldOut, o.device);
-            report["stage1"]["field_error"] = fieldErrorJson(e1);
-            report["timingsMs"]["evaluate"] = clock.ms();
-            progress(msg("Stage I held-out field error: opacity ", e1.opacity, ", color ", e1.color));
-        }
-
-        // Stage II: fit the moving Gaussians to the warped field.
-        GaussianCloud fitted = stage1.deformed;
-        nlohmann::json curve = nlohmann::json::array();
-        auto onEval = [&](int iteration, const GaussianCloud& current) {
-            const FieldErrorReport e = evaluateHeldOut(*heldOutRest, current, *heldOut, o.device);
-            nlohmann::json j = fieldErrorJson(e);
-            j["iteration"] = iteration;
-            curve.push_back(j);
-            progress(msg("Stage II iteration ", iteration, ": held-out opacity error ", e.opacity));
-        };
-        progress(msg("Stage II: ", o.stage2.iterations, " iterations on ", stage1.movingCount, " moving Gaussians"));
-        const StageTwoReport r2 = runStageTwo(o.device, fitted, grid.samples(), stage1.moving, grid.gaussianCell(), o.stage2,
-                                                   o.evalEvery > 0 ? std::function<void(int, const GaussianCloud&)>(onEval)
-                                                                   : std::function<void(int, const GaussianCloud&)>(),
-                                                   o.evalEvery);
-        report["stage2"] = stageTwoJson(r2, grid, o.stage2);
-        report["timingsMs"]["stage2"] = r2.msTotal;
-        if (o.evalEvery > 0) report["stage2"]["eval_curve"] = curve;
-        if (heldOut) {
-            const FieldErrorReport e2 = evaluateHeldOut(*heldOutRest, fitted, *heldOut, o.device);
-            report["stage2"]["field_error"] = fieldErrorJson(e2);
-            progress(msg("Stage II held-out field error: opacity ", e2.opacity, ", color ", e2.color));
-        }
-        const std::string deformed = outPath(o, "deformed.ply");
-        clock.reset();
-        writePly(deformed, fitted);
+        writePly(out.deformed, fitted);
         writeMs += clock.ms();
-        report["outputs"]["deformed"] = deformed;
-
-        if (o.writeVdb) {
-            clock.reset();
-            SampleGridOptions go = withDevice(o.grid, o.device);
-            const SampleGrid fieldGrid(fitted, go);
-            VdbExportOptions vo;
-            vo.source = deformed;
-            vo.threaded = o.grid.threaded;
-            const std::string vdb = outPath(o, "field.vdb");
-            writeSampleGridVdb(vdb, fieldGrid, vo);
-            report["outputs"]["field"] = vdb;
-            report["timingsMs"]["vdb"] = clock.ms();
-        }
-        if (o.render) {
-            clock.reset();
-            ComparisonSheetOptions sheetOptions;
-            sheetOptions.device = o.device;
-            const Image sheet = renderComparisonSheet({&rest, &stage1.deformed, &fitted}, {"rest", "stage I", "stage II"},
-                                                      comparisonCameras(rest, fitted, o), sheetOptions);
-            const std::string png = outPath(o, "compare.png");
-            writePng(png, sheet);
-            report["outputs"]["compare"] = png;
-            report["timingsMs"]["render"] = clock.ms();
-        }
+        report["outputs"]["deformed"] = out.deformed;
+        writeExtras(rest, stage1.deformed, fitted, o, out, report);
+        if (written) *written = fitted;
+    } else if (written) {
+        *written = std::move(stage1.deformed);
     }
     report["timingsMs"]["write"] = writeMs;
     report["timingsMs"]["total"] = total.ms();
+    if (!out.report.empty()) writeFileAtomic(out.report, report.dump(2) + "\n");
+    return report;
+}
+
+nlohmann::json runDeformJob(const DeformJobOptions& o)
+{
+    const Stopwatch total;
+    const DeformSpec spec = loadDeformSpec(o.specPath);
+    std::unique_ptr<DeformRest> rest = prepareDeformRest(o, graphOptionsOf(spec, o));
+    std::error_code ec;
+    std::filesystem::create_directories(o.outDir, ec);
+    if (ec) throw IoError(msg(o.outDir, ": cannot create output directory: ", ec.message()));
+    FrameOutputs out;
+    out.baseline = outPath(o, "baseline.ply");
+    if (!o.stage1Only) out.deformed = outPath(o, "deformed.ply");
+    if (o.writeVdb && !o.stage1Only) out.vdb = outPath(o, "field.vdb");
+    if (o.render && !o.stage1Only) out.compare = outPath(o, "compare.png");
+    nlohmann::json report = runDeformFrame(*rest, spec, o, out);
+    report["timingsMs"]["total"] = total.ms(); // the rest side included
     const std::string reportPath = outPath(o, "report.json");
     writeFileAtomic(reportPath, report.dump(2) + "\n");
     progress(msg("wrote ", o.outDir, "/{", o.stage1Only ? "baseline.ply" : "baseline.ply, deformed.ply", ", report.json}"));

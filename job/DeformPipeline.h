@@ -2,8 +2,10 @@
 /// @file DeformPipeline.h
 /// @brief One `deform` run as a library call: read, Stage I, SampleGrid + warp, Stage II, held-out
 ///        field errors, outputs (baseline.ply, deformed.ply, report.json, field.vdb, compare.png).
-///        Lives in job/ (above vdb/, whose SampleGrid it drives); the CLI only parses flags into it.
+///        Split into a rest side computed once (DeformRest) and a per-spec part (runDeformFrame)
+///        so an animation reuses the rest side for every frame with the bytes of `deform`.
 #include <cstdint>
+#include <memory>
 #include <optional>
 #include <string>
 
@@ -12,7 +14,10 @@
 #include "HeldOutEval.h"
 #include "SampleGrid.h"
 #include "core/Device.h"
+#include "deform/DeformSpec.h"
 #include "deform/StageOne.h"
+#include "deform/StageOneDevice.h"
+#include "io/GaussianIO.h"
 #include "stage2/StageTwoOptions.h"
 
 namespace splatwarp {
@@ -38,6 +43,43 @@ struct DeformJobOptions {
     int renderSize = 320;   ///< pixels per view (square)
     Device device = Device::Auto; ///< where the Stage I update and Stage II run (auto: CUDA when compiled in and a GPU is present)
 };
+
+/// @brief The spec's graph block with the options' --nodes/--k/--seed overrides applied.
+GraphOptions graphOptionsOf(const DeformSpec& spec, const DeformJobOptions& options);
+
+/// @brief What a deform run computes from the rest model alone: the model, the deformation graph,
+///        Stage I's rig (and device engine), the rest SampleGrid and the held-out rest side.
+///        Shared by every frame of an animation; not copyable or movable (the engine refers to it).
+struct DeformRest {
+    GaussianCloud model;
+    ReadReport read;
+    DeformationGraph graph;
+    StageOneRig rig;
+    std::unique_ptr<StageOneUpdater> stageOne;
+    std::unique_ptr<SampleGrid> grid;           ///< null with stage1Only
+    std::optional<HeldOutPoints> heldOut;       ///< rest points X; warped per frame
+    std::optional<FieldErrorTarget> heldOutRest; ///< rest features at X, not yet rotated
+    double readMs = 0, graphMs = 0, rigMs = 0, sampleGridMs = 0, heldOutMs = 0;
+
+    DeformRest() = default;
+    DeformRest(const DeformRest&) = delete;
+    DeformRest& operator=(const DeformRest&) = delete;
+};
+
+/// @brief Read the model and compute the rest side for a graph (graphOptionsOf() of a spec).
+std::unique_ptr<DeformRest> prepareDeformRest(const DeformJobOptions& options, const GraphOptions& graph);
+
+/// @brief Where one run of a spec writes; an empty path is not written (deformed: Stage II only).
+struct FrameOutputs {
+    std::string baseline, deformed, vdb, compare, report;
+};
+
+/// @brief Solve the spec from the rest pose, run Stage I, warp a copy of the rest samples, run
+///        Stage II, evaluate and write the outputs; returns the report (written to out.report
+///        when set). The bytes of every output depend on the rest side and the spec only.
+///        `written` (optional) receives the last model written (Stage II, or Stage I with stage1Only).
+nlohmann::json runDeformFrame(DeformRest& rest, const DeformSpec& spec, const DeformJobOptions& options,
+                              const FrameOutputs& out, GaussianCloud* written = nullptr);
 
 /// @brief Run the job and write its outputs; returns the report that was written to report.json.
 /// @throws InputError / IoError with a message naming the file and the problem.

@@ -1,13 +1,24 @@
 #include "HeldOutEval.h"
 
+#include <algorithm>
 #include <random>
 
 #include "core/Error.h"
 #include "deform/WarpDevice.h"
+#include "sh/SphericalHarmonics.h"
 
 namespace splatwarp {
 
-HeldOutPoints makeHeldOutPoints(const SampleGrid& grid, const Deformation& deformation, const HeldOutOptions& options)
+namespace {
+FeatureOptions onDevice(const HeldOutPoints& points, Device device)
+{
+    FeatureOptions options = points.features;
+    options.device = device;
+    return options;
+}
+} // namespace
+
+HeldOutPoints drawHeldOutPoints(const SampleGrid& grid, const HeldOutOptions& options)
 {
     const std::vector<std::int32_t>& cells = grid.cellCoords();
     const std::size_t cellCount = cells.size() / 3;
@@ -24,22 +35,46 @@ HeldOutPoints makeHeldOutPoints(const SampleGrid& grid, const Deformation& defor
         const std::size_t c = pickCell(rng);
         for (int a = 0; a < 3; ++a) out.rest[3 * p + a] = float((cells[3 * c + a] + unit(rng)) * h);
     }
-    out.warped.resize(out.rest.size());
-    out.rotations.resize(3 * out.rest.size());
-    warpPointsOn(options.device, deformation.graph, deformation.transforms, out.rest.data(), options.points,
-                 out.warped.data(), out.rotations.data(), grid.options().threaded);
+    out.warped = out.rest;
+    out.rotations.assign(3 * out.rest.size(), 0.0f);
+    for (std::size_t p = 0; p < options.points; ++p)
+        for (int a = 0; a < 3; ++a) out.rotations[9 * p + std::size_t(4 * a)] = 1.0f;
     out.features = grid.targetOptions(); // the very cutoff and filter the rest targets used
     return out;
 }
 
-namespace {
-FeatureOptions onDevice(const HeldOutPoints& points, Device device)
+void warpHeldOutPoints(HeldOutPoints& points, const Deformation& deformation, Device device, bool threaded)
 {
-    FeatureOptions options = points.features;
-    options.device = device;
-    return options;
+    warpPointsOn(device, deformation.graph, deformation.transforms, points.rest.data(), points.size(),
+                 points.warped.data(), points.rotations.data(), threaded);
 }
-} // namespace
+
+HeldOutPoints makeHeldOutPoints(const SampleGrid& grid, const Deformation& deformation, const HeldOutOptions& options)
+{
+    HeldOutPoints out = drawHeldOutPoints(grid, options);
+    warpHeldOutPoints(out, deformation, options.device, grid.options().threaded);
+    return out;
+}
+
+FieldErrorTarget unrotatedTarget(const GaussianCloud& rest, const HeldOutPoints& points, Device device)
+{
+    return fieldErrorTarget(rest, points.rest.data(), nullptr, points.size(), onDevice(points, device));
+}
+
+FieldErrorTarget rotatedTarget(const FieldErrorTarget& unrotated, const HeldOutPoints& points)
+{
+    FieldErrorTarget t = unrotated;
+    if (t.shDegree == 0) return t;
+    const std::size_t stride = t.features.size() / std::max<std::size_t>(t.size(), 1);
+    for (std::size_t j = 0; j < t.size(); ++j) {
+        Mat3d rot;
+        for (int a = 0; a < 3; ++a)
+            for (int b = 0; b < 3; ++b) rot.m[a][b] = points.rotations[9 * j + std::size_t(3 * a + b)];
+        ShRotation(rot, t.shDegree).apply(t.shDegree, t.features.data() + j * stride);
+    }
+    return t;
+}
+
 
 FieldErrorTarget heldOutTarget(const GaussianCloud& rest, const HeldOutPoints& points, Device device)
 {

@@ -34,6 +34,12 @@ struct HeldOutPoints {
 /// @brief Draw held-out points in the grid's active cells and warp them with the deformation.
 HeldOutPoints makeHeldOutPoints(const SampleGrid& grid, const Deformation& deformation, const HeldOutOptions& options = {});
 
+/// @brief The rest side of makeHeldOutPoints(): the points X only (warped = X, rotations identity).
+HeldOutPoints drawHeldOutPoints(const SampleGrid& grid, const HeldOutOptions& options = {});
+
+/// @brief The per-deformation side of makeHeldOutPoints(): x = phi(X) and R_p on `device`.
+void warpHeldOutPoints(HeldOutPoints& points, const Deformation& deformation, Device device, bool threaded = true);
+
 /// @brief Field error of `deformed` against `rest` pushed through the deformation, at the points;
 ///        the feature evaluations run on `device` (Auto: CUDA when available, CPU fallback on
 ///        out-of-GPU-memory).
@@ -43,6 +49,12 @@ FieldErrorReport evaluateHeldOut(const GaussianCloud& rest, const GaussianCloud&
 /// @brief The rest side of evaluateHeldOut() (rest features at the points, SH rotated), for
 ///        judging several deformed models against one rest model without recomputing it.
 FieldErrorTarget heldOutTarget(const GaussianCloud& rest, const HeldOutPoints& points, Device device = Device::Cpu);
+
+/// @brief The rest features at the points without the SH rotation (computed once per rest model).
+FieldErrorTarget unrotatedTarget(const GaussianCloud& rest, const HeldOutPoints& points, Device device = Device::Cpu);
+
+/// @brief unrotatedTarget() rotated by the points' R_p: equal to heldOutTarget(rest, points).
+FieldErrorTarget rotatedTarget(const FieldErrorTarget& unrotated, const HeldOutPoints& points);
 
 /// @brief evaluateHeldOut() against a precomputed rest side (heldOutTarget() of the same points).
 FieldErrorReport evaluateHeldOut(const FieldErrorTarget& target, const GaussianCloud& deformed,

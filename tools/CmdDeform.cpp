@@ -2,22 +2,11 @@
 /// (fit to the warped radiance field) -> baseline.ply, deformed.ply, report.json [, field.vdb, compare.png].
 #include <cstdio>
 
-#include "Command.h"
-#include "DeformPipeline.h"
-#include "GridArgs.h"
-#include "core/Device.h"
+#include "DeformArgs.h"
 #include "core/Error.h"
 
 namespace splatwarp::cli {
 namespace {
-
-struct DeformArgs {
-    DeformJobOptions job;
-    int nodes = 0, k = 0;
-    std::uint32_t seed = 0;
-    bool noLpf = false, noEval = false;
-    std::string device = "auto";
-};
 
 const CommandRegistrar reg(30, [](CLI::App& app) {
     auto args = std::make_shared<DeformArgs>();
@@ -28,37 +17,11 @@ const CommandRegistrar reg(30, [](CLI::App& app) {
     sub->add_option("input", job.input, "Input model (.ply graphdeco/compressed, .splat, .spz)")->required();
     sub->add_option("--spec", job.specPath, "Deformation spec JSON (see samples/specs/README.md)")->required();
     sub->add_option("-o,--output", job.outDir, "Output directory (created): baseline.ply, deformed.ply, report.json")->required();
-    sub->add_flag("--stage1-only", job.stage1Only, "Stop after Stage I: write baseline.ply and report.json only");
-    sub->add_option("--nodes", args->nodes, "Graph node count (overrides the spec's graph.nodes)")->check(CLI::PositiveNumber);
-    sub->add_option("--k", args->k, "Nearest nodes per point and edges per node (overrides graph.k)")->check(CLI::Range(1, 64));
-    sub->add_option("--seed", args->seed, "Seed of the farthest-point sampling (overrides graph.seed)");
-    addGridOptions(sub, job.grid);
-    sub->add_option("--iterations", job.stage2.iterations, "Stage II Adam iterations")->capture_default_str()->check(CLI::NonNegativeNumber);
-    sub->add_option("--boundary-weight", job.stage2.boundaryWeight,
-                    "lambda2: extra weight of |O* - O| where the target is empty (keeps Gaussians out of empty space)")
-        ->capture_default_str()
-        ->check(CLI::NonNegativeNumber);
-    sub->add_flag("--no-lpf", args->noLpf, "Turn off the adaptive anisotropic low-pass filter");
-    sub->add_option("--rebuild-every", job.stage2.rebuildEvery, "Rebuild the Gaussian-sample coverage every K iterations")
-        ->capture_default_str()
-        ->check(CLI::PositiveNumber);
-    sub->add_option("--eval-every", job.evalEvery, "Record the held-out field error every K Stage II iterations in the report")
-        ->check(CLI::NonNegativeNumber);
-    sub->add_option("--eval-points", job.heldOut.points, "Held-out points for the field errors")->capture_default_str()->check(CLI::PositiveNumber);
-    sub->add_flag("--no-eval", args->noEval, "Skip the held-out field errors");
-    sub->add_option("--device", args->device, "Where the computing stages run (Stage I update, field targets, sample and held-out warping, held-out evaluation, Stage II, --render): auto (CUDA when compiled in and a GPU is present; out of GPU memory falls back to the CPU), cpu, cuda")
-        ->capture_default_str()
-        ->check(CLI::IsMember({"auto", "cpu", "cuda"}));
+    addDeformOptions(sub, *args);
     sub->add_flag("--vdb", job.writeVdb, "Also write field.vdb: the Stage II model's sampled field (as `to-vdb`)");
     sub->add_flag("--render", job.render, "Also write compare.png: rest | Stage I | Stage II from a few orbit views");
     sub->callback([args, sub] {
-        DeformJobOptions job = args->job;
-        if (sub->count("--nodes")) job.nodes = args->nodes;
-        if (sub->count("--k")) job.k = args->k;
-        if (sub->count("--seed")) job.seed = args->seed;
-        job.stage2.lowPassFilter = !args->noLpf;
-        job.evaluate = !args->noEval;
-        job.device = parseDevice(args->device);
+        const DeformJobOptions job = deformJobOptions(*args, sub);
         if (job.render && job.stage1Only) throw UsageError("--render needs Stage II (drop --stage1-only)");
         const nlohmann::json report = runDeformJob(job);
         // A short summary on stdout (progress lines go to stderr).

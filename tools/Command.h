@@ -20,6 +20,9 @@ struct GlobalOptions {
 };
 GlobalOptions& globalOptions();
 
+/// @brief Add every registered subcommand to app, in --help order (main, and `batch` for each job).
+void addCommands(CLI::App& app);
+
 /// @brief The `bench` parent command (created on first use): each benchmark registers
 ///        `bench NAME` with `benchCommand(app)->add_subcommand(...)` from a CommandRegistrar
 ///        of order >= 1000.

@@ -34,6 +34,13 @@ CommandRegistrar::CommandRegistrar(int order, std::function<void(CLI::App&)> set
     registry().push_back({order, std::move(setup)});
 }
 
+void addCommands(CLI::App& app)
+{
+    auto entries = registry();
+    std::stable_sort(entries.begin(), entries.end(), [](const auto& a, const auto& b) { return a.order < b.order; });
+    for (auto& e : entries) e.setup(app);
+}
+
 GlobalOptions& globalOptions()
 {
     static GlobalOptions g;
@@ -68,9 +75,7 @@ int main(int argc, char** argv)
     app.add_option("--threads", global.threads, "Worker threads for the CPU path (0 = all cores)")
         ->check(CLI::NonNegativeNumber);
 
-    auto& entries = cli::registry();
-    std::stable_sort(entries.begin(), entries.end(), [](const auto& a, const auto& b) { return a.order < b.order; });
-    for (auto& e : entries) e.setup(app);
+    cli::addCommands(app);
 
     std::unique_ptr<tbb::global_control> threadLimit;
     app.parse_complete_callback([&] {

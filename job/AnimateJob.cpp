@@ -1,0 +1,168 @@
+#include "AnimateJob.h"
+
+#include <cstdio>
+#include <filesystem>
+
+#include "ZipWriter.h"
+#include "core/Error.h"
+#include "deform/AnimSpec.h"
+#include "image/ImageIO.h"
+#include "render/Camera.h"
+#include "render/RenderDevice.h"
+#include "splatwarp/Version.h"
+
+namespace splatwarp {
+
+namespace fs = std::filesystem;
+using json = nlohmann::json;
+
+namespace {
+
+/// Every setting that changes a frame's bytes (the settings hash covers it; resume compares it).
+json settingsJson(const DeformJobOptions& o)
+{
+    return {{"stage1Only", o.stage1Only},
+            {"nodes", o.nodes ? *o.nodes : -1},
+            {"k", o.k ? *o.k : -1},
+            {"seed", o.seed ? std::int64_t(*o.seed) : std::int64_t(-1)},
+            {"cells", o.grid.cells},
+            {"cellSize", o.grid.cellSize},
+            {"samplesPerCell", o.grid.samplesPerAxis},
+            {"cutoff", o.grid.cutoff},
+            {"iterations", o.stage2.iterations},
+            {"boundaryWeight", o.stage2.boundaryWeight},
+            {"lowPassFilter", o.stage2.lowPassFilter},
+            {"rebuildEvery", o.stage2.rebuildEvery},
+            {"evaluate", o.evaluate},
+            {"evalEvery", o.evalEvery},
+            {"evalPoints", o.heldOut.points},
+            {"vdb", o.writeVdb},
+            {"render", o.render},
+            {"device", deviceName(o.device)}};
+}
+
+void makeDirs(const fs::path& dir)
+{
+    std::error_code ec;
+    fs::create_directories(dir, ec);
+    if (ec) throw IoError(msg(dir.string(), ": cannot create output directory: ", ec.message()));
+}
+
+/// The frame previews side by side (when every one exists).
+void writeStrip(const std::string& dir, const json& items)
+{
+    std::vector<Image> frames;
+    for (const json& i : items) {
+        const fs::path p = fs::path(dir) / frameFile("preview", i.get<int>());
+        if (!fs::exists(p)) return;
+        frames.push_back(readPng(p.string()));
+    }
+    if (frames.empty()) return;
+    const int w = frames[0].width, h = frames[0].height, c = frames[0].channels;
+    Image strip(w * int(frames.size()), h, c);
+    for (std::size_t f = 0; f < frames.size(); ++f)
+        for (int y = 0; y < h; ++y)
+            for (int x = 0; x < w; ++x)
+                for (int k = 0; k < c; ++k) strip.at(int(f) * w + x, y, k) = frames[f].at(x, y, k);
+    writePng((fs::path(dir) / "preview" / "strip.png").string(), strip);
+}
+
+/// Strip and zip of a run that holds every frame of its range.
+void finishSequence(const std::string& dir, const json& items, bool zip, bool stage1Only)
+{
+    writeStrip(dir, items);
+    if (!zip) return;
+    std::vector<std::string> files;
+    for (const json& i : items) files.push_back(frameFile(stage1Only ? "baseline" : "deformed", i.get<int>()));
+    writeZip((fs::path(dir) / "sequence.zip").string(), dir, files);
+}
+
+std::string frameSummary(const json& entry)
+{
+    if (!entry.contains("field_error") || !entry["field_error"].contains("stage2")) return "written";
+    const json& e1 = entry["field_error"]["stage1"];
+    const json& e2 = entry["field_error"]["stage2"];
+    char s[160];
+    std::snprintf(s, sizeof s, "field error opacity %.4g -> %.4g, color %.4g -> %.4g", e1["opacity"].get<double>(),
+                  e2["opacity"].get<double>(), e1["color"].get<double>(), e2["color"].get<double>());
+    return s;
+}
+
+} // namespace
+
+std::string frameFile(const std::string& kind, int frame)
+{
+    char number[16];
+    std::snprintf(number, sizeof number, "%04d", frame);
+    if (kind == "vdb") return std::string("vdb/field.") + number + ".vdb";
+    if (kind == "preview") return std::string("preview/frame.") + number + ".png";
+    return "frames/" + kind + "." + number + ".ply";
+}
+
+SequenceResult runAnimateJob(const AnimateJobOptions& options)
+{
+    const DeformJobOptions& o = options.deform;
+    const std::string specText = readTextFile(o.specPath, "animation spec");
+    const AnimSpec anim = parseAnimSpec(specText, o.specPath);
+    const int last = options.last < 0 ? anim.frames - 1 : options.last;
+    if (options.first < 0 || options.first > last || last >= anim.frames)
+        throw InputError(msg(o.specPath, ": frames ", options.first, "-", last, " are outside 0..", anim.frames - 1));
+    const fs::path dir(o.outDir);
+    for (const char* sub : {"frames", "vdb", "preview"})
+        if (sub == std::string("frames") || (sub == std::string("vdb") && o.writeVdb) || (sub == std::string("preview") && o.render))
+            makeDirs(dir / sub);
+
+    // All frames share the spec's graph block, so one rest side serves them all.
+    std::unique_ptr<DeformRest> rest = prepareDeformRest(o, graphOptionsOf(frameSpec(anim, options.first), o));
+    OrbitOptions orbit;
+    orbit.views = 1;
+    orbit.width = orbit.height = options.previewSize;
+    const Camera camera = orbitCameras(rest->model, orbit).front();
+
+    SequenceRun run;
+    run.dir = o.outDir;
+    run.shard = options.shard;
+    for (int f = options.first; f <= last; ++f) run.items.push_back(f);
+    const json settings = settingsJson(o);
+    run.settingsHash = fnv1a64(specText + "\n" + o.input + "\n" + settings.dump());
+    run.header = {{"tool", "splatwarp"}, {"version", SPLATWARP_VERSION_STRING}, {"command", "animate"},
+                  {"input", o.input}, {"spec", o.specPath}, {"specHash", fnv1a64(specText)},
+                  {"frames", anim.frames}, {"range", {options.first, last}}, {"settings", settings}};
+    auto runFrame = [&](int f) {
+        FrameOutputs out;
+        json files = json::array();
+        auto add = [&](std::string& slot, const std::string& kind) {
+            slot = (dir / frameFile(kind, f)).string();
+            files.push_back(frameFile(kind, f));
+        };
+        if (o.stage1Only) add(out.baseline, "baseline");
+        else add(out.deformed, "deformed");
+        if (o.writeVdb && !o.stage1Only) add(out.vdb, "vdb");
+        GaussianCloud frame;
+        const json report = runDeformFrame(*rest, frameSpec(anim, f), o, out, &frame);
+        if (o.render) {
+            std::string png;
+            add(png, "preview");
+            writePng(png, renderGaussians(o.device, frame, camera));
+        }
+        json entry = {{"files", files}, {"timingsMs", report["timingsMs"]}};
+        if (report.contains("stage1") && report["stage1"].contains("field_error"))
+            entry["field_error"]["stage1"] = report["stage1"]["field_error"];
+        if (report.contains("stage2") && report["stage2"].contains("field_error"))
+            entry["field_error"]["stage2"] = report["stage2"]["field_error"];
+        return entry;
+    };
+    SequenceResult result = runSequence(run, runFrame, frameSummary);
+    if (options.shard.whole() && result.failed == 0) finishSequence(o.outDir, run.items, options.zip, o.stage1Only);
+    return result;
+}
+
+json mergeAnimate(const std::string& dir, bool zip)
+{
+    json merged = mergeManifests(dir);
+    if (merged["missing"].empty() && merged["failed"].empty())
+        finishSequence(dir, merged["items"], zip, merged["settings"].value("stage1Only", false));
+    return merged;
+}
+
+} // namespace splatwarp

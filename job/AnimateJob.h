@@ -1,0 +1,38 @@
+#pragma once
+/// @file AnimateJob.h
+/// @brief `animate`: a keyframed spec (deform/AnimSpec.h) run frame by frame on one rest side
+///        (DeformRest), each frame equal to `deform` with that frame's spec, byte for byte.
+///        Outputs under DIR: frames/deformed.0000.ply ..., vdb/field.0000.vdb (--vdb),
+///        preview/frame.0000.png and preview/strip.png (--render), sequence.zip (--zip) and the
+///        manifest (job/Sequence.h) with shards and resume.
+#include <string>
+
+#include <nlohmann/json.hpp>
+
+#include "DeformPipeline.h"
+#include "Sequence.h"
+#include "Shard.h"
+
+namespace splatwarp {
+
+struct AnimateJobOptions {
+    DeformJobOptions deform;   ///< input, specPath (the keyframed spec), outDir and every deform setting
+    int first = 0, last = -1;  ///< frames first..last (inclusive; -1 = the spec's last frame)
+    Shard shard;
+    bool zip = false;          ///< sequence.zip of the frame PLYs (when this run holds every frame)
+    int previewSize = 160;     ///< pixels of a --render preview (square)
+};
+
+/// @brief Run this shard's frames; the result counts done, resumed and failed frames.
+/// @throws InputError / IoError for a bad model, spec, frame range or unwritable DIR (before any frame).
+SequenceResult runAnimateJob(const AnimateJobOptions& options);
+
+/// @brief `animate --merge DIR`: mergeManifests(), then the strip and zip when every frame is
+///        there (zip: when asked).
+nlohmann::json mergeAnimate(const std::string& dir, bool zip);
+
+/// @brief Output file of a frame relative to DIR: "frames/deformed.0007.ply" (kind "deformed"),
+///        "vdb/field.0007.vdb", "preview/frame.0007.png", "frames/baseline.0007.ply".
+std::string frameFile(const std::string& kind, int frame);
+
+} // namespace splatwarp

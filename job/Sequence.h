@@ -1,0 +1,57 @@
+#pragma once
+/// @file Sequence.h
+/// @brief The run shared by `animate` and `batch`: numbered items (frames, jobs), this shard's
+///        share of them, resume (an item whose files exist and match its manifest entry is not
+///        redone), failures recorded while the others go on, one progress line per item with an
+///        ETA, and a manifest rewritten atomically after every item; per-shard manifests merged.
+#include <functional>
+#include <string>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+#include "Shard.h"
+
+namespace splatwarp {
+
+/// @brief What a sequence runs over and where it records it.
+struct SequenceRun {
+    std::string dir;              ///< output folder; file paths in the manifest are relative to it
+    std::string itemName = "frame";
+    nlohmann::json header;        ///< written at the top of the manifest (tool, input, spec hash ...)
+    std::string settingsHash;     ///< entries written under another hash are never reused
+    Shard shard;
+    std::vector<int> items;       ///< every item of the run, in order; this shard takes its share
+};
+
+/// @brief Runs one item; returns its entry: "files" (paths relative to dir, written atomically)
+///        plus anything to record (errors, timings). Throws to mark the item failed.
+using ItemRunner = std::function<nlohmann::json(int item)>;
+/// @brief The middle of an item's progress line, from its entry (e.g. the field errors).
+using ItemSummary = std::function<std::string(const nlohmann::json& entry)>;
+
+struct SequenceResult {
+    int done = 0, resumed = 0, failed = 0;
+    std::string manifest;         ///< path of the manifest written
+};
+
+/// @brief "manifest.json" for a whole run, "manifest.shard-I.json" for shard I.
+std::string manifestName(const Shard& shard);
+
+/// @brief Run this shard's items (see the file comment); the manifest lists every one of them.
+SequenceResult runSequence(const SequenceRun& run, const ItemRunner& runItem, const ItemSummary& summary);
+
+/// @brief Join dir/manifest.shard-*.json into dir/manifest.json with "missing" and "failed" item
+///        lists (items of the run that no shard finished, or that failed) and "shards" found.
+/// @throws InputError when there is no shard manifest or they disagree on the settings hash.
+nlohmann::json mergeManifests(const std::string& dir);
+
+/// @brief A whole file as bytes (specs, job lists, manifests). @throws IoError naming it and `what`.
+std::string readTextFile(const std::string& path, const std::string& what);
+
+/// @brief 64-bit FNV-1a of bytes, as 16 hex digits (spec and settings hashes, file digests).
+std::string fnv1a64(const std::string& bytes);
+/// @brief fnv1a64() of a file's contents. @throws IoError when unreadable.
+std::string fileDigest(const std::string& path);
+
+} // namespace splatwarp

@@ -1,0 +1,176 @@
+#include <gtest/gtest.h>
+
+#include <filesystem>
+#include <fstream>
+#include <map>
+#include <nlohmann/json.hpp>
+#include <sstream>
+
+#include "AnimateJob.h"
+#include "deform/AnimSpec.h"
+#include "io/GaussianIO.h"
+#include "samples/SampleModels.h"
+#include "support/TestSupport.h"
+
+using namespace splatwarp;
+using namespace splatwarp::test;
+namespace fs = std::filesystem;
+using json = nlohmann::json;
+
+namespace {
+
+/// A 3-frame bend of a small stripes bar with few iterations: a frame takes well under a second.
+const char* kAnim = R"({"version":1,"units":"bbox","frames":3,"graph":{"nodes":48,"k":6,"seed":0},
+ "handles":[{"box":{"min":[-0.01,-0.01,-0.01],"max":[0.15,1.01,1.01]},"fixed":true},
+            {"box":{"min":[0.85,-0.01,-0.01],"max":[1.01,1.01,1.01]},"pivot":[0.5,1.05,0.5],
+             "keys":[{"frame":0},{"frame":2,"rotate":{"axis":[0,0,1],"degrees":60},"translate":[0,0.05,0]}]}]})";
+const char* kFlags = "--iterations 3 --cells 12 --eval-points 3000";
+
+std::string readBytes(const std::string& path)
+{
+    std::ifstream in(path, std::ios::binary);
+    std::ostringstream s;
+    s << in.rdbuf();
+    return s.str();
+}
+
+void writeText(const std::string& path, const std::string& text) { std::ofstream(path, std::ios::binary) << text; }
+
+struct Fixture {
+    TempDir dir;
+    std::string model, spec;
+    Fixture()
+    {
+        SampleOptions so;
+        so.count = 1500;
+        model = dir.file("in.ply");
+        writePly(model, makeSample("stripes", so));
+        spec = dir.file("anim.json");
+        writeText(spec, kAnim);
+    }
+    int animate(const std::string& out, const std::string& extra = "") const
+    {
+        return runCli(msg("-q animate ", model, " --spec ", spec, " -o ", dir.file(out), " ", kFlags, " ", extra),
+                      dir.file(out + ".log"));
+    }
+    std::string frame(const std::string& out, int f) const { return readBytes(dir.file(out) + "/" + frameFile("deformed", f)); }
+};
+
+json readJson(const std::string& path)
+{
+    std::ifstream in(path);
+    return json::parse(in);
+}
+
+} // namespace
+
+TEST(AnimateJob, FrameEqualsDeformWithItsSpecAndShardsEqualTheWholeRun)
+{
+    Fixture fx;
+    ASSERT_EQ(fx.animate("whole", "--vdb"), 0) << readBytes(fx.dir.file("whole.log"));
+    // Frame 1 (between keys, slerped) written as a plain spec and run through `deform`.
+    const AnimSpec anim = parseAnimSpec(kAnim, "anim.json");
+    writeText(fx.dir.file("frame1.json"), frameSpecJson(anim, 1).dump(2));
+    ASSERT_EQ(runCli(msg("-q deform ", fx.model, " --spec ", fx.dir.file("frame1.json"), " -o ", fx.dir.file("d1"), " ", kFlags, " --vdb")), 0);
+    const std::string deformed = readBytes(fx.dir.file("d1/deformed.ply"));
+    ASSERT_FALSE(deformed.empty());
+    EXPECT_TRUE(fx.frame("whole", 1) == deformed) << "frame 1 differs from deform with its spec";
+    // .vdb files carry a random UUID (never byte-equal); the sequence naming is what matters.
+    EXPECT_GT(fs::file_size(fx.dir.file("whole/vdb/field.0001.vdb")), 1000u);
+    EXPECT_FALSE(fx.frame("whole", 0) == fx.frame("whole", 2));
+
+    // Two shards into one folder, merged: every frame byte-equal to the whole run.
+    ASSERT_EQ(fx.animate("sharded", "--shard 1/2"), 0);
+    ASSERT_EQ(fx.animate("sharded", "--shard 0/2"), 0);
+    EXPECT_TRUE(fs::exists(fx.dir.file("sharded/manifest.shard-1.json")));
+    EXPECT_EQ(runCli(msg("-q animate --merge ", fx.dir.file("sharded"), " --zip")), 0);
+    for (int f = 0; f < 3; ++f) EXPECT_TRUE(fx.frame("sharded", f) == fx.frame("whole", f)) << f;
+    const json m = readJson(fx.dir.file("sharded/manifest.json"));
+    EXPECT_EQ(m["entries"].size(), 3u);
+    EXPECT_TRUE(m["missing"].empty());
+    EXPECT_EQ(m["entries"][1]["files"][0]["path"], "frames/deformed.0001.ply");
+    EXPECT_EQ(m["entries"][1]["files"][0]["bytes"].get<std::size_t>(), fx.frame("whole", 1).size());
+    EXPECT_TRUE(m["entries"][2]["field_error"]["stage2"].contains("opacity"));
+    EXPECT_EQ(m["specHash"], fnv1a64(kAnim));
+    EXPECT_GT(fs::file_size(fx.dir.file("sharded/sequence.zip")), 3 * fx.frame("whole", 1).size());
+}
+
+TEST(AnimateJob, ResumeRedoesOnlyFramesWhoseFilesOrEntriesAreMissing)
+{
+    Fixture fx;
+    ASSERT_EQ(fx.animate("out"), 0);
+    const std::string manifestPath = fx.dir.file("out/manifest.json");
+    const std::string before = fx.frame("out", 2);
+    // A kill during frame 2: its file may be there but its entry is not.
+    json m = readJson(manifestPath);
+    m["entries"].erase(2);
+    writeText(manifestPath, m.dump());
+    // Frame 0's file was damaged afterwards: its bytes no longer match the entry.
+    writeText(fx.dir.file("out/") + frameFile("deformed", 0), "truncated");
+    ASSERT_EQ(fx.animate("out"), 0);
+    const std::string log = readBytes(fx.dir.file("out.log"));
+    EXPECT_NE(log.find("2 done, 1 resumed, 0 failed"), std::string::npos) << log;
+    const json after = readJson(manifestPath);
+    ASSERT_EQ(after["entries"].size(), 3u);
+    EXPECT_TRUE(fx.frame("out", 2) == before);
+    EXPECT_GT(fs::file_size(fx.dir.file("out/") + frameFile("deformed", 0)), 100u);
+    // Rerun without changes: nothing is computed (the stdout summary counts it).
+    ASSERT_EQ(runCli(msg("-q animate ", fx.model, " --spec ", fx.spec, " -o ", fx.dir.file("out"), " ", kFlags), fx.dir.file("again.log")), 0);
+    EXPECT_NE(readBytes(fx.dir.file("again.log")).find("0 done, 3 resumed, 0 failed"), std::string::npos)
+        << readBytes(fx.dir.file("again.log"));
+    // Different settings never reuse frames.
+    ASSERT_EQ(runCli(msg("-q animate ", fx.model, " --spec ", fx.spec, " -o ", fx.dir.file("out"), " ", kFlags,
+                         " --frames 1-1 --boundary-weight 5"), fx.dir.file("changed.log")), 0);
+    EXPECT_NE(readBytes(fx.dir.file("changed.log")).find("1 done, 0 resumed"), std::string::npos);
+}
+
+TEST(AnimateJob, MergeWithAMissingShardListsItsFramesAndFails)
+{
+    Fixture fx;
+    ASSERT_EQ(fx.animate("out", "--shard 0/2"), 0);
+    EXPECT_EQ(runCli(msg("animate --merge ", fx.dir.file("out")), fx.dir.file("merge.log")), 1);
+    const json m = readJson(fx.dir.file("out/manifest.json"));
+    EXPECT_EQ(m["missing"], json::parse("[1]"));
+    EXPECT_EQ(m["shards"]["found"], json::parse("[0]"));
+    EXPECT_NE(readBytes(fx.dir.file("merge.log")).find("missing [1]"), std::string::npos);
+}
+
+TEST(AnimateJob, BadInputExitsWithAClearMessageAndWritesNothing)
+{
+    Fixture fx;
+    EXPECT_EQ(fx.animate("a", "--shard 2/2"), 2);
+    EXPECT_NE(readBytes(fx.dir.file("a.log")).find("shard index 2 must be below the shard count 2"), std::string::npos);
+    EXPECT_EQ(fx.animate("b", "--frames 2-7"), 1);
+    EXPECT_NE(readBytes(fx.dir.file("b.log")).find("frames 2-7 are outside 0..2"), std::string::npos);
+    writeText(fx.spec, std::string(kAnim).replace(std::string(kAnim).find("\"frame\":2"), 9, "\"frame\":5"));
+    EXPECT_EQ(fx.animate("c"), 1);
+    EXPECT_NE(readBytes(fx.dir.file("c.log")).find("frame 5 is outside 0..2"), std::string::npos) << readBytes(fx.dir.file("c.log"));
+    writeText(fx.spec, kAnim);
+    writeText(fx.dir.file("file"), "x");
+    EXPECT_EQ(runCli(msg("animate ", fx.model, " --spec ", fx.spec, " -o ", fx.dir.file("file/out"), " ", kFlags), fx.dir.file("d.log")), 1);
+    EXPECT_NE(readBytes(fx.dir.file("d.log")).find("cannot create output directory"), std::string::npos);
+    for (const char* d : {"a", "b", "c"}) EXPECT_FALSE(fs::exists(fx.dir.file(d))) << d;
+}
+
+TEST(Batch, RunsEveryJobRecordsFailuresAndResumes)
+{
+    Fixture fx;
+    writeText(fx.dir.file("jobs.json"), msg(R"({"jobs":[
+      {"kind":"deform","input":")", fx.model, R"(","output":"bend","args":["--spec",")",
+                                           std::string(SPLATWARP_SOURCE_DIR) + "/samples/specs/bend.json", R"(","--stage1-only","--nodes","48"]},
+      {"kind":"to-vdb","input":"no-such.ply","output":"bad.vdb"},
+      {"kind":"to-vdb","input":")", fx.model, R"(","output":"in.vdb","args":["--cells","12"]}]})"));
+    const std::string run = msg("-q batch ", fx.dir.file("jobs.json"), " -o ", fx.dir.file("b"));
+    EXPECT_EQ(runCli(run, fx.dir.file("1.log")), 1); // one job failed, the others went on
+    const json m = readJson(fx.dir.file("b/manifest.json"));
+    ASSERT_EQ(m["entries"].size(), 3u);
+    EXPECT_EQ(m["entries"][0]["status"], "done");
+    EXPECT_EQ(m["entries"][1]["status"], "failed");
+    EXPECT_NE(m["entries"][1]["message"].get<std::string>().find("no-such.ply"), std::string::npos);
+    EXPECT_EQ(m["entries"][2]["files"][0]["path"], "in.vdb");
+    EXPECT_EQ(runCli(run, fx.dir.file("2.log")), 1);
+    EXPECT_NE(readBytes(fx.dir.file("2.log")).find("0 done, 2 resumed, 1 failed"), std::string::npos) << readBytes(fx.dir.file("2.log"));
+    writeText(fx.dir.file("kinds.json"), R"({"jobs":[{"kind":"render","input":"a","output":"b"}]})");
+    EXPECT_EQ(runCli(msg("batch ", fx.dir.file("kinds.json"), " -o ", fx.dir.file("c")), fx.dir.file("3.log")), 1);
+    EXPECT_NE(readBytes(fx.dir.file("3.log")).find("\"kind\" must be one of deform, animate, to-vdb"), std::string::npos);
+}
