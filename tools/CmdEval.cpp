@@ -4,7 +4,9 @@
 
 #include "Command.h"
 #include "GridArgs.h"
+#include "FromVdb.h"
 #include "HeldOutEval.h"
+#include "fit/Extinction.h"
 #include "core/Error.h"
 #include "core/Progress.h"
 #include "deform/DeformSpec.h"
@@ -15,28 +17,76 @@ namespace {
 
 struct EvalArgs {
     std::string rest, deformed, spec;
+    std::string volume, model, as = "auto";
+    VolumeReadOptions read;
+    VolumeJudgeOptions judge;
     bool json = false;
     std::string device = "auto";
     SampleGridOptions grid;
     HeldOutOptions heldOut;
 };
 
+void printReport(const FieldErrorReport& r, bool json)
+{
+    if (json) {
+        std::printf("%s\n", fieldErrorJson(r).dump(2).c_str());
+        return;
+    }
+    std::printf("held-out points: %zu (%zu inside, %zu outside)\n", r.points, r.insidePoints, r.outsidePoints);
+    std::printf("opacity error:   %.6g (inside %.6g, outside %.6g)\n", r.opacity, r.opacityInside, r.opacityOutside);
+    std::printf("color error:     %.6g (inside %.6g, outside %.6g)\n", r.color, r.colorInside, r.colorOutside);
+}
+
+void addVolumeOptions(CLI::App* sub, EvalArgs& a)
+{
+    sub->add_option("--volume", a.volume,
+                    "Judge --model against this .vdb instead (the from-vdb metric: trilinear values at random "
+                    "points of the active voxels and --band voxels around them)");
+    sub->add_option("--model", a.model, "With --volume: the splats to judge");
+    sub->add_option("--grid", a.read.grid, "With --volume: the FloatGrid (default: density, else the only one)");
+    sub->add_option("--color-grid", a.read.colorGrid, "With --volume: the Vec3S colour grid (default color or Cd; none)");
+    sub->add_option("--as", a.as, "With --volume: what the model's opacity means (auto, field, extinction; as from-vdb)")
+        ->capture_default_str()
+        ->check(CLI::IsMember({"auto", "field", "extinction"}));
+    sub->add_option("--band", a.judge.band, "With --volume: empty voxels around the active ones that count")
+        ->capture_default_str()
+        ->check(CLI::Range(0, 16));
+}
+
+/// `eval --volume`: the from-vdb held-out error of any splat model against a volume.
+void evalVolume(const EvalArgs& a)
+{
+    if (a.model.empty()) throw UsageError("eval --volume needs --model");
+    const Volume volume = readVolume(a.volume, a.read);
+    GaussianCloud model = readGaussians(a.model);
+    if (model.shDegree != volume.info().shDegree) model = withShDegree(model, volume.info().shDegree);
+    const VolumeMeaning meaning = resolveMeaning(parseVolumeMeaning(a.as), volume);
+    const double scale = densityScale(meaning, volume);
+    if (meaning == VolumeMeaning::Extinction) opacityToExtinction(model, scale);
+    VolumeJudgeOptions judge = a.judge;
+    judge.points = a.heldOut.points;
+    judge.seed = a.heldOut.seed;
+    printReport(judgeModel(makeVolumeJudge(volume, scale, judge), model), a.json);
+}
+
 const CommandRegistrar reg(35, [](CLI::App& app) {
     auto a = std::make_shared<EvalArgs>();
     CLI::App* sub = app.add_subcommand(
         "eval", "Field fidelity of a deformed model: relative L1 error of opacity and SH features at held-out points "
                 "of the rest field pushed through the spec's deformation (inside the object and outside it)");
-    sub->add_option("--rest", a->rest, "Rest (undeformed) model")->required();
-    sub->add_option("--deformed", a->deformed, "Deformed model to judge (e.g. baseline.ply or deformed.ply)")
-        ->required()
-        ;
-    sub->add_option("--spec", a->spec, "The deformation spec that produced it")->required();
+    sub->add_option("--rest", a->rest, "Rest (undeformed) model");
+    sub->add_option("--deformed", a->deformed, "Deformed model to judge (e.g. baseline.ply or deformed.ply)");
+    sub->add_option("--spec", a->spec, "The deformation spec that produced it");
+    addVolumeOptions(sub, *a);
     sub->add_option("--points", a->heldOut.points, "Held-out points")->capture_default_str()->check(CLI::PositiveNumber);
     sub->add_option("--seed", a->heldOut.seed, "Seed of the held-out points")->capture_default_str();
     addGridOptions(sub, a->grid);
     sub->add_flag("--json", a->json, "Print JSON (keys opacity, color, points, inside, outside)");
     addDeviceOption(sub, a->device, "the rest targets, the point warping and the feature evaluations run (the grid's topology stays on the CPU)");
     sub->callback([a] {
+        if (!a->volume.empty()) return evalVolume(*a);
+        if (a->rest.empty() || a->deformed.empty() || a->spec.empty())
+            throw UsageError("eval needs --rest, --deformed and --spec (or --volume and --model)");
         const Device device = parseDevice(a->device);
         const GaussianCloud rest = readGaussians(a->rest);
         const GaussianCloud deformed = readGaussians(a->deformed);
@@ -48,13 +98,7 @@ const CommandRegistrar reg(35, [](CLI::App& app) {
         heldOut.device = device;
         const HeldOutPoints points = makeHeldOutPoints(grid, deformation, heldOut);
         const FieldErrorReport r = evaluateHeldOut(rest, deformed, points, device);
-        if (a->json) {
-            std::printf("%s\n", fieldErrorJson(r).dump(2).c_str());
-            return;
-        }
-        std::printf("held-out points: %zu (%zu inside, %zu outside)\n", r.points, r.insidePoints, r.outsidePoints);
-        std::printf("opacity error:   %.6g (inside %.6g, outside %.6g)\n", r.opacity, r.opacityInside, r.opacityOutside);
-        std::printf("color error:     %.6g (inside %.6g, outside %.6g)\n", r.color, r.colorInside, r.colorOutside);
+        printReport(r, a->json);
     });
 });
 

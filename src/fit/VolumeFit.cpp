@@ -1,0 +1,125 @@
+#include "fit/VolumeFit.h"
+
+#include <algorithm>
+#include <cmath>
+#include <nanoflann.hpp>
+#include <numeric>
+
+#include "core/Error.h"
+#include "core/Progress.h"
+#include "field/FeatureField.h"
+#include "stage2/StageTwoDevice.h"
+
+namespace splatwarp {
+
+namespace {
+
+/// nanoflann adaptor over the Gaussian centres.
+struct CentreCloud {
+    const std::vector<float>& means;
+    std::size_t kdtree_get_point_count() const { return means.size() / 3; }
+    float kdtree_get_pt(std::size_t i, std::size_t d) const { return means[3 * i + d]; }
+    template <class Box>
+    bool kdtree_get_bbox(Box&) const { return false; }
+};
+using CentreTree =
+    nanoflann::KDTreeSingleIndexAdaptor<nanoflann::L2_Simple_Adaptor<float, CentreCloud>, CentreCloud, 3, std::uint32_t>;
+
+/// Residual |O* - O| of the model at every sample (with the fit's filter).
+std::vector<float> opacityResidual(const GaussianCloud& cloud, const SampleSet& samples, const StageTwoOptions& o)
+{
+    FeatureOptions f;
+    f.cutoff = o.cutoff;
+    f.filterVariance = o.lowPassFilter ? o.lambdaLpf * samples.spacing * samples.spacing : 0.0f;
+    std::vector<float> opacity(samples.sampleCount());
+    evaluateFeatures(cloud, samples.restPositions.data(), samples.sampleCount(), f, nullptr, opacity.data());
+    for (std::size_t j = 0; j < opacity.size(); ++j) opacity[j] = std::fabs(samples.targetO[j] - opacity[j]);
+    return opacity;
+}
+
+void splitOne(GaussianCloud& cloud, std::size_t i)
+{
+    const Vec3f s = cloud.scale(i);
+    int axis = 0;
+    for (int a = 1; a < 3; ++a)
+        if (s[a] > s[axis]) axis = a;
+    const Mat3f r = quatToMatrix(cloud.rotation(i));
+    const float d = 0.5f * s[axis];
+    const Vec3f dir{r.m[0][axis] * d, r.m[1][axis] * d, r.m[2][axis] * d};
+    cloud.logScales[3 * i + std::size_t(axis)] += std::log(0.6f);
+    GaussianCloud copy; // append() from the cloud itself would read from a reallocating vector
+    copy.shDegree = cloud.shDegree;
+    copy.append(cloud, i);
+    cloud.append(copy, 0);
+    const Vec3f m = cloud.mean(i);
+    cloud.setMean(i, Vec3f{m.x + dir.x, m.y + dir.y, m.z + dir.z});
+    cloud.setMean(cloud.size() - 1, Vec3f{m.x - dir.x, m.y - dir.y, m.z - dir.z});
+}
+
+} // namespace
+
+std::size_t initialGaussianCount(std::size_t budget, const VolumeFitOptions& o)
+{
+    if (o.rounds <= 1) return budget;
+    return std::max<std::size_t>(1, std::size_t(double(budget) * (1.0 - o.splitReserve)));
+}
+
+std::size_t pruneTransparent(GaussianCloud& cloud, float alpha)
+{
+    GaussianCloud kept;
+    kept.shDegree = cloud.shDegree;
+    for (std::size_t i = 0; i < cloud.size(); ++i)
+        if (cloud.alpha(i) >= alpha) kept.append(cloud, i);
+    const std::size_t removed = cloud.size() - kept.size();
+    cloud = std::move(kept);
+    return removed;
+}
+
+std::size_t splitLargestResidual(GaussianCloud& cloud, const SampleSet& samples, const std::vector<float>& residual,
+                                 std::size_t count)
+{
+    if (cloud.empty() || count == 0) return 0;
+    CentreCloud centres{cloud.means};
+    CentreTree tree(3, centres, nanoflann::KDTreeSingleIndexAdaptorParams(10));
+    tree.buildIndex();
+    std::vector<double> mass(cloud.size(), 0.0);
+    for (std::size_t j = 0; j < residual.size(); ++j) {
+        if (!(residual[j] > 0)) continue;
+        std::uint32_t nearest = 0;
+        float d2 = 0;
+        tree.knnSearch(&samples.restPositions[3 * j], 1, &nearest, &d2);
+        mass[nearest] += residual[j];
+    }
+    std::vector<std::size_t> order(cloud.size());
+    std::iota(order.begin(), order.end(), std::size_t(0));
+    count = std::min(count, order.size());
+    std::partial_sort(order.begin(), order.begin() + std::ptrdiff_t(count), order.end(),
+                      [&](std::size_t a, std::size_t b) { return mass[a] > mass[b] || (mass[a] == mass[b] && a < b); });
+    for (std::size_t k = 0; k < count; ++k) splitOne(cloud, order[k]);
+    return count;
+}
+
+VolumeFitReport fitToSamples(GaussianCloud& cloud, const SampleSet& samples, std::size_t budget, const VolumeFitOptions& o)
+{
+    if (o.rounds < 1 || o.iterations < 0) throw InputError("volume fit: rounds must be >= 1 and iterations >= 0");
+    VolumeFitReport report;
+    for (int round = 0; round < o.rounds; ++round) {
+        StageTwoOptions s2 = o.stage2;
+        s2.iterations = o.iterations / o.rounds + (round < o.iterations % o.rounds ? 1 : 0);
+        const std::vector<std::uint8_t> moving(cloud.size(), 1);
+        const std::vector<std::int32_t> cell(cloud.size(), samples.cellCount() > 0 && s2.lowPassFilter ? 0 : -1);
+        if (s2.iterations > 0) report.rounds.push_back(runStageTwo(o.device, cloud, samples, moving, cell, s2));
+        if (round + 1 == o.rounds) break;
+        Stopwatch watch;
+        report.pruned += pruneTransparent(cloud, o.pruneAlpha);
+        if (cloud.size() < budget) {
+            const std::size_t room = std::min(budget - cloud.size(), cloud.size());
+            report.split += splitLargestResidual(cloud, samples, opacityResidual(cloud, samples, s2), room);
+        }
+        report.msSplit += watch.ms();
+        progress(msg("round ", round + 1, ": ", cloud.size(), " Gaussians after pruning and splitting"));
+    }
+    return report;
+}
+
+} // namespace splatwarp

@@ -1,0 +1,106 @@
+#include <gtest/gtest.h>
+
+#include <filesystem>
+#include <fstream>
+#include <limits>
+#include <sstream>
+
+#include <nlohmann/json.hpp>
+
+#include "Volume.h"
+#include "support/TestSupport.h"
+
+namespace splatwarp {
+namespace {
+
+using test::runCli;
+using test::TempDir;
+
+std::string slurp(const std::string& path)
+{
+    std::ifstream in(path);
+    std::stringstream s;
+    s << in.rdbuf();
+    return s.str();
+}
+
+DenseGrid smallFog(const std::string& name = "density")
+{
+    DenseGrid d;
+    d.name = name;
+    d.voxelSize = 0.1;
+    d.dims[0] = d.dims[1] = d.dims[2] = 8;
+    for (int i = 0; i < 512; ++i) d.values.push_back(float(((i * 37) % 11) / 10.0));
+    return d;
+}
+
+/// Run from-vdb on `vdb`; expect exit 1, a message naming the file and `name`, and no outputs.
+void expectRefused(const TempDir& dir, const std::string& vdb, const std::string& name, const std::string& extra = "")
+{
+    const std::string log = dir.file("log.txt");
+    EXPECT_EQ(runCli("from-vdb " + vdb + " -o " + dir.file("out.ply") + " " + extra, log), 1) << slurp(log);
+    const std::string text = slurp(log);
+    EXPECT_NE(text.find(vdb), std::string::npos) << text;
+    EXPECT_NE(text.find(name), std::string::npos) << text;
+    EXPECT_FALSE(std::filesystem::exists(dir.file("out.ply")));
+    EXPECT_FALSE(std::filesystem::exists(dir.file("out.report.json")));
+}
+
+TEST(FromVdbCli, BadInputsExitOneAndWriteNothing)
+{
+    TempDir dir;
+    std::ofstream(dir.file("text.vdb")) << "not a volume\n";
+    expectRefused(dir, dir.file("text.vdb"), "not an OpenVDB file");
+
+    DenseGrid vel = smallFog("vel");
+    vel.vector = true;
+    writeDenseGrids(dir.file("novalue.vdb"), {vel});
+    expectRefused(dir, dir.file("novalue.vdb"), "vel (vec3s)");
+
+    DenseGrid empty = smallFog();
+    std::fill(empty.values.begin(), empty.values.end(), 0.0f);
+    writeDenseGrids(dir.file("empty.vdb"), {empty});
+    expectRefused(dir, dir.file("empty.vdb"), "'density' has no active voxels");
+
+    DenseGrid nan = smallFog();
+    nan.values[77] = std::numeric_limits<float>::quiet_NaN();
+    writeDenseGrids(dir.file("nan.vdb"), {nan});
+    expectRefused(dir, dir.file("nan.vdb"), "'density' has 1 NaN/Inf");
+
+    DenseGrid huge = smallFog();
+    huge.fillVoxels = 4096; // 6.9e10 voxels as one sparse tile: tiny on disk, far beyond memory
+    writeDenseGrids(dir.file("huge.vdb"), {huge});
+    expectRefused(dir, dir.file("huge.vdb"), "'density'");
+
+    writeDenseGrids(dir.file("two.vdb"), {smallFog("a"), smallFog("b")});
+    expectRefused(dir, dir.file("two.vdb"), "a (float), b (float)");
+    expectRefused(dir, dir.file("two.vdb"), "'c'", "--grid c");
+    EXPECT_EQ(runCli("from-vdb " + dir.file("two.vdb")), 2); // no -o: usage error
+}
+
+TEST(FromVdbCli, WritesModelReportAndPicture)
+{
+    TempDir dir;
+    writeDenseGrids(dir.file("fog.vdb"), {smallFog("smoke")});
+    const std::string log = dir.file("log.txt");
+    ASSERT_EQ(runCli("from-vdb " + dir.file("fog.vdb") + " -o " + dir.file("fog.ply") +
+                         " --iterations 5 --render --size 64 --eval-points 2000 --device cpu",
+                     log),
+              0)
+        << slurp(log);
+    EXPECT_TRUE(std::filesystem::exists(dir.file("fog.ply")));
+    EXPECT_TRUE(std::filesystem::exists(dir.file("fog.png")));
+    const nlohmann::json r = nlohmann::json::parse(slurp(dir.file("fog.report.json")));
+    EXPECT_EQ(r["input"]["grid"], "smoke");
+    EXPECT_EQ(r["as"], "extinction");
+    EXPECT_EQ(r["gaussians"]["budget"], (512u - 47u) / 8u); // 47 of the 512 values are 0 (i % 11 == 0)
+    EXPECT_TRUE(r["held_out"].contains("fit"));
+    // eval --volume judges the written model with the same yardstick as the report.
+    ASSERT_EQ(runCli("eval --volume " + dir.file("fog.vdb") + " --model " + dir.file("fog.ply") +
+                         " --points 2000 --json", dir.file("eval.json")), 0) << slurp(dir.file("eval.json"));
+    const nlohmann::json e = nlohmann::json::parse(slurp(dir.file("eval.json")));
+    EXPECT_NEAR(double(e["opacity"]), double(r["held_out"]["fit"]["opacity"]), 0.02);
+}
+
+} // namespace
+} // namespace splatwarp

@@ -1,0 +1,409 @@
+/// Reading fog volumes (vdb/Volume.h): grid choice, input checks, trilinear lookups, samples.
+#include "Volume.h"
+
+#include <cmath>
+#include <fstream>
+#include <random>
+#include <unistd.h>
+
+#include <openvdb/openvdb.h>
+#include <openvdb/tools/Count.h>
+#include <openvdb/tools/Interpolation.h>
+#include <openvdb/tools/LevelSetUtil.h>
+#include <openvdb/tools/Morphology.h>
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
+
+#include "VdbLibrary.h"
+#include "core/AtomicFile.h"
+#include "core/Error.h"
+#include "sh/SphericalHarmonics.h"
+
+namespace splatwarp {
+
+struct Volume::Impl {
+    VolumeInfo info;
+    openvdb::FloatGrid::Ptr density;
+    std::vector<openvdb::Vec3SGrid::Ptr> features; ///< F_k grids; empty: F = O * constantSh (colour white)
+    float constantSh = float(0.5 / kShC0);         ///< f_dc of white (RGB 1)
+};
+
+namespace {
+
+/// Estimated peak bytes of a fit per active voxel (samples with their band, Stage II pairs and state).
+constexpr std::uint64_t kFitBytesPerVoxel = 1024;
+
+std::uint64_t availableMemory()
+{
+    std::ifstream in("/proc/meminfo");
+    std::string key;
+    std::uint64_t kb = 0;
+    std::string unit;
+    while (in >> key >> kb >> unit)
+        if (key == "MemAvailable:") return kb * 1024;
+    return std::uint64_t(sysconf(_SC_PHYS_PAGES)) * std::uint64_t(sysconf(_SC_PAGE_SIZE));
+}
+
+void checkMemory(const std::string& where, std::uint64_t voxels, const VolumeReadOptions& o)
+{
+    const std::uint64_t limit = o.memoryLimit > 0 ? o.memoryLimit : availableMemory();
+    const double need = double(voxels) * double(kFitBytesPerVoxel);
+    if (need > double(limit))
+        throw InputError(msg(where, ": ", voxels, " active voxels need about ", need / double(1 << 30),
+                             " GiB to fit, more than the ", double(limit) / double(1 << 30), " GiB available"));
+}
+
+std::string gridList(const openvdb::GridPtrVec& grids)
+{
+    std::string s;
+    for (const auto& g : grids) s += (s.empty() ? "" : ", ") + g->getName() + " (" + g->valueType() + ")";
+    return s.empty() ? "none" : s;
+}
+
+openvdb::GridBase::ConstPtr findGrid(const openvdb::GridPtrVec& grids, const std::string& name)
+{
+    for (const auto& g : grids)
+        if (g->getName() == name) return g;
+    return nullptr;
+}
+
+/// The density grid's name: the requested one, else `density`, else the only FloatGrid.
+std::string chooseDensityGrid(const std::string& path, const openvdb::GridPtrVec& grids, const std::string& wanted)
+{
+    auto isFloat = [](const openvdb::GridBase::ConstPtr& g) { return g && g->isType<openvdb::FloatGrid>(); };
+    if (!wanted.empty()) {
+        if (!isFloat(findGrid(grids, wanted)))
+            throw InputError(msg(path, ": no FloatGrid named '", wanted, "'; grids: ", gridList(grids)));
+        return wanted;
+    }
+    if (isFloat(findGrid(grids, "density"))) return "density";
+    std::vector<std::string> floats;
+    for (const auto& g : grids)
+        if (isFloat(g)) floats.push_back(g->getName());
+    if (floats.size() == 1) return floats[0];
+    throw InputError(msg(path, floats.empty() ? ": no float grid" : ": several float grids and none named 'density'",
+                         " (choose one with --grid); grids: ", gridList(grids)));
+}
+
+/// Refuse NaN/Inf values (voxels and tiles).
+template <typename GridT>
+void checkFinite(const std::string& path, const GridT& grid)
+{
+    std::size_t bad = 0;
+    openvdb::Coord first;
+    for (auto it = grid.cbeginValueOn(); it; ++it) {
+        const auto v = *it;
+        bool ok = true;
+        if constexpr (std::is_same_v<typename GridT::ValueType, float>) ok = std::isfinite(v);
+        else ok = std::isfinite(v[0]) && std::isfinite(v[1]) && std::isfinite(v[2]);
+        if (!ok && bad++ == 0) first = it.getCoord();
+    }
+    if (bad > 0)
+        throw InputError(msg(path, ": grid '", grid.getName(), "' has ", bad, " NaN/Inf values (first at voxel ",
+                             first, ")"));
+}
+
+template <typename T>
+T metaOr(const openvdb::MetaMap& m, const std::string& key, T fallback)
+{
+    using MetaT = openvdb::TypedMetadata<T>;
+    auto v = m.getMetadata<MetaT>(key);
+    return v ? v->value() : fallback;
+}
+
+/// Our own sh_<k> grids, or a colour grid turned into F_dc = O (c - 1/2) / C0.
+void readFeatures(openvdb::io::File& file, const openvdb::GridPtrVec& grids, const VolumeReadOptions& o,
+                  Volume::Impl& v)
+{
+    VolumeInfo& info = v.info;
+    if (info.ownFile && findGrid(grids, "sh_0")) {
+        const int degree = metaOr<std::int32_t>(*file.getMetadata(), "sh_degree", 0);
+        for (int k = 0; k < shCoeffCount(degree); ++k) {
+            auto g = openvdb::gridPtrCast<openvdb::Vec3SGrid>(file.readGrid("sh_" + std::to_string(k)));
+            if (!g) throw InputError(msg(info.path, ": sh_degree ", degree, " but no Vec3S grid sh_", k));
+            checkFinite(info.path, *g);
+            v.features.push_back(g);
+        }
+        info.shDegree = degree;
+        info.colorGrid = "sh_*";
+        return;
+    }
+    std::string name = o.colorGrid;
+    if (name.empty()) name = findGrid(grids, "color") ? "color" : (findGrid(grids, "Cd") ? "Cd" : "");
+    if (name.empty() || name == "none") {
+        info.notes.push_back("no colour grid: white");
+        return;
+    }
+    auto base = findGrid(grids, name);
+    if (!base || !base->isType<openvdb::Vec3SGrid>())
+        throw InputError(msg(info.path, ": no Vec3S colour grid named '", name, "'; grids: ", gridList(grids)));
+    auto color = openvdb::gridPtrCast<openvdb::Vec3SGrid>(file.readGrid(name));
+    checkFinite(info.path, *color);
+    if (color->transform() != v.density->transform())
+        throw InputError(msg(info.path, ": colour grid '", name, "' has another transform than '", info.grid, "'"));
+    auto f = openvdb::Vec3SGrid::create(openvdb::Vec3s(0.0f));
+    f->setTransform(v.density->transform().copy());
+    auto fa = f->getAccessor();
+    auto ca = color->getConstAccessor();
+    for (auto it = v.density->cbeginValueOn(); it; ++it) {
+        const openvdb::Vec3s c = ca.isValueOn(it.getCoord()) ? ca.getValue(it.getCoord()) : openvdb::Vec3s(1.0f);
+        fa.setValue(it.getCoord(), (c - openvdb::Vec3s(0.5f)) * float(*it / kShC0));
+    }
+    v.features.push_back(f);
+    info.colorGrid = name;
+}
+
+void openFile(openvdb::io::File& file, const std::string& path)
+{
+    try {
+        file.open();
+    } catch (const openvdb::Exception& e) {
+        throw InputError(msg(path, ": not an OpenVDB file (", e.what(), ")"));
+    }
+}
+
+} // namespace
+
+Volume readVolume(const std::string& path, const VolumeReadOptions& o)
+{
+    vdb::initialize();
+    if (!std::ifstream(path)) throw IoError(msg(path, ": cannot open"));
+    openvdb::io::File file(path);
+    openFile(file, path);
+    const openvdb::GridPtrVec grids = *file.readAllGridMetadata();
+    auto impl = std::make_unique<Volume::Impl>();
+    VolumeInfo& info = impl->info;
+    info.path = path;
+    info.grid = chooseDensityGrid(path, grids, o.grid);
+    const std::string where = msg(path, ": grid '", info.grid, "'");
+    const auto meta = findGrid(grids, info.grid);
+    if (const auto count = meta->getMetadata<openvdb::Int64Metadata>(openvdb::GridBase::META_FILE_VOXEL_COUNT))
+        checkMemory(where, std::uint64_t(count->value()), o);
+    impl->density = openvdb::gridPtrCast<openvdb::FloatGrid>(file.readGrid(info.grid));
+    openvdb::FloatGrid& density = *impl->density;
+    if (density.activeVoxelCount() == 0) throw InputError(msg(where, " has no active voxels"));
+    checkMemory(where, density.activeVoxelCount(), o);
+    checkFinite(path, density);
+    const openvdb::math::Transform& xf = density.transform();
+    if (!xf.isLinear() || !xf.hasUniformScale())
+        throw InputError(msg(where, ": only linear transforms with cubic voxels are supported"));
+    if (density.getGridClass() == openvdb::GRID_LEVEL_SET) {
+        openvdb::tools::sdfToFogVolume(density);
+        info.levelSet = true;
+        info.notes.push_back("level set converted to a fog volume (interior 1, linear across the narrow band)");
+    }
+    density.tree().voxelizeActiveTiles();
+    info.voxelSize = xf.voxelSize()[0];
+    info.activeVoxels = density.activeVoxelCount();
+    const auto range = openvdb::tools::minMax(density.tree());
+    info.minValue = range.min();
+    info.maxValue = range.max();
+    if (info.minValue < 0.0f) throw InputError(msg(where, " has negative values (min ", info.minValue, ")"));
+    info.ownFile = metaOr<std::string>(*file.getMetadata(), "creator", "") == "splatwarp";
+    if (info.ownFile) info.lambdaLpf = metaOr<float>(*file.getMetadata(), "lambda_lpf", 0.0f);
+    readFeatures(file, grids, o, *impl);
+    file.close();
+    return Volume(std::move(impl));
+}
+
+Volume::Volume(std::unique_ptr<Impl> impl) : mImpl(std::move(impl)) {}
+Volume::~Volume() = default;
+Volume::Volume(Volume&&) noexcept = default;
+Volume& Volume::operator=(Volume&&) noexcept = default;
+const VolumeInfo& Volume::info() const { return mImpl->info; }
+int Volume::featureStride() const { return 3 * shCoeffCount(mImpl->info.shDegree); }
+
+namespace {
+
+/// Features of one voxel or point: F_k from the grids, or O times the constant colour.
+template <typename FeatureAt>
+void writeFeatures(const Volume::Impl& v, float o, const FeatureAt& at, float* f)
+{
+    if (v.features.empty()) {
+        f[0] = f[1] = f[2] = o * v.constantSh;
+        return;
+    }
+    for (std::size_t k = 0; k < v.features.size(); ++k) {
+        const openvdb::Vec3s x = at(k);
+        for (int c = 0; c < 3; ++c) f[3 * k + std::size_t(c)] = x[c];
+    }
+}
+
+/// Every voxel of the density's topology dilated by `band`, in leaf order; cell = leaf index.
+openvdb::MaskGrid::Ptr sampleMask(const openvdb::FloatGrid& density, int band)
+{
+    auto mask = openvdb::MaskGrid::create();
+    mask->setTransform(density.transform().copy());
+    mask->tree().topologyUnion(density.tree());
+    if (band > 0)
+        openvdb::tools::dilateActiveValues(mask->tree(), band, openvdb::tools::NN_FACE_EDGE_VERTEX,
+                                           openvdb::tools::EXPAND_TILES);
+    return mask;
+}
+
+} // namespace
+
+void Volume::sample(const float* points, std::size_t m, float* density, float* features) const
+{
+    const Impl& v = *mImpl;
+    const int stride = featureStride();
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, m, 1024), [&](const tbb::blocked_range<std::size_t>& r) {
+        using FloatSampler = openvdb::tools::GridSampler<openvdb::FloatGrid::ConstAccessor, openvdb::tools::BoxSampler>;
+        using VecSampler = openvdb::tools::GridSampler<openvdb::Vec3SGrid::ConstAccessor, openvdb::tools::BoxSampler>;
+        // The samplers hold references to the accessors: keep them alive (and unmoved) here.
+        const openvdb::FloatGrid::ConstAccessor da = v.density->getConstAccessor();
+        FloatSampler ds(da, v.density->transform());
+        std::vector<openvdb::Vec3SGrid::ConstAccessor> fa;
+        fa.reserve(v.features.size());
+        for (const auto& g : v.features) fa.push_back(g->getConstAccessor());
+        std::vector<VecSampler> fs;
+        for (std::size_t k = 0; k < fa.size(); ++k) fs.emplace_back(fa[k], v.features[k]->transform());
+        for (std::size_t j = r.begin(); j != r.end(); ++j) {
+            const openvdb::Vec3d p(points[3 * j], points[3 * j + 1], points[3 * j + 2]);
+            const float o = ds.wsSample(p);
+            density[j] = o;
+            if (features)
+                writeFeatures(v, o, [&](std::size_t k) { return fs[k].wsSample(p); }, features + j * std::size_t(stride));
+        }
+    });
+}
+
+VoxelSamples Volume::activeVoxels() const
+{
+    const Impl& v = *mImpl;
+    VoxelSamples out;
+    out.voxelSize = v.info.voxelSize;
+    out.shDegree = v.info.shDegree;
+    const std::size_t stride = std::size_t(featureStride());
+    std::vector<openvdb::Vec3SGrid::ConstAccessor> fa;
+    for (const auto& g : v.features) fa.push_back(g->getConstAccessor());
+    for (auto it = v.density->cbeginValueOn(); it; ++it) {
+        const openvdb::Vec3d p = v.density->indexToWorld(it.getCoord());
+        for (int a = 0; a < 3; ++a) out.positions.push_back(float(p[a]));
+        out.values.push_back(*it);
+        out.features.resize(out.features.size() + stride);
+        writeFeatures(v, *it, [&](std::size_t k) { return fa[k].getValue(it.getCoord()); },
+                      out.features.data() + out.features.size() - stride);
+    }
+    return out;
+}
+
+SampleSet Volume::sampleSet(int band, int perAxis) const
+{
+    if (perAxis < 1) throw InputError(msg(mImpl->info.path, ": samples per voxel axis must be >= 1"));
+    const Impl& v = *mImpl;
+    const openvdb::MaskGrid::Ptr mask = sampleMask(*v.density, band);
+    SampleSet s;
+    s.shDegree = v.info.shDegree;
+    s.samplesPerAxis = 8 * perAxis;
+    s.spacing = float(v.info.voxelSize / perAxis);
+    s.cellSize = float(8.0 * v.info.voxelSize);
+    std::int32_t cell = 0;
+    for (auto leaf = mask->tree().cbeginLeaf(); leaf; ++leaf, ++cell)
+        for (auto it = leaf->cbeginValueOn(); it; ++it)
+            for (int a = 0; a < perAxis; ++a)
+                for (int b = 0; b < perAxis; ++b)
+                    for (int c = 0; c < perAxis; ++c) {
+                        const openvdb::Vec3d offset((a + 0.5) / perAxis - 0.5, (b + 0.5) / perAxis - 0.5, (c + 0.5) / perAxis - 0.5);
+                        const openvdb::Vec3d p = v.density->indexToWorld(it.getCoord().asVec3d() + offset);
+                        for (int k = 0; k < 3; ++k) s.restPositions.push_back(float(p[k]));
+                        s.sampleCell.push_back(cell);
+                    }
+    s.targetO.resize(s.sampleCell.size());
+    s.targetF.resize(s.sampleCell.size() * std::size_t(featureStride()));
+    sample(s.restPositions.data(), s.targetO.size(), s.targetO.data(), s.targetF.data());
+    s.warpedPositions = s.restPositions;
+    s.cellGradient.assign(9 * std::size_t(cell), 0.0f);
+    for (std::int32_t c = 0; c < cell; ++c)
+        for (int d = 0; d < 3; ++d) s.cellGradient[9 * std::size_t(c) + 4 * std::size_t(d)] = 1.0f;
+    s.cellSkip.assign(std::size_t(cell), 0);
+    return s;
+}
+
+std::vector<float> Volume::heldOutPoints(std::size_t count, std::uint32_t seed, int band) const
+{
+    const openvdb::MaskGrid::Ptr mask = sampleMask(*mImpl->density, band);
+    std::vector<openvdb::Coord> voxels;
+    voxels.reserve(mask->activeVoxelCount());
+    for (auto it = mask->cbeginValueOn(); it; ++it) voxels.push_back(it.getCoord());
+    std::mt19937 rng(seed);
+    std::uniform_int_distribution<std::size_t> pick(0, voxels.size() - 1);
+    std::uniform_real_distribution<double> jitter(-0.5, 0.5);
+    std::vector<float> points(3 * count);
+    for (std::size_t j = 0; j < count; ++j) {
+        const openvdb::Coord c = voxels[pick(rng)];
+        const openvdb::Vec3d index(c.x() + jitter(rng), c.y() + jitter(rng), c.z() + jitter(rng));
+        const openvdb::Vec3d p = mImpl->density->indexToWorld(index);
+        for (int a = 0; a < 3; ++a) points[3 * j + std::size_t(a)] = float(p[a]);
+    }
+    return points;
+}
+
+void Volume::worldBounds(Vec3d& lo, Vec3d& hi) const
+{
+    const openvdb::CoordBBox box = mImpl->density->evalActiveVoxelBoundingBox();
+    lo = Vec3d(1e300, 1e300, 1e300);
+    hi = Vec3d(-1e300, -1e300, -1e300);
+    for (int corner = 0; corner < 8; ++corner) {
+        const openvdb::Vec3d index((corner & 1 ? box.max().x() + 0.5 : box.min().x() - 0.5),
+                                   (corner & 2 ? box.max().y() + 0.5 : box.min().y() - 0.5),
+                                   (corner & 4 ? box.max().z() + 0.5 : box.min().z() - 0.5));
+        const openvdb::Vec3d p = mImpl->density->indexToWorld(index);
+        for (int a = 0; a < 3; ++a) {
+            lo[a] = std::min(lo[a], p[a]);
+            hi[a] = std::max(hi[a], p[a]);
+        }
+    }
+}
+
+} // namespace splatwarp
+
+namespace splatwarp {
+
+namespace {
+template <typename GridT, typename V>
+typename GridT::Ptr denseToGrid(const DenseGrid& d, const V& convert)
+{
+    auto g = GridT::create();
+    g->setName(d.name);
+    g->setTransform(openvdb::math::Transform::createLinearTransform(d.voxelSize));
+    g->setGridClass(d.levelSet ? openvdb::GRID_LEVEL_SET : openvdb::GRID_FOG_VOLUME);
+    auto acc = g->getAccessor();
+    std::size_t n = 0;
+    for (int z = 0; z < d.dims[2]; ++z)
+        for (int y = 0; y < d.dims[1]; ++y)
+            for (int x = 0; x < d.dims[0]; ++x, ++n)
+                if (d.values[n] != 0.0f || std::isnan(d.values[n]))
+                    acc.setValue(openvdb::Coord(d.origin[0] + x, d.origin[1] + y, d.origin[2] + z), convert(d.values[n]));
+    if (d.fillVoxels > 0) {
+        const openvdb::Coord lo(d.origin[0], d.origin[1], d.origin[2]);
+        g->tree().sparseFill(openvdb::CoordBBox(lo, lo.offsetBy(d.fillVoxels - 1)), convert(d.fillValue), true);
+    }
+    return g;
+}
+} // namespace
+
+void writeDenseGrids(const std::string& path, const std::vector<DenseGrid>& grids)
+{
+    vdb::initialize();
+    openvdb::GridPtrVec out;
+    for (const DenseGrid& d : grids) {
+        if (d.values.size() != std::size_t(d.dims[0]) * std::size_t(d.dims[1]) * std::size_t(d.dims[2]))
+            throw InputError(msg(path, ": grid '", d.name, "' has ", d.values.size(), " values for its dimensions"));
+        if (d.vector)
+            out.push_back(denseToGrid<openvdb::Vec3SGrid>(d, [](float v) { return openvdb::Vec3s(v); }));
+        else
+            out.push_back(denseToGrid<openvdb::FloatGrid>(d, [](float v) { return v; }));
+    }
+    AtomicFile file(path);
+    try {
+        openvdb::io::File f(file.tempPath());
+        f.write(out);
+        f.close();
+    } catch (const openvdb::Exception& e) {
+        throw IoError(msg(path, ": cannot write the VDB file: ", e.what()));
+    }
+    file.commit();
+}
+
+} // namespace splatwarp
