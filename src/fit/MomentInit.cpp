@@ -105,18 +105,23 @@ GaussianCloud initFromMoments(const VoxelSamples& v, const MomentInitOptions& o)
     std::vector<std::uint32_t> perm(count);
     std::iota(perm.begin(), perm.end(), 0u);
     std::priority_queue<Cluster> heap;
-    std::vector<Cluster> done; // clusters that cannot split (single voxel or massless)
+    std::vector<Cluster> done; // clusters that cannot split (single voxel)
+    // Only clusters with mass become Gaussians, so only they count against the budget.
+    std::size_t clusters = 1;
     heap.push({0, count, clusterMass(v, perm, 0, count)});
-    while (!heap.empty() && heap.size() + done.size() < budget) {
+    while (!heap.empty() && clusters < budget) {
         const Cluster c = heap.top();
         heap.pop();
-        if (c.end - c.begin < 2 || !(c.mass > 0)) {
+        if (!(c.mass > 0)) break; // the heap is ordered by mass: nothing left to split
+        if (c.end - c.begin < 2) {
             done.push_back(c);
             continue;
         }
         const std::size_t mid = splitCluster(v, perm, c);
-        heap.push({c.begin, mid, clusterMass(v, perm, c.begin, mid)});
-        heap.push({mid, c.end, clusterMass(v, perm, mid, c.end)});
+        const Cluster a{c.begin, mid, clusterMass(v, perm, c.begin, mid)}, b{mid, c.end, clusterMass(v, perm, mid, c.end)};
+        clusters += std::size_t(a.mass > 0) + std::size_t(b.mass > 0) - 1;
+        heap.push(a);
+        heap.push(b);
     }
     for (; !heap.empty(); heap.pop()) done.push_back(heap.top());
     std::sort(done.begin(), done.end(), [](const Cluster& a, const Cluster& b) { return a.begin < b.begin; });

@@ -53,6 +53,19 @@ TEST(MomentInit, BudgetAndDefault)
     EXPECT_NEAR(model / mass, 1.0, 1e-4);
 }
 
+TEST(MomentInit, ZeroVoxelsDoNotUseTheBudget)
+{
+    VoxelSamples v = OneGaussian().voxels(10);
+    for (std::size_t i = 0; i < v.size(); ++i) { // an empty half, as in the box of a sparse fog
+        if (v.positions[3 * i] >= 0.0f) continue;
+        v.values[i] = 0.0f;
+        for (int s = 0; s < 3; ++s) v.features[3 * i + std::size_t(s)] = 0.0f;
+    }
+    MomentInitOptions o;
+    o.gaussians = 500;
+    EXPECT_EQ(initFromMoments(v, o).size(), 500u);
+}
+
 TEST(Extinction, RoundTripAndOpticalDepth)
 {
     GaussianCloud g;
