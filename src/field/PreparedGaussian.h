@@ -6,6 +6,7 @@
 #include <algorithm>
 #include <cmath>
 
+#include "core/FastExp.h"
 #include "core/GaussianCloud.h"
 #include "core/HostDevice.h"
 #include "core/SmallMath.h"
@@ -80,7 +81,7 @@ struct BasicPreparedGaussian {
         const Vec3<T> u = whiten(d);
         const T q = dot(u, u);
         if (!(q <= radius2)) return T(0);
-        const T w = alpha * std::exp(T(-0.5) * q);
+        const T w = alpha * expOf(T(-0.5) * q);
         if (!(w >= cutoff)) return T(0);
         if (ad) *ad = applyInverse(u);
         return w;
