@@ -29,8 +29,11 @@ std::uint64_t packKey(std::int64_t x, std::int64_t y, std::int64_t z)
     return (std::uint64_t(x) << 42) | (std::uint64_t(y) << 21) | std::uint64_t(z);
 }
 
+/// Empty (hi < lo) or not finite: left out, as on the GPU (kernels/BoxBinsCuda.cuh).
 bool emptyBox(const float* lo, const float* hi)
 {
+    for (int a = 0; a < 3; ++a)
+        if (!std::isfinite(lo[a]) || !std::isfinite(hi[a])) return true;
     return !(hi[0] >= lo[0] && hi[1] >= lo[1] && hi[2] >= lo[2]);
 }
 
@@ -111,6 +114,38 @@ std::size_t GaussianBins::candidates(const Vec3f& p, const std::uint32_t** first
     const std::size_t c = std::size_t(it - mKeys.begin());
     *first = mItems.data() + mOffsets[c];
     return mOffsets[c + 1] - mOffsets[c];
+}
+
+void GaussianBins::candidatesInBox(const float* lo, const float* hi, std::vector<std::uint32_t>& out) const
+{
+    if (emptyBox(lo, hi) || mKeys.empty()) return;
+    const float inv = 1.0f / mCellSize;
+    std::int64_t a[3], b[3];
+    double span = 1;
+    for (int k = 0; k < 3; ++k) {
+        a[k] = cellCoord(lo[k], inv);
+        b[k] = cellCoord(hi[k], inv);
+        span *= double(b[k] - a[k] + 1);
+    }
+    auto append = [&](std::size_t c) {
+        out.insert(out.end(), mItems.begin() + mOffsets[c], mItems.begin() + mOffsets[c + 1]);
+    };
+    if (span > double(mKeys.size())) { // a huge box: scan the occupied cells instead of its range
+        for (std::size_t c = 0; c < mKeys.size(); ++c) {
+            const std::uint64_t key = mKeys[c];
+            const std::int64_t x = std::int64_t(key >> 42), y = std::int64_t((key >> 21) & kAxisMax),
+                               z = std::int64_t(key & kAxisMax);
+            if (x >= a[0] && x <= b[0] && y >= a[1] && y <= b[1] && z >= a[2] && z <= b[2]) append(c);
+        }
+        return;
+    }
+    for (std::int64_t x = a[0]; x <= b[0]; ++x)
+        for (std::int64_t y = a[1]; y <= b[1]; ++y)
+            for (std::int64_t z = a[2]; z <= b[2]; ++z) {
+                const std::uint64_t key = packKey(x, y, z);
+                const auto it = std::lower_bound(mKeys.begin(), mKeys.end(), key);
+                if (it != mKeys.end() && *it == key) append(std::size_t(it - mKeys.begin()));
+            }
 }
 
 float GaussianBins::suggestCellSize(const float* lo, const float* hi, std::size_t n, double maxEntriesPerBox)

@@ -22,6 +22,10 @@ public:
     ///        the boxes containing p). Returns the count; *first points at the indices.
     std::size_t candidates(const Vec3f& p, const std::uint32_t** first) const;
 
+    /// @brief Append the boxes listed in every cell the box [lo, hi] overlaps (a superset of the
+    ///        boxes it intersects; a box spanning several cells appears once per cell).
+    void candidatesInBox(const float* lo, const float* hi, std::vector<std::uint32_t>& out) const;
+
     /// @brief A cell edge ~ the median box edge, doubled while the bins would hold more than
     ///        maxEntriesPerBox * n entries (huge boxes would otherwise span too many cells).
     static float suggestCellSize(const float* lo, const float* hi, std::size_t n, double maxEntriesPerBox = 32.0);

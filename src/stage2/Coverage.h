@@ -11,6 +11,8 @@
 #include <cstdint>
 #include <vector>
 
+#include "core/HostDevice.h"
+
 namespace splatwarp {
 
 /// @brief Three slabs |axis[a] . (p - centre)| <= half[a] (a box in a rotated frame).
@@ -20,7 +22,7 @@ struct CoverageSlabs {
     float half[3] = {-1, -1, -1};
 
     /// @brief Whether p lies in all three slabs (float arithmetic, as in Coverage::build).
-    bool contains(const float* p) const
+    SPLATWARP_HOST_DEVICE bool contains(const float* p) const
     {
         const float d[3] = {p[0] - centre[0], p[1] - centre[1], p[2] - centre[2]};
         for (int a = 0; a < 3; ++a)

@@ -106,16 +106,75 @@ SPLATWARP_HOST_DEVICE void stageTwoCoverageBox(const GaussianParams<double>& p, 
     }
 }
 
+/// Relative allowance for the float rounding of the coverage tests (|n . (x - c)| and the box
+/// comparisons on coordinates of this size): a few hundred float ulps.
+constexpr double kCoverageRounding = 1e-5;
+
+/// @brief The Mahalanobis radius a prepared Gaussian's pruning tests allow (prepareGaussian pads it).
+SPLATWARP_HOST_DEVICE double prunedRadius(double r)
+{
+    const double a = r * (1 + kPrunePad), b = std::sqrt(r * r * (1 + kPrunePad) + kPrunePad);
+    return a > b ? a : b;
+}
+
+/// @brief Support of the ellipsoid x^T cov^-1 x <= radius^2 along a unit direction n.
+SPLATWARP_HOST_DEVICE double ellipsoidSupport(const Mat3d& cov, const Vec3d& n, double radius)
+{
+    double q = 0;
+    for (int a = 0; a < 3; ++a)
+        for (int b = 0; b < 3; ++b) q += n[a] * cov.m[a][b] * n[b];
+    return radius * std::sqrt(q > 0 ? q : 0.0);
+}
+
 /// @brief Coverage slabs of one moving Gaussian along its own axes, holding the same reach as
 ///        the box (the ellipsoid's support along each axis, plus the turn and the motion); for a
-///        flat or turned Gaussian they hold far fewer samples than its box. CPU only.
-void stageTwoCoverageSlabs(const GaussianParams<double>& p, const Mat3d& filter, int steps, double move,
-                           const StageTwoOptions& o, CoverageSlabs& out);
+///        flat or turned Gaussian they hold far fewer samples than its box.
+SPLATWARP_HOST_DEVICE void stageTwoCoverageSlabs(const GaussianParams<double>& p, const Mat3d& filter, int steps,
+                                                 double move, const StageTwoOptions& o, CoverageSlabs& out)
+{
+    const StageTwoReach r = stageTwoReach(p, filter, steps, move, o);
+    const Mat3d rot = quatToMatrix(p.rotation);
+    for (int a = 0; a < 3; ++a) {
+        out.centre[a] = float(p.mean[a]);
+        const Vec3d n(rot.m[0][a], rot.m[1][a], rot.m[2][a]);
+        for (int b = 0; b < 3; ++b) out.axis[a][b] = float(n[b]);
+        // The pruning pad and the rounding allowance keep the Gaussian as it is now inside
+        // (stageTwoCoverageHolds) even with no learning rate at all.
+        const double h = stageTwoReachWidth(r, n, ellipsoidSupport(r.cov, n, prunedRadius(r.radius)), o);
+        out.half[a] = float(h < 0 ? h : h * (1 + kCoverageRounding) + kCoverageRounding * r.sphere);
+    }
+}
 
 /// @brief Whether every pair Gaussian p can count now (its prepared, padded cutoff ellipsoid)
 ///        is still inside its coverage box [lo, hi] and slabs, with margin for the float
 ///        rounding of those tests: when it is, the coverage still holds all its counted pairs.
-bool stageTwoCoverageHolds(const GaussianParams<double>& p, const Mat3d& filter, double cutoff, const float* lo,
-                           const float* hi, const CoverageSlabs& slabs);
+SPLATWARP_HOST_DEVICE bool stageTwoCoverageHolds(const GaussianParams<double>& p, const Mat3d& filter, double cutoff,
+                                                 const float* lo, const float* hi, const CoverageSlabs& slabs)
+{
+    const Vec3d sc(std::exp(p.logScale.x), std::exp(p.logScale.y), std::exp(p.logScale.z));
+    const Mat3d cov = filteredCovariance(p.rotation, sc, filter);
+    const double r = extentRadius(sigmoid(p.logit), cutoff);
+    if (!(r > 0)) return true; // never counts (prepareGaussian leaves it empty)
+    // Box: weight() tests the float AABB mean +- halfExtent first, so a counted pair lies in it.
+    const Vec3d half = ellipsoidHalfExtent(cov, r * (1 + kPrunePad));
+    for (int a = 0; a < 3; ++a) {
+        const double h = half[a] * (1 + kCoverageRounding);
+        if (!(p.mean[a] - h >= double(lo[a]) && p.mean[a] + h <= double(hi[a]))) return false;
+    }
+    // Slabs: a counted pair lies in the padded ellipsoid, whose support along n is below.
+    const double rp = prunedRadius(r);
+    const double sphere = rp * std::sqrt(cov.m[0][0] + cov.m[1][1] + cov.m[2][2]);
+    for (int a = 0; a < 3; ++a) {
+        const Vec3d n(slabs.axis[a][0], slabs.axis[a][1], slabs.axis[a][2]);
+        double off = 0, reach = 0;
+        for (int b = 0; b < 3; ++b) {
+            off += n[b] * (p.mean[b] - double(slabs.centre[b]));
+            reach += std::fabs(p.mean[b] - double(slabs.centre[b]));
+        }
+        const double need = std::fabs(off) + ellipsoidSupport(cov, n, rp) + kCoverageRounding * (sphere + reach);
+        if (!(need <= double(slabs.half[a]))) return false;
+    }
+    return true;
+}
 
 } // namespace splatwarp

@@ -3,6 +3,9 @@
 /// @brief A synthetic Stage II problem without VDB: a lattice of cells (n^3 samples each)
 ///        around a small random cloud, targets = features of a known target cloud (the cloud
 ///        moved and rotated rigidly, see rigidlyMoved()), every cell gradient identity.
+#include <gtest/gtest.h>
+
+#include <algorithm>
 #include <cmath>
 #include <vector>
 
@@ -103,6 +106,21 @@ inline RigidStageTwoProblem rigidStageTwoProblem(std::size_t count, int degree, 
     p.moving.assign(count, 1);
     p.cells = latticeCells(p.start, cellsPerAxis, half);
     return p;
+}
+
+
+/// @brief ||a - b|| / ||b|| in double (||a - b|| when b is zero); fails the test on a size
+///        mismatch or any non-finite value of a.
+inline double relativeError(const std::vector<float>& a, const std::vector<double>& b)
+{
+    EXPECT_EQ(a.size(), b.size());
+    double num = 0, den = 0;
+    for (std::size_t i = 0; i < std::min(a.size(), b.size()); ++i) {
+        EXPECT_TRUE(std::isfinite(a[i])) << "element " << i;
+        num += (double(a[i]) - b[i]) * (double(a[i]) - b[i]);
+        den += b[i] * b[i];
+    }
+    return den > 0 ? std::sqrt(num / den) : std::sqrt(num);
 }
 
 } // namespace splatwarp::test

@@ -1,0 +1,21 @@
+#pragma once
+/// @file BlockFeatures.h
+/// @brief F and O at points grouped by cell, with the Stage II block engine (SampleBlocks.h,
+///        BlockKernels.h): each Gaussian is listed only for the blocks its cutoff box and its
+///        axis slabs meet, and the weights run vectorised over a block's points. The rest
+///        targets of a sample grid use it (a cell's samples are one block). Same sums in the
+///        same (ascending Gaussian) order per point as evaluateFeatures().
+#include <cstdint>
+
+#include "core/GaussianCloud.h"
+#include "field/FeatureField.h"
+
+namespace splatwarp {
+
+/// @param points  [m,3]; cell: [m] cell of each point (runs of equal cell form the blocks)
+/// @param features [m,stride] out (may be null); opacity: [m] out (may be null)
+/// @return pairsTested counts (block point, Gaussian) lanes tested; pairsContributing those >= cutoff
+FeatureStats evaluateBlockFeatures(const GaussianCloud& cloud, const float* points, const std::int32_t* cell, std::size_t m,
+                                   const FeatureOptions& options, float* features, float* opacity);
+
+} // namespace splatwarp

@@ -1,0 +1,67 @@
+#pragma once
+/// @file SampleBlocks.h
+/// @brief Stage II's samples grouped into blocks and the coverage between blocks and Gaussians.
+///        A block is a run of consecutive used samples of one cell (at most kMaxBlockSamples):
+///        a cell's n^3 warped samples are spatially coherent, so a (block, Gaussian) list is
+///        about n^3 times shorter than a (sample, Gaussian) one, and the pair work runs over a
+///        block's samples contiguously, kSimdLanes at a time (structure of arrays, padded).
+#include <cstddef>
+#include <cstdint>
+#include <vector>
+
+#include "core/Simd.h"
+#include "stage2/Coverage.h"
+
+namespace splatwarp {
+
+/// Largest block: a cell of 4^3 samples (the default) is one block; larger cells are split.
+constexpr int kMaxBlockSamples = 64;
+
+/// @brief Used samples in padded blocks (structure of arrays).
+struct SampleBlocks {
+    std::vector<std::uint32_t> first; ///< [B+1] first used sample of each block (block b: first[b] .. first[b+1]-1)
+    std::vector<std::uint32_t> slot;  ///< [B+1] first padded slot; slot[b+1] - slot[b] is a multiple of kSimdLanes
+    std::vector<float> px, py, pz;    ///< [P] positions per slot; padding repeats the block's last sample
+    std::vector<float> lo, hi;        ///< [B,3] bounds of each block's samples
+    std::vector<float> chunkLo, chunkHi; ///< [P/kSimdLanes, 3] bounds of each chunk of kSimdLanes slots
+
+    std::size_t count() const { return first.empty() ? 0 : first.size() - 1; }
+    std::size_t slots() const { return px.size(); }
+    int samplesOf(std::size_t b) const { return int(first[b + 1] - first[b]); }
+    int lanesOf(std::size_t b) const { return int(slot[b + 1] - slot[b]); }
+
+    /// @brief Blocks of s samples at positions x [s,3] whose cells are cell [s] (runs of equal
+    ///        cell in this order, split every kMaxBlockSamples).
+    static SampleBlocks build(const float* x, const std::int32_t* cell, std::size_t s);
+};
+
+/// @brief Which blocks each moving Gaussian may touch, and the reverse, both lists ascending so
+///        every sum runs in a fixed order for any thread count.
+class BlockCoverage {
+public:
+    /// @param lo,hi  [g,3] padded coverage boxes (empty, hi < lo: nothing)
+    /// @param slabs  [g] coverage slabs (a block must also meet all three)
+    void build(const SampleBlocks& blocks, const float* lo, const float* hi, const CoverageSlabs* slabs, std::size_t g,
+               bool threaded);
+
+    std::uint64_t pairCount() const { return mGaussianItems.size(); }
+    /// @brief Blocks of Gaussian k: gaussianItems()[gaussianOffsets()[k] .. gaussianOffsets()[k+1]).
+    const std::vector<std::uint64_t>& gaussianOffsets() const { return mGaussianOffsets; }
+    const std::vector<std::uint32_t>& gaussianItems() const { return mGaussianItems; }
+    /// @brief Gaussians of block b, ascending.
+    const std::vector<std::uint64_t>& blockOffsets() const { return mBlockOffsets; }
+    const std::vector<std::uint32_t>& blockItems() const { return mBlockItems; }
+    /// @brief For each entry of gaussianItems(), the index of the same (block, Gaussian) pair in blockItems().
+    const std::vector<std::uint32_t>& blockEntryOf() const { return mBlockEntryOf; }
+
+private:
+    std::vector<std::vector<std::uint32_t>> mLists; ///< per Gaussian, reused between rebuilds
+    std::vector<std::uint64_t> mGaussianOffsets, mBlockOffsets;
+    std::vector<std::uint32_t> mGaussianItems, mBlockItems, mBlockEntryOf;
+};
+
+/// @brief Whether the box [lo, hi] can hold a point inside all three slabs (conservative: the
+///        box's projection on each slab axis meets the slab).
+bool boxMeetsSlabs(const float* lo, const float* hi, const CoverageSlabs& slabs);
+
+} // namespace splatwarp

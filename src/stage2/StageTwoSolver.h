@@ -1,0 +1,52 @@
+#pragma once
+/// @file StageTwoSolver.h
+/// @brief What a Stage II device implementation provides (the CPU solver in CpuSolver.h, the
+///        CUDA one in kernels/StageTwoCuda.cu) to the one optimisation loop (StageTwoLoop.h),
+///        which owns the schedule, the rebuild policy, best-iterate keeping and the report.
+///        Every solver holds the moving Gaussians in the packed layout of StageTwoParams.h.
+#include <cstdint>
+
+#include "core/GaussianCloud.h"
+#include "stage2/StageTwo.h"
+
+namespace splatwarp {
+
+/// @brief Time per phase of a solver, milliseconds.
+struct StageTwoPhaseTimes {
+    double coverage = 0, forward = 0, backward = 0, update = 0;
+};
+
+class StageTwoSolver {
+public:
+    virtual ~StageTwoSolver() = default;
+    /// @brief Name of the device that runs it ("cpu", "cuda").
+    virtual const char* device() const = 0;
+    /// @brief Counts known after set-up (samples used and skipped, moving Gaussians, scene extent).
+    virtual void describe(StageTwoReport& report) const = 0;
+    /// @brief Prepare the Gaussians' kernels from the current parameters.
+    virtual void prepare() = 0;
+    /// @brief Rebuild the coverage for the steps until the next scheduled rebuild.
+    virtual void rebuildCoverage(int iteration) = 0;
+    /// @brief Whether every moving Gaussian still lies inside the reach its coverage was built for
+    ///        (stageTwoCoverageHolds), so no counted pair can be missing.
+    virtual bool coverageHolds() = 0;
+    /// @brief Candidate pairs of the last coverage.
+    virtual std::uint64_t coveragePairs() const = 0;
+    /// @brief Forward pass: features, loss and its gradient; the energy and the counted pairs.
+    virtual StageTwoEnergy forward(int iteration, std::uint64_t& pairs) = 0;
+    /// @brief Backward pass into the packed parameter gradients.
+    virtual void backward() = 0;
+    /// @brief One Adam step (iteration is 0-based).
+    virtual void step(int iteration) = 0;
+    /// @brief Keep a copy of the current parameters / put that copy back.
+    virtual void saveBest() = 0;
+    virtual void restoreBest() = 0;
+    /// @brief Write the current parameters into the moving Gaussians of a cloud.
+    virtual void writeTo(GaussianCloud& cloud) const = 0;
+    /// @brief Time spent per phase so far.
+    virtual StageTwoPhaseTimes times() const = 0;
+    /// @brief CUDA: peak device memory of the run's buffers; CPU: 0.
+    virtual std::uint64_t peakDeviceBytes() const { return 0; }
+};
+
+} // namespace splatwarp

@@ -1,0 +1,35 @@
+// The block evaluation of the rest targets against the per-point one (evaluateFeatures): the
+// same contributing pairs, summed in the same order, so the same bits.
+#include <gtest/gtest.h>
+
+#include <cstring>
+
+#include "field/FieldTestModels.h"
+#include "stage2/BlockFeatures.h"
+#include "stage2/StageTwoTestProblem.h"
+
+using namespace splatwarp;
+using namespace splatwarp::test;
+
+TEST(BlockFeatures, SameBitsAsThePerPointEvaluation)
+{
+    for (int degree : {0, 2, 3})
+        for (int n : {2, 3, 4}) {
+            GaussianCloud cloud = randomCloud(80, degree, 31u + std::uint32_t(degree), 0.45f, 0.01f, 0.12f);
+            for (std::size_t i = 0; i < cloud.size(); i += 4) cloud.logScales[3 * i + 2] = -14.0f; // flat Gaussians
+            StageTwoOptions so;
+            const SampleSet s = latticeSampleSet(cloud, 9, 0.8f, n, so);
+            const std::size_t m = s.sampleCount();
+            FeatureOptions fo;
+            fo.filterVariance = 0.2f * s.spacing * s.spacing;
+            const int stride = cloud.shStride();
+            std::vector<float> fa(m * std::size_t(stride)), oa(m), fb(fa.size()), ob(m);
+            FeatureStats sa, sb;
+            evaluateFeatures(cloud, s.restPositions.data(), m, fo, fa.data(), oa.data(), &sa);
+            sb = evaluateBlockFeatures(cloud, s.restPositions.data(), s.sampleCell.data(), m, fo, fb.data(), ob.data());
+            EXPECT_EQ(sa.pairsContributing, sb.pairsContributing) << "degree " << degree << " n " << n;
+            EXPECT_GT(sb.pairsContributing, 0u);
+            EXPECT_EQ(std::memcmp(fa.data(), fb.data(), fa.size() * sizeof(float)), 0) << "degree " << degree << " n " << n;
+            EXPECT_EQ(std::memcmp(oa.data(), ob.data(), oa.size() * sizeof(float)), 0) << "degree " << degree << " n " << n;
+        }
+}
