@@ -34,10 +34,18 @@ __device__ __forceinline__ unsigned long long packKey(long long x, long long y, 
     return ((unsigned long long)x << 42) | ((unsigned long long)y << 21) | (unsigned long long)z;
 }
 
+/// Empty (hi < lo) or not finite: left out of the bins, so one NaN/Inf box can neither make the
+/// mean edge (and so the cell size) infinite nor span every cell.
 __device__ __forceinline__ bool emptyBox(const float* lo, const float* hi) // [3] each
 {
+    for (int a = 0; a < 3; ++a)
+        if (!isfinite(lo[a]) || !isfinite(hi[a])) return true;
     return !(hi[0] >= lo[0] && hi[1] >= lo[1] && hi[2] >= lo[2]);
 }
+
+/// Per-box bin count cap: 2^21 cells per axis could give 2^63 for one box, and the scan of many
+/// would wrap; capped, any total stays far below 2^64 and the 32-bit entry check reports it.
+constexpr unsigned long long kMaxBinsPerBox = 1ull << 40;
 
 /// First index in [0, n) with keys[index] >= key (n if none).
 template <typename K>
@@ -68,6 +76,7 @@ __global__ void binCountKernel(std::size_t g, const float* lo, const float* hi, 
     if (k < g && !emptyBox(lo + 3 * k, hi + 3 * k)) {
         c = 1;
         for (int a = 0; a < 3; ++a) c *= (unsigned long long)(binCoord(hi[3 * k + a], inv) - binCoord(lo[3 * k + a], inv) + 1);
+        c = c < kMaxBinsPerBox ? c : kMaxBinsPerBox;
     }
     count[k] = c;
 }

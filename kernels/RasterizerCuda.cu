@@ -37,7 +37,7 @@ __global__ void projectKernel(std::size_t n, const float* means /*[N,3]*/, const
                               const float* logScales /*[N,3]*/, const float* opacities /*[N]*/,
                               const float* sh /*[N,K]*/, int shDegree, PinholeView view,
                               TileSplat* splats /*[N]*/, PixelBox* tileBoxes /*[N]*/,
-                              std::uint32_t* depthBits /*[N]*/, std::uint32_t* tileCounts /*[N]*/)
+                              std::uint32_t* depthBits /*[N]*/, std::uint64_t* tileCounts /*[N]*/)
 {
     const std::size_t i = globalIndex();
     if (i >= n) return;
@@ -61,13 +61,13 @@ __global__ void projectKernel(std::size_t n, const float* means /*[N,3]*/, const
     tiles.x1 = range.x1 / kSplatTileSize;
     tiles.y1 = range.y1 / kSplatTileSize;
     tileBoxes[i] = tiles;
-    tileCounts[i] = std::uint32_t((tiles.x1 - tiles.x0 + 1) * (tiles.y1 - tiles.y0 + 1));
+    tileCounts[i] = std::uint64_t(tiles.x1 - tiles.x0 + 1) * std::uint64_t(tiles.y1 - tiles.y0 + 1);
     depthBits[i] = __float_as_uint(p.depth);
 }
 
 /// Per Gaussian: one entry per touched tile, key = tile << 32 | depth bits, value = Gaussian index.
 /// Entries are written in Gaussian order, so the stable sort breaks depth ties by index.
-__global__ void tileEntriesKernel(std::size_t n, const std::uint32_t* tileCounts /*[N]*/,
+__global__ void tileEntriesKernel(std::size_t n, const std::uint64_t* tileCounts /*[N]*/,
                                   const std::uint64_t* tileEnds /*[N] inclusive prefix sum of tileCounts*/,
                                   const PixelBox* tileBoxes /*[N]*/, const std::uint32_t* depthBits /*[N]*/, int tilesX,
                                   std::uint64_t* keys /*[E]*/, std::uint32_t* values /*[E]*/)
@@ -112,13 +112,13 @@ __global__ void compositeKernel(const TileSplat* splats /*[N]*/, const std::uint
     float transmittance = 1.0f;
     Vec3f colour(0.0f, 0.0f, 0.0f);
     const std::uint32_t begin = tileStart[tile], end = tileEnd[tile];
-    for (std::uint32_t base = begin; base < end; base += kTilePixels) {
+    for (std::uint64_t base = begin; base < end; base += kTilePixels) { // 64-bit: no wrap near 2^32 entries
         // Also the barrier before the batch is overwritten. The whole block stops once every pixel
         // is done (uniform decision, so every thread leaves the loop together).
         if (__syncthreads_count(done) == kTilePixels) break;
-        if (base + std::uint32_t(lane) < end) batch[lane] = splats[order[base + std::uint32_t(lane)]];
+        if (base + std::uint64_t(lane) < end) batch[lane] = splats[order[base + std::uint64_t(lane)]];
         __syncthreads();
-        const int count = int(end - base < std::uint32_t(kTilePixels) ? end - base : std::uint32_t(kTilePixels));
+        const int count = int(end - base < std::uint64_t(kTilePixels) ? end - base : std::uint64_t(kTilePixels));
         for (int k = 0; k < count && !done; ++k) {
             const TileSplat& s = batch[k];
             if (x < s.ax0 || x > s.ax1 || y < s.ay0 || y > s.ay1) continue;
@@ -174,7 +174,10 @@ Image renderGaussiansCuda(const GaussianCloud& cloud, const Camera& camera, cons
 
     DeviceBuffer<TileSplat> splats(n, "screen splats");
     DeviceBuffer<PixelBox> tileBoxes(n, "splat tile boxes");
-    DeviceBuffer<std::uint32_t> depthBits(n, "splat depths"), tileCounts(n, "splat tile counts");
+    DeviceBuffer<std::uint32_t> depthBits(n, "splat depths");
+    // 64-bit counts: CUB scans in the input's type, so 32-bit counts would wrap before the
+    // overflow check below could see the total.
+    DeviceBuffer<std::uint64_t> tileCounts(n, "splat tile counts");
     DeviceBuffer<std::uint64_t> tileEnds(n, "splat tile offsets");
     DeviceBuffer<unsigned char> temp("CUB temporary storage");
     std::uint64_t entries = 0;

@@ -18,14 +18,16 @@
 #include "core/Progress.h"
 #include "stage2/PairGradients.h"
 #include "stage2/StageTwoCommon.h"
+#include "stage2/StageTwoLoop.h"
+#include "stage2/StageTwoParams.h"
 
 namespace splatwarp::cuda {
 namespace {
 
 constexpr int kWarp = 32;         // CUDA warp width (backward: one warp per Gaussian)
 constexpr int kReduceBlocks = 264; // energy reduction partials: 2 per SM of an H100 (132 SMs); fixed so sums are deterministic
-// Packed parameters per moving Gaussian, as the CPU's Adam layout: mean 3, rotation 4, logScale 3, logit 1, SH.
-constexpr int kMean = 0, kRot = 3, kLogScale = 7, kLogit = 10, kSh = 11;
+// Packed parameters per moving Gaussian: stage2/StageTwoParams.h (shared with the CPU solver).
+constexpr int kSh = kParamSh;
 
 // ---------------------------------------------------------------------------------------------
 // Small host helpers
@@ -75,16 +77,6 @@ private:
 // ---------------------------------------------------------------------------------------------
 // Device helpers
 
-SPLATWARP_HOST_DEVICE GaussianParams<double> unpackParams(const float* p) // p: [PER_G]
-{
-    GaussianParams<double> g;
-    g.mean = Vec3d(p[kMean], p[kMean + 1], p[kMean + 2]);
-    g.rotation = Quatd{p[kRot], p[kRot + 1], p[kRot + 2], p[kRot + 3]};
-    g.logScale = Vec3d(p[kLogScale], p[kLogScale + 1], p[kLogScale + 2]);
-    g.logit = p[kLogit];
-    return g;
-}
-
 __device__ Mat3d loadFilter(const double* f) // f: [9] row-major
 {
     Mat3d m;
@@ -106,14 +98,30 @@ __global__ void prepareKernel(std::size_t g, int perG, const float* params /* [G
         prepareParams(unpackParams(params + k * std::size_t(perG)), loadFilter(filter + 9 * k), double(cutoff)));
 }
 
-/// Padded coverage box of each moving Gaussian (stageTwoCoverageBox, as the CPU).
+/// Padded coverage box and slabs of each moving Gaussian (stageTwoCoverageBox/Slabs, as the CPU).
 __global__ void boxKernel(std::size_t g, int perG, const float* params /* [G,PER_G] */, const double* filter /* [G,9] */,
-                          int steps, double move, StageTwoOptions options, float* lo /* [G,3] */, float* hi /* [G,3] */)
+                          int steps, double move, StageTwoOptions options, float* lo /* [G,3] */, float* hi /* [G,3] */,
+                          CoverageSlabs* slabs /* [G] */)
 {
-    const std::size_t k = std::size_t(blockIdx.x) * blockDim.x + threadIdx.x;
+    const std::size_t k = globalIndex();
     if (k >= g) return;
-    stageTwoCoverageBox(unpackParams(params + k * std::size_t(perG)), loadFilter(filter + 9 * k), steps, move, options,
-                        lo + 3 * k, hi + 3 * k);
+    const GaussianParams<double> p = unpackParams(params + k * std::size_t(perG));
+    const Mat3d f = loadFilter(filter + 9 * k);
+    stageTwoCoverageBox(p, f, steps, move, options, lo + 3 * k, hi + 3 * k);
+    stageTwoCoverageSlabs(p, f, steps, move, options, slabs[k]);
+}
+
+/// Clears *allHold when a Gaussian has left the reach its coverage was built for
+/// (stageTwoCoverageHolds, as the CPU); every writer stores the same 0.
+__global__ void holdsKernel(std::size_t g, int perG, const float* params /* [G,PER_G] */, const double* filter /* [G,9] */,
+                            float cutoff, const float* lo /* [G,3] */, const float* hi /* [G,3] */,
+                            const CoverageSlabs* slabs /* [G] */, int* allHold)
+{
+    const std::size_t k = globalIndex();
+    if (k >= g) return;
+    if (!stageTwoCoverageHolds(unpackParams(params + k * std::size_t(perG)), loadFilter(filter + 9 * k), double(cutoff),
+                               lo + 3 * k, hi + 3 * k, slabs[k]))
+        *allHold = 0;
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -124,7 +132,8 @@ __global__ void boxKernel(std::size_t g, int perG, const float* params /* [G,PER
 template <bool Fill>
 __global__ void coverageKernel(std::size_t s, const float* x /* [S,3] */, float inv, const unsigned long long* keys /* [E] sorted */,
                                const std::uint32_t* boxes /* [E] */, std::size_t entries, const float* lo /* [G,3] */,
-                               const float* hi /* [G,3] */, unsigned long long* countOrOffset /* [S+1] */,
+                               const float* hi /* [G,3] */, const CoverageSlabs* slabs /* [G] */,
+                               unsigned long long* countOrOffset /* [S+1] */,
                                std::uint32_t* items /* [P] */, std::uint32_t* pairSample /* [P] */)
 {
     const std::size_t j = std::size_t(blockIdx.x) * blockDim.x + threadIdx.x;
@@ -139,7 +148,7 @@ __global__ void coverageKernel(std::size_t s, const float* x /* [S,3] */, float 
     unsigned long long out = Fill ? countOrOffset[j] : 0;
     for (std::size_t e = lowerBound(keys, entries, key); e < entries && keys[e] == key; ++e) {
         const std::uint32_t k = boxes[e];
-        if (!insideBox(lo, hi, k, p)) continue;
+        if (!insideBox(lo, hi, k, p) || !slabs[k].contains(p)) continue;
         if (Fill) {
             items[out] = k;
             pairSample[out] = std::uint32_t(j);
@@ -278,7 +287,8 @@ __global__ void backwardKernel(std::size_t g, const std::uint32_t* offsets /* [G
     double gh[STRIDE];
 #pragma unroll
     for (int c = 0; c < STRIDE; ++c) gh[c] = 0;
-    for (std::uint32_t e = offsets[k] + std::uint32_t(lane); e < offsets[k + 1]; e += kWarp) {
+    // 64-bit: a 32-bit e + kWarp would wrap for lists ending near 2^32 pairs.
+    for (std::uint64_t e = std::uint64_t(offsets[k]) + std::uint64_t(lane); e < offsets[k + 1]; e += kWarp) {
         const std::uint32_t j = items[e];
         const Vec3f xj(x[3 * std::size_t(j)], x[3 * std::size_t(j) + 1], x[3 * std::size_t(j) + 2]);
         Vec3f ad;
@@ -305,207 +315,100 @@ __global__ void backwardKernel(std::size_t g, const std::uint32_t* offsets /* [G
     for (int c = 0; c < STRIDE; ++c)
         if (c % kWarp == lane) out[kSh + c] = float(gh[c]);
     if (lane != 0) return;
-    const GaussianParamGrad<double> pg = paramBackward(unpackParams(params + k * perG), acc);
-    for (int a = 0; a < 3; ++a) out[kMean + a] = float(pg.mean[a]);
-    out[kRot] = float(pg.rotation.w);
-    out[kRot + 1] = float(pg.rotation.x);
-    out[kRot + 2] = float(pg.rotation.y);
-    out[kRot + 3] = float(pg.rotation.z);
-    for (int a = 0; a < 3; ++a) out[kLogScale + a] = float(pg.logScale[a]);
-    out[kLogit] = float(pg.logit);
+    packGradient(paramBackward(unpackParams(params + k * perG), acc), out);
 }
 
-/// Learning rates of one step, per packed parameter group.
-struct StepRates {
-    float position, rotation, logScale, opacity, sh;
-};
-
-/// keepBest, step 1: compare the energy of `iteration` with the best so far (one thread, so no
-/// race on `best`); flag = 1 when it is lower, and it becomes the best. Same comparison of the same
-/// double sum as the CPU loop.
-__global__ void bestFlagKernel(const EnergySum* sum, int iteration, double* best, int* bestIteration, int* flag)
-{
-    const double total = sum->color + sum->opacity + sum->boundary;
-    const int better = total < *best ? 1 : 0;
-    *flag = better;
-    if (better) {
-        *best = total;
-        *bestIteration = iteration;
-    }
-}
-
-/// keepBest, step 2: copy the parameters into the snapshot when the flag is set.
-__global__ void snapshotKernel(std::size_t n, const int* flag, const float* params /* [G,PER_G] */,
-                               float* snapshot /* [G,PER_G] */)
-{
-    const std::size_t i = blockIdx.x * std::size_t(blockDim.x) + threadIdx.x;
-    if (i < n && *flag) snapshot[i] = params[i];
-}
-
-__global__ void initBestKernel(double* best, int* bestIteration)
-{
-    *best = CUDART_INF;
-    *bestIteration = 0;
-}
-
-/// Adam on every packed parameter, operation for operation as stage2/Adam.h: the float moments
-/// use round-to-nearest intrinsics so nvcc cannot contract them into FMAs (the CPU does not).
+/// Adam on every packed parameter: AdamStep::update, the CPU's arithmetic (this file is compiled
+/// with -fmad=false, so no multiply-add is contracted where the CPU has none).
 __global__ void adamKernel(std::size_t n, int perG, float* params /* [G,PER_G] */, const float* grad /* [G,PER_G] */,
-                           float* m /* [G,PER_G] */, float* v /* [G,PER_G] */, float beta1, float beta2, float epsilon,
-                           double corr1, double corr2, StepRates lr)
+                           float* m /* [G,PER_G] */, float* v /* [G,PER_G] */, AdamStep adam, StepRates lr)
 {
-    const std::size_t i = std::size_t(blockIdx.x) * blockDim.x + threadIdx.x;
+    const std::size_t i = globalIndex();
     if (i >= n) return;
-    const int c = int(i % std::size_t(perG));
-    const float rate = c < kRot ? lr.position
-                                : (c < kLogScale ? lr.rotation : (c < kLogit ? lr.logScale : (c == kLogit ? lr.opacity : lr.sh)));
-    const float g = grad[i];
-    const float mi = __fadd_rn(__fmul_rn(beta1, m[i]), __fmul_rn(1.0f - beta1, g));
-    const float vi = __fadd_rn(__fmul_rn(beta2, v[i]), __fmul_rn(__fmul_rn(1.0f - beta2, g), g));
-    m[i] = mi;
-    v[i] = vi;
-    const double mHat = __ddiv_rn(double(mi), corr1), vHat = __ddiv_rn(double(vi), corr2);
-    const double step = __ddiv_rn(__dmul_rn(double(rate), mHat), __dadd_rn(__dsqrt_rn(vHat), double(epsilon)));
-    params[i] = __fsub_rn(params[i], float(step));
+    adam.update(params[i], m[i], v[i], grad[i], lr.of(int(i % std::size_t(perG))));
 }
 
 // ---------------------------------------------------------------------------------------------
-// The solver: device state of one Stage II run.
+// The solver: device state of one Stage II run, driven by the shared loop (stage2/StageTwoLoop.h).
 
-class Solver {
+class Solver final : public StageTwoSolver {
 public:
     Solver(const GaussianCloud& cloud, const SampleSet& samples, const std::vector<std::uint8_t>& moving,
            const std::vector<std::int32_t>& gaussianCell, const StageTwoOptions& options)
         : mOptions(options), mSetup(setupStageTwo(cloud, samples, moving, gaussianCell, options)),
-          mStride(cloud.shStride()), mPerG(11 + cloud.shStride()), mS(mSetup.used.size()), mG(mSetup.moving.size()),
-          mTimer(mStream.stream)
+          mStride(cloud.shStride()), mPerG(packedParamCount(cloud.shStride())), mS(mSetup.used.size()),
+          mG(mSetup.moving.size()), mTimer(mStream.stream)
     {
         if (mStride > 48 || mStride % 3 != 0) throw InputError(msg("Stage II (CUDA): unsupported SH stride ", mStride));
-        const cudaStream_t st = mStream.stream;
-        // Gather what the loop needs for the used samples and the moving Gaussians, upload once.
-        std::vector<float> targetF(mS * std::size_t(mStride)), targetO(mS);
-        for (std::size_t k = 0; k < mS; ++k) {
-            const std::size_t j = mSetup.used[k];
-            std::copy_n(samples.targetF.data() + j * std::size_t(mStride), mStride, targetF.data() + k * std::size_t(mStride));
-            targetO[k] = samples.targetO[j];
-        }
-        std::vector<float> params(mG * std::size_t(mPerG));
-        std::vector<double> filter(9 * mG);
-        for (std::size_t k = 0; k < mG; ++k) {
-            const std::size_t i = mSetup.moving[k];
-            float* p = params.data() + k * std::size_t(mPerG);
-            for (int a = 0; a < 3; ++a) p[kMean + a] = cloud.means[3 * i + std::size_t(a)];
-            for (int a = 0; a < 4; ++a) p[kRot + a] = cloud.rotations[4 * i + std::size_t(a)];
-            for (int a = 0; a < 3; ++a) p[kLogScale + a] = cloud.logScales[3 * i + std::size_t(a)];
-            p[kLogit] = cloud.opacities[i];
-            std::copy_n(cloud.shOf(i), mStride, p + kSh);
-            for (int a = 0; a < 3; ++a)
-                for (int b = 0; b < 3; ++b) filter[9 * k + std::size_t(3 * a + b)] = mSetup.filter[i].m[a][b];
-        }
-        mX.upload(mSetup.x, st);
-        mFStatic.upload(mSetup.fStatic, st);
-        mOStatic.upload(mSetup.oStatic, st);
-        mTargetF.upload(targetF, st);
-        mTargetO.upload(targetO, st);
-        mParams.upload(params, st);
-        mFilter.upload(filter, st);
-        mKernels.resize(mG);
-        mBoxLo.resize(3 * mG);
-        mBoxHi.resize(3 * mG);
-        mGrad.resize(mG * std::size_t(mPerG));
-        mAdamM.resize(mG * std::size_t(mPerG));
-        mAdamV.resize(mG * std::size_t(mPerG));
-        mGF.resize(mS * std::size_t(mStride));
-        mGO.resize(mS);
-        mEnergy.resize(3 * mS);
-        mPairCount.resize(mS);
-        mPartial.resize(kReduceBlocks);
-        mSums.resize(std::size_t(std::max(options.iterations, 0)) + 1);
-        if (mAdamM.size() > 0) {
-            SPLATWARP_CUDA_CHECK(cudaMemsetAsync(mAdamM.data(), 0, mAdamM.bytes(), st));
-            SPLATWARP_CUDA_CHECK(cudaMemsetAsync(mAdamV.data(), 0, mAdamV.bytes(), st));
-        }
-        // The uploads read host vectors that die with this constructor: wait for them.
-        SPLATWARP_CUDA_CHECK(cudaStreamSynchronize(st));
+        mSkipped = samples.sampleCount() - mS;
+        upload(cloud, samples);
+        mSetupMs = mSetupWatch.ms();
     }
 
+    const char* device() const override { return "cuda"; }
+    void describe(StageTwoReport& r) const override
+    {
+        r.samplesUsed = mS;
+        r.samplesSkipped = mSkipped;
+        r.sceneExtent = mSetup.sceneExtent;
+        r.movingGaussians = mG;
+        r.msSetup = mSetupMs;
+    }
     const StageTwoSetup& setup() const { return mSetup; }
     int stride() const { return mStride; }
     cudaStream_t stream() const { return mStream.stream; }
-    PhaseTimer& timer() { return mTimer; }
 
-    void prepare()
+    void prepare() override
     {
+        mTimer.begin(PhaseTimer::Forward);
         launch("prepareKernel", prepareKernel, mG, stream(), mG, mPerG, (const float*)mParams.data(),
                (const double*)mFilter.data(), mOptions.cutoff, mKernels.data());
+        mTimer.end();
     }
 
-    /// Coverage in deformed space (see stage2/Coverage.h): bins by sorting (cell key, box)
-    /// entries, samples look up their cell, per-sample lists ascending; then the pairs sorted by
-    /// Gaussian (stable, so each Gaussian's samples ascend). Reads back three counts.
-    void rebuildCoverage(int iteration)
+    void rebuildCoverage(int iteration) override
     {
-        const cudaStream_t st = stream();
-        const int steps = std::max(1, std::min(mOptions.rebuildEvery, mOptions.iterations - iteration));
-        const double move = double(steps) * double(stageTwoPositionRate(mOptions, iteration, mSetup.sceneExtent));
-        launch("boxKernel", boxKernel, mG, st, mG, mPerG, (const float*)mParams.data(), (const double*)mFilter.data(),
-               steps, move, mOptions, mBoxLo.data(), mBoxHi.data());
-        ++mRebuilds;
-        if (mG == 0 || mS == 0) {
-            clearPairs();
-            return;
-        }
-        // Cell edge: half the mean box edge (the CPU uses half the median; any size gives the
-        // same pairs), see BoxBins.
-        if (!mBins.build(mG, (const float*)mBoxLo.data(), (const float*)mBoxHi.data(), st, "Stage II (CUDA) coverage")) {
-            clearPairs();
-            return;
-        }
-        const float inv = mBins.inv();
-        const unsigned long long entries = mBins.entries();
-        // Samples: count, scan, fill.
-        mSampleCount.resize(mS + 1);
-        launch("coverageKernel<count>", coverageKernel<false>, mS + 1, st, mS, (const float*)mX.data(), inv,
-               mBins.keys(), mBins.boxes(),
-               std::size_t(entries), (const float*)mBoxLo.data(), (const float*)mBoxHi.data(), mSampleCount.data(),
-               (std::uint32_t*)nullptr, (std::uint32_t*)nullptr);
-        cubCall([&](void* t, std::size_t& b) {
-            return cub::DeviceScan::ExclusiveSum(t, b, mSampleCount.data(), mSampleCount.data(), mS + 1, st);
-        });
-        unsigned long long pairs = 0;
-        SPLATWARP_CUDA_CHECK(cudaMemcpyAsync(&pairs, mSampleCount.data() + mS, sizeof(pairs), cudaMemcpyDeviceToHost, st));
-        SPLATWARP_CUDA_CHECK(cudaStreamSynchronize(st));
-        if (pairs > 0xffffffffull)
-            throw InputError(msg("Stage II coverage has ", pairs, " pairs; too many for 32-bit indices"));
-        mPairs = pairs;
-        mSampleItems.resize(pairs);
-        mPairSample.resize(pairs);
-        mGaussianKeys.resize(pairs);
-        mGaussianItems.resize(pairs);
-        launch("coverageKernel<fill>", coverageKernel<true>, mS, st, mS, (const float*)mX.data(), inv,
-               mBins.keys(), mBins.boxes(),
-               std::size_t(entries), (const float*)mBoxLo.data(), (const float*)mBoxHi.data(), mSampleCount.data(),
-               mSampleItems.data(), mPairSample.data());
-        mSampleOffsets.resize(mS + 1);
-        launch("narrowOffsetsKernel", narrowOffsetsKernel, mS + 1, st, mS + 1, (const unsigned long long*)mSampleCount.data(),
-               mSampleOffsets.data());
-        // Gaussian-major list: pairs (in sample order) sorted by box, stable.
-        int bits = 1;
-        while (bits < 32 && (std::size_t(1) << bits) < mG) ++bits;
-        if (pairs > 0)
-            cubCall([&](void* t, std::size_t& b) {
-                return cub::DeviceRadixSort::SortPairs(t, b, (const std::uint32_t*)mSampleItems.data(), mGaussianKeys.data(),
-                                                       (const std::uint32_t*)mPairSample.data(), mGaussianItems.data(),
-                                                       pairs, 0, bits, st);
-            });
-        mGaussianOffsets.resize(mG + 1);
-        launch("gaussianOffsetsKernel", gaussianOffsetsKernel, mG + 1, st, mG, (const std::uint32_t*)mGaussianKeys.data(),
-               std::size_t(pairs), mGaussianOffsets.data());
+        mTimer.begin(PhaseTimer::Coverage);
+        coverage(iteration);
+        mTimer.end();
     }
 
-    /// Forward pass; the energy and pair count of `iteration` go to its slot on the device.
-    void forward(int iteration, float* featuresOut = nullptr, float* opacityOut = nullptr)
+    bool coverageHolds() override
     {
+        if (mG == 0) return true;
+        mTimer.begin(PhaseTimer::Coverage);
+        mAllHold.resize(1);
+        SPLATWARP_CUDA_CHECK(cudaMemsetAsync(mAllHold.data(), 1, sizeof(int), stream())); // any non-zero: holds
+        launch("holdsKernel", holdsKernel, mG, stream(), mG, mPerG, (const float*)mParams.data(),
+               (const double*)mFilter.data(), mOptions.cutoff, (const float*)mBoxLo.data(), (const float*)mBoxHi.data(),
+               (const CoverageSlabs*)mSlabs.data(), mAllHold.data());
+        mTimer.end();
+        int all = 0;
+        mAllHold.download(&all, 1, stream());
+        return all != 0;
+    }
+
+    std::uint64_t coveragePairs() const override { return mPairs; }
+
+    StageTwoEnergy forward(int iteration, std::uint64_t& pairs) override
+    {
+        forwardInto(nullptr, nullptr);
+        EnergySum sum;
+        mSum.download(&sum, 1, stream());
+        StageTwoEnergy e;
+        e.iteration = iteration;
+        e.color = sum.color;
+        e.opacity = sum.opacity;
+        e.boundary = sum.boundary;
+        e.total = e.color + e.opacity + e.boundary;
+        pairs = sum.pairs;
+        return e;
+    }
+
+    /// The forward kernels; features and opacity per used sample also go to the given buffers.
+    void forwardInto(float* featuresOut, float* opacityOut)
+    {
+        mTimer.begin(PhaseTimer::Forward);
         dispatchStride([&](auto strideTag) {
             constexpr int kStride = decltype(strideTag)::value;
             launch("forwardKernel", forwardKernel<kStride>, mS, stream(), mS, (const float*)mX.data(),
@@ -517,38 +420,14 @@ public:
         });
         energyPartialKernel<<<kReduceBlocks, kBlock, 0, stream()>>>(mS, mEnergy.data(), mPairCount.data(), mPartial.data());
         SPLATWARP_CUDA_CHECK_LAUNCH("energyPartialKernel");
-        energyFinalKernel<<<1, kBlock, 0, stream()>>>(mPartial.data(), mSums.data() + iteration);
+        energyFinalKernel<<<1, kBlock, 0, stream()>>>(mPartial.data(), mSum.data());
         SPLATWARP_CUDA_CHECK_LAUNCH("energyFinalKernel");
+        mTimer.end();
     }
 
-    /// The energy of an iteration (waits for it).
-    StageTwoEnergy energy(int iteration, std::uint64_t* pairs) const
+    void backward() override
     {
-        EnergySum sum;
-        SPLATWARP_CUDA_CHECK(cudaMemcpyAsync(&sum, mSums.data() + iteration, sizeof(sum), cudaMemcpyDeviceToHost, stream()));
-        SPLATWARP_CUDA_CHECK(cudaStreamSynchronize(stream()));
-        StageTwoEnergy e;
-        e.iteration = iteration;
-        e.color = sum.color;
-        e.opacity = sum.opacity;
-        e.boundary = sum.boundary;
-        e.total = e.color + e.opacity + e.boundary;
-        if (pairs) *pairs = sum.pairs;
-        return e;
-    }
-
-    /// Counted pairs of iterations 0..n-1 (waits).
-    std::vector<std::uint64_t> pairsPerIteration(int n) const
-    {
-        std::vector<EnergySum> sums(std::size_t(std::max(n, 0)));
-        mSums.download(sums.data(), sums.size(), stream());
-        std::vector<std::uint64_t> out;
-        for (const EnergySum& s : sums) out.push_back(s.pairs);
-        return out;
-    }
-
-    void backward()
-    {
+        mTimer.begin(PhaseTimer::Backward);
         dispatchStride([&](auto strideTag) {
             constexpr int kStride = decltype(strideTag)::value;
             launch("backwardKernel", backwardKernel<kStride>, mG * kWarp, stream(), mG,
@@ -556,66 +435,36 @@ public:
                    (const float*)mX.data(), (const PreparedGaussian*)mKernels.data(), (const float*)mParams.data(),
                    (const float*)mGF.data(), (const float*)mGO.data(), mOptions.cutoff, mGrad.data());
         });
+        mTimer.end();
     }
 
-    void step(int iteration)
+    void step(int iteration) override
     {
-        // Bias corrections and rates on the host, exactly as Adam::beginStep and the CPU loop.
-        const double corr1 = 1.0 - std::pow(double(mOptions.beta1), iteration + 1);
-        const double corr2 = 1.0 - std::pow(double(mOptions.beta2), iteration + 1);
+        mTimer.begin(PhaseTimer::Update);
         const StepRates lr{stageTwoPositionRate(mOptions, iteration, mSetup.sceneExtent), mOptions.lrRotation,
                            mOptions.lrLogScale, mOptions.lrOpacity, mOptions.lrSh};
         launch("adamKernel", adamKernel, mParams.size(), stream(), mParams.size(), mPerG, mParams.data(),
-               (const float*)mGrad.data(), mAdamM.data(), mAdamV.data(), mOptions.beta1, mOptions.beta2,
-               mOptions.epsilon, corr1, corr2, lr);
+               (const float*)mGrad.data(), mAdamM.data(), mAdamV.data(), AdamStep::at(mOptions, iteration + 1), lr);
+        mTimer.end();
     }
 
-    /// keepBest: start tracking (best = +inf).
-    void initBest()
-    {
-        mBestParams.resize(mParams.size());
-        mBest.resize(1);
-        mBestIteration.resize(1);
-        mBestFlag.resize(1);
-        initBestKernel<<<1, 1, 0, stream()>>>(mBest.data(), mBestIteration.data());
-        SPLATWARP_CUDA_CHECK_LAUNCH("initBestKernel");
-    }
-    /// keepBest: snapshot the parameters when the energy of `iteration` (forward() done) is the lowest.
-    void trackBest(int iteration)
-    {
-        bestFlagKernel<<<1, 1, 0, stream()>>>(mSums.data() + iteration, iteration, mBest.data(), mBestIteration.data(),
-                                              mBestFlag.data());
-        SPLATWARP_CUDA_CHECK_LAUNCH("bestFlagKernel");
-        launch("snapshotKernel", snapshotKernel, mParams.size(), stream(), mParams.size(),
-               (const int*)mBestFlag.data(), (const float*)mParams.data(), mBestParams.data());
-    }
-    /// keepBest: put the best parameters back (waits for the best energy and iteration).
-    void restoreBest(int& iteration, double& energy)
-    {
-        if (mParams.size() > 0)
-            SPLATWARP_CUDA_CHECK(cudaMemcpyAsync(mParams.data(), mBestParams.data(), mParams.size() * sizeof(float),
-                                                 cudaMemcpyDeviceToDevice, stream()));
-        mBest.download(&energy, 1, stream());
-        mBestIteration.download(&iteration, 1, stream());
-    }
+    void saveBest() override { copyParams(mBestParams, mParams); }
+    void restoreBest() override { copyParams(mParams, mBestParams); }
 
-    /// Write the packed parameters into the moving Gaussians of a cloud (waits).
-    void download(GaussianCloud& cloud) const
+    void writeTo(GaussianCloud& cloud) const override
     {
         const std::vector<float> params = mParams.download(stream());
-        for (std::size_t k = 0; k < mG; ++k) {
-            const std::size_t i = mSetup.moving[k];
-            const float* p = params.data() + k * std::size_t(mPerG);
-            for (int a = 0; a < 3; ++a) cloud.means[3 * i + std::size_t(a)] = p[kMean + a];
-            for (int a = 0; a < 4; ++a) cloud.rotations[4 * i + std::size_t(a)] = p[kRot + a];
-            for (int a = 0; a < 3; ++a) cloud.logScales[3 * i + std::size_t(a)] = p[kLogScale + a];
-            cloud.opacities[i] = p[kLogit];
-            std::copy_n(p + kSh, mStride, cloud.shOf(i));
-        }
+        for (std::size_t k = 0; k < mG; ++k) unpackGaussian(params.data() + k * std::size_t(mPerG), cloud, mSetup.moving[k]);
     }
 
-    std::uint64_t coveragePairs() const { return mPairs; }
-    int rebuilds() const { return mRebuilds; }
+    StageTwoPhaseTimes times() const override
+    {
+        SPLATWARP_CUDA_CHECK(cudaStreamSynchronize(stream()));
+        double ms[PhaseTimer::Count];
+        mTimer.totals(ms);
+        return {ms[PhaseTimer::Coverage], ms[PhaseTimer::Forward], ms[PhaseTimer::Backward], ms[PhaseTimer::Update]};
+    }
+    std::uint64_t peakDeviceBytes() const override { return deviceBytesPeak(); }
 
     /// Fill a probe with the coverage and gradients (waits).
     void downloadProbe(StageTwoCudaProbe& p) const
@@ -623,6 +472,7 @@ public:
         const cudaStream_t st = stream();
         p.boxLo = mBoxLo.download(st);
         p.boxHi = mBoxHi.download(st);
+        p.slabs = mSlabs.download(st);
         p.sampleOffsets = mSampleOffsets.download(st);
         p.sampleItems.resize(mPairs);
         mSampleItems.download(p.sampleItems.data(), mPairs, st);
@@ -635,6 +485,15 @@ public:
     }
 
 private:
+    void upload(const GaussianCloud& cloud, const SampleSet& samples);
+    void coverage(int iteration);
+    void copyParams(DeviceBuffer<float>& to, const DeviceBuffer<float>& from)
+    {
+        to.resize(from.size());
+        if (from.size() > 0)
+            SPLATWARP_CUDA_CHECK(cudaMemcpyAsync(to.data(), from.data(), from.size() * sizeof(float), cudaMemcpyDeviceToDevice,
+                                                 stream()));
+    }
     template <typename F>
     void dispatchStride(const F& f) const
     {
@@ -664,20 +523,22 @@ private:
         SPLATWARP_CUDA_CHECK(cudaMemsetAsync(mGaussianOffsets.data(), 0, mGaussianOffsets.bytes(), stream()));
     }
 
+    Stopwatch mSetupWatch;
     StageTwoOptions mOptions;
     StageTwoSetup mSetup;
     int mStride, mPerG;
-    std::size_t mS, mG;
+    std::size_t mS, mG, mSkipped = 0;
+    double mSetupMs = 0;
     StreamHolder mStream;
-    PhaseTimer mTimer;
+    mutable PhaseTimer mTimer;
     std::uint64_t mPairs = 0;
-    int mRebuilds = 0;
 
     DeviceBuffer<float> mX{"sample positions"}, mFStatic{"static features"}, mOStatic{"static opacity"},
         mTargetF{"target features"}, mTargetO{"target opacity"}, mParams{"Gaussian parameters"},
         mGrad{"parameter gradients"}, mAdamM{"Adam first moments"}, mAdamV{"Adam second moments"},
         mGF{"feature gradients"}, mGO{"opacity gradients"}, mEnergy{"per-sample energies"},
-        mBoxLo{"coverage boxes"}, mBoxHi{"coverage boxes"};
+        mBoxLo{"coverage boxes"}, mBoxHi{"coverage boxes"}, mBestParams{"best-iterate parameters"};
+    DeviceBuffer<CoverageSlabs> mSlabs{"coverage slabs"};
     DeviceBuffer<double> mFilter{"low-pass filters"};
     DeviceBuffer<PreparedGaussian> mKernels{"prepared Gaussians"};
     BoxBins mBins;
@@ -686,12 +547,110 @@ private:
         mSampleOffsets{"coverage offsets"}, mSampleItems{"coverage pairs"}, mPairSample{"coverage pair samples"},
         mGaussianKeys{"Gaussian-major pair keys"}, mGaussianItems{"Gaussian-major pairs"},
         mGaussianOffsets{"Gaussian-major offsets"}, mPairCount{"per-sample pair counts"};
-    DeviceBuffer<EnergySum> mPartial{"energy partial sums"}, mSums{"energies per iteration"};
-    DeviceBuffer<float> mBestParams{"best-iterate parameters"};
-    DeviceBuffer<double> mBest{"best energy"};
-    DeviceBuffer<int> mBestIteration{"best iteration"}, mBestFlag{"best flag"};
+    DeviceBuffer<EnergySum> mPartial{"energy partial sums"}, mSum{"energy sum"};
+    DeviceBuffer<int> mAllHold{"coverage holds flag"};
     DeviceBuffer<unsigned char> mCubTemp{"CUB temporary storage"};
 };
+
+/// Gather what the loop needs for the used samples and the moving Gaussians, upload once.
+void Solver::upload(const GaussianCloud& cloud, const SampleSet& samples)
+{
+    const cudaStream_t st = stream();
+    std::vector<float> targetF(mS * std::size_t(mStride)), targetO(mS);
+    for (std::size_t k = 0; k < mS; ++k) {
+        const std::size_t j = mSetup.used[k];
+        std::copy_n(samples.targetF.data() + j * std::size_t(mStride), mStride, targetF.data() + k * std::size_t(mStride));
+        targetO[k] = samples.targetO[j];
+    }
+    std::vector<float> params(mG * std::size_t(mPerG));
+    std::vector<double> filter(9 * mG);
+    for (std::size_t k = 0; k < mG; ++k) {
+        const std::size_t i = mSetup.moving[k];
+        packGaussian(cloud, i, params.data() + k * std::size_t(mPerG));
+        for (int a = 0; a < 3; ++a)
+            for (int b = 0; b < 3; ++b) filter[9 * k + std::size_t(3 * a + b)] = mSetup.filter[i].m[a][b];
+    }
+    mX.upload(mSetup.x, st);
+    mFStatic.upload(mSetup.fStatic, st);
+    mOStatic.upload(mSetup.oStatic, st);
+    mTargetF.upload(targetF, st);
+    mTargetO.upload(targetO, st);
+    mParams.upload(params, st);
+    mFilter.upload(filter, st);
+    mKernels.resize(mG);
+    mBoxLo.resize(3 * mG);
+    mBoxHi.resize(3 * mG);
+    mSlabs.resize(mG);
+    mGrad.resize(mG * std::size_t(mPerG));
+    mAdamM.resize(mG * std::size_t(mPerG));
+    mAdamV.resize(mG * std::size_t(mPerG));
+    mGF.resize(mS * std::size_t(mStride));
+    mGO.resize(mS);
+    mEnergy.resize(3 * mS);
+    mPairCount.resize(mS);
+    mPartial.resize(kReduceBlocks);
+    mSum.resize(1);
+    if (mAdamM.size() > 0) {
+        SPLATWARP_CUDA_CHECK(cudaMemsetAsync(mAdamM.data(), 0, mAdamM.bytes(), st));
+        SPLATWARP_CUDA_CHECK(cudaMemsetAsync(mAdamV.data(), 0, mAdamV.bytes(), st));
+    }
+    // The uploads read host vectors that die with this function: wait for them.
+    SPLATWARP_CUDA_CHECK(cudaStreamSynchronize(st));
+}
+
+/// Coverage in deformed space (boxes and slabs, as the CPU): bins by sorting (cell key, box)
+/// entries, samples look up their cell, per-sample lists ascending; then the pairs sorted by
+/// Gaussian (stable, so each Gaussian's samples ascend). Reads back two counts.
+void Solver::coverage(int iteration)
+{
+    const cudaStream_t st = stream();
+    const int steps = std::max(1, std::min(mOptions.rebuildEvery, mOptions.iterations - iteration));
+    const double move = double(steps) * double(stageTwoPositionRate(mOptions, iteration, mSetup.sceneExtent));
+    launch("boxKernel", boxKernel, mG, st, mG, mPerG, (const float*)mParams.data(), (const double*)mFilter.data(), steps,
+           move, mOptions, mBoxLo.data(), mBoxHi.data(), mSlabs.data());
+    if (mG == 0 || mS == 0 ||
+        !mBins.build(mG, (const float*)mBoxLo.data(), (const float*)mBoxHi.data(), st, "Stage II (CUDA) coverage")) {
+        clearPairs();
+        return;
+    }
+    const float inv = mBins.inv();
+    const std::size_t entries = mBins.entries();
+    // Samples: count, scan, fill.
+    mSampleCount.resize(mS + 1);
+    launch("coverageKernel<count>", coverageKernel<false>, mS + 1, st, mS, (const float*)mX.data(), inv, mBins.keys(),
+           mBins.boxes(), entries, (const float*)mBoxLo.data(), (const float*)mBoxHi.data(),
+           (const CoverageSlabs*)mSlabs.data(), mSampleCount.data(), (std::uint32_t*)nullptr, (std::uint32_t*)nullptr);
+    cubCall([&](void* t, std::size_t& b) {
+        return cub::DeviceScan::ExclusiveSum(t, b, mSampleCount.data(), mSampleCount.data(), mS + 1, st);
+    });
+    unsigned long long pairs = 0;
+    SPLATWARP_CUDA_CHECK(cudaMemcpyAsync(&pairs, mSampleCount.data() + mS, sizeof(pairs), cudaMemcpyDeviceToHost, st));
+    SPLATWARP_CUDA_CHECK(cudaStreamSynchronize(st));
+    if (pairs > 0xffffffffull) throw InputError(msg("Stage II coverage has ", pairs, " pairs; too many for 32-bit indices"));
+    mPairs = pairs;
+    mSampleItems.resize(pairs);
+    mPairSample.resize(pairs);
+    mGaussianKeys.resize(pairs);
+    mGaussianItems.resize(pairs);
+    launch("coverageKernel<fill>", coverageKernel<true>, mS, st, mS, (const float*)mX.data(), inv, mBins.keys(),
+           mBins.boxes(), entries, (const float*)mBoxLo.data(), (const float*)mBoxHi.data(),
+           (const CoverageSlabs*)mSlabs.data(), mSampleCount.data(), mSampleItems.data(), mPairSample.data());
+    mSampleOffsets.resize(mS + 1);
+    launch("narrowOffsetsKernel", narrowOffsetsKernel, mS + 1, st, mS + 1, (const unsigned long long*)mSampleCount.data(),
+           mSampleOffsets.data());
+    // Gaussian-major list: pairs (in sample order) sorted by box, stable.
+    int bits = 1;
+    while (bits < 32 && (std::size_t(1) << bits) < mG) ++bits;
+    if (pairs > 0)
+        cubCall([&](void* t, std::size_t& b) {
+            return cub::DeviceRadixSort::SortPairs(t, b, (const std::uint32_t*)mSampleItems.data(), mGaussianKeys.data(),
+                                                   (const std::uint32_t*)mPairSample.data(), mGaussianItems.data(), pairs, 0,
+                                                   bits, st);
+        });
+    mGaussianOffsets.resize(mG + 1);
+    launch("gaussianOffsetsKernel", gaussianOffsetsKernel, mG + 1, st, mG, (const std::uint32_t*)mGaussianKeys.data(),
+           std::size_t(pairs), mGaussianOffsets.data());
+}
 
 } // namespace
 
@@ -699,76 +658,9 @@ StageTwoReport optimiseStageTwoCuda(GaussianCloud& cloud, const SampleSet& sampl
                                     const std::vector<std::int32_t>& gaussianCell, const StageTwoOptions& options,
                                     const std::function<void(int, const GaussianCloud&)>& onEval, int evalEvery)
 {
-    Stopwatch total, phase;
     resetDeviceBytesPeak(); // the peak of this run's buffers (the solver's and their growth)
     Solver solver(cloud, samples, moving, gaussianCell, options);
-    StageTwoReport report;
-    report.device = "cuda";
-    const StageTwoSetup& setup = solver.setup();
-    report.samplesUsed = setup.used.size();
-    report.samplesSkipped = samples.sampleCount() - setup.used.size();
-    report.sceneExtent = setup.sceneExtent;
-    report.movingGaussians = setup.moving.size();
-    report.msSetup = phase.ms();
-
-    PhaseTimer& timer = solver.timer();
-    std::unique_ptr<GaussianCloud> evalCloud; // onEval sees a copy: the caller's cloud changes only on success
-    const int reportEvery = std::max(options.reportEvery, 1);
-    if (options.keepBest) solver.initBest();
-    for (int it = 0; it <= options.iterations; ++it) {
-        timer.begin(PhaseTimer::Forward);
-        solver.prepare();
-        timer.end();
-        if ((it < options.iterations && it % options.rebuildEvery == 0) || (it == 0 && options.iterations == 0)) {
-            timer.begin(PhaseTimer::Coverage);
-            solver.rebuildCoverage(it);
-            timer.end();
-        }
-        timer.begin(PhaseTimer::Forward);
-        solver.forward(it);
-        if (options.keepBest) solver.trackBest(it);
-        timer.end();
-        if (it % reportEvery == 0 || it == options.iterations) {
-            std::uint64_t pairs = 0;
-            const StageTwoEnergy e = solver.energy(it, &pairs);
-            report.energies.push_back(e);
-            progress(msg("Stage II (CUDA) iteration ", it, ": energy ", e.total, " (colour ", e.color, ", opacity ",
-                         e.opacity, ", boundary ", e.boundary, "), ", pairs, " pairs"));
-        }
-        if (it == options.iterations) break; // final energy only
-        timer.begin(PhaseTimer::Backward);
-        solver.backward();
-        timer.end();
-        timer.begin(PhaseTimer::Update);
-        solver.step(it);
-        timer.end();
-        if (onEval && evalEvery > 0 && (it + 1) % evalEvery == 0) {
-            if (!evalCloud) evalCloud = std::make_unique<GaussianCloud>(cloud);
-            solver.download(*evalCloud);
-            onEval(it + 1, *evalCloud);
-        }
-    }
-    report.pairsPerIteration = solver.pairsPerIteration(options.iterations);
-    report.coveragePairs = solver.coveragePairs();
-    report.coverageRebuilds = solver.rebuilds();
-    if (options.keepBest) {
-        solver.restoreBest(report.bestIteration, report.bestEnergy);
-        if (report.bestIteration != options.iterations)
-            progress(msg("Stage II (CUDA): kept iteration ", report.bestIteration, " (lowest energy ", report.bestEnergy, ")"));
-    } else {
-        report.bestIteration = options.iterations;
-        report.bestEnergy = report.energies.back().total;
-    }
-    solver.download(cloud);
-    double ms[PhaseTimer::Count];
-    timer.totals(ms);
-    report.msCoverage = ms[PhaseTimer::Coverage];
-    report.msForward = ms[PhaseTimer::Forward];
-    report.msBackward = ms[PhaseTimer::Backward];
-    report.msUpdate = ms[PhaseTimer::Update];
-    report.msTotal = total.ms();
-    report.gpuPeakBytes = deviceBytesPeak();
-    return report;
+    return runStageTwoLoop(solver, cloud, options, onEval, evalEvery);
 }
 
 StageTwoCudaProbe probeStageTwoCuda(const GaussianCloud& cloud, const SampleSet& samples,
@@ -785,9 +677,9 @@ StageTwoCudaProbe probeStageTwoCuda(const GaussianCloud& cloud, const SampleSet&
     DeviceBuffer<float> features(s * std::size_t(solver.stride()), "probe features"), opacity(s, "probe opacity");
     solver.prepare();
     solver.rebuildCoverage(0);
-    solver.forward(0, features.data(), opacity.data());
+    solver.forwardInto(features.data(), opacity.data());
     solver.backward();
-    p.energy = solver.energy(0, &p.pairs);
+    p.energy = solver.forward(0, p.pairs); // the same pass again, for its energy (deterministic)
     p.features = features.download(solver.stream());
     p.opacity = opacity.download(solver.stream());
     solver.downloadProbe(p);

@@ -8,6 +8,7 @@
 #include <functional>
 #include <vector>
 
+#include "stage2/Coverage.h"
 #include "stage2/StageTwo.h"
 
 namespace splatwarp::cuda {
@@ -29,6 +30,7 @@ struct StageTwoCudaProbe {
     std::vector<std::uint32_t> used;      ///< [S] sample indices used (cell not skipped)
     std::vector<std::uint32_t> moving;    ///< [G] moving Gaussian indices
     std::vector<float> boxLo, boxHi;      ///< [G,3] padded coverage boxes
+    std::vector<CoverageSlabs> slabs;     ///< [G] coverage slabs
     std::vector<std::uint32_t> sampleOffsets, sampleItems;     ///< [S+1], [P] coverage per sample (box index k)
     std::vector<std::uint32_t> gaussianOffsets, gaussianItems; ///< [G+1], [P] coverage per box (sample index)
     std::vector<float> features;          ///< [S,stride] F (static + moving Gaussians)
