@@ -19,6 +19,7 @@
 #include "field/FeatureDevice.h"
 #include "field/FeatureField.h"
 #include "field/PreparedGaussian.h"
+#include "stage2/BlockFeatures.h"
 
 namespace splatwarp {
 
@@ -230,9 +231,9 @@ SampleGrid::SampleGrid(const GaussianCloud& cloud, const SampleGridOptions& opti
             return s;
         },
         [&] {
-            FeatureStats s;
-            evaluateFeatures(cloud, set.restPositions.data(), m, fo, set.targetF.data(), set.targetO.data(), &s);
-            return s;
+            // A cell's n^3 samples are consecutive: one block each (stage2/BlockFeatures.h).
+            return evaluateBlockFeatures(cloud, set.restPositions.data(), set.sampleCell.data(), m, fo, set.targetF.data(),
+                                         set.targetO.data());
         },
         &im.stats.device);
     im.stats.pairsTested = fs.pairsTested;
