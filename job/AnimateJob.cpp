@@ -4,6 +4,7 @@
 #include <filesystem>
 
 #include "ZipWriter.h"
+#include "core/AtomicFile.h"
 #include "core/Error.h"
 #include "deform/AnimSpec.h"
 #include "image/ImageIO.h"
@@ -99,14 +100,35 @@ std::string frameFile(const std::string& kind, int frame)
     return "frames/" + kind + "." + number + ".ply";
 }
 
+/// The spec's last frame of the run, checked against --frames.
+static int lastFrame(const AnimateJobOptions& options, const AnimSpec& anim)
+{
+    const int last = options.last < 0 ? anim.frames - 1 : options.last;
+    if (options.first < 0 || options.first > last || last >= anim.frames)
+        throw InputError(msg(anim.source, ": frames ", options.first, "-", last, " are outside 0..", anim.frames - 1));
+    return last;
+}
+
+int writeFrameSpecs(const AnimateJobOptions& options)
+{
+    const DeformJobOptions& o = options.deform;
+    const AnimSpec anim = parseAnimSpec(readTextFile(o.specPath, "animation spec"), o.specPath);
+    const int last = lastFrame(options, anim);
+    makeDirs(fs::path(o.outDir) / "specs");
+    for (int f = options.first; f <= last; ++f) {
+        char name[32];
+        std::snprintf(name, sizeof name, "spec.%04d.json", f);
+        writeFileAtomic((fs::path(o.outDir) / "specs" / name).string(), frameSpecJson(anim, f).dump(2) + "\n");
+    }
+    return last - options.first + 1;
+}
+
 SequenceResult runAnimateJob(const AnimateJobOptions& options)
 {
     const DeformJobOptions& o = options.deform;
     const std::string specText = readTextFile(o.specPath, "animation spec");
     const AnimSpec anim = parseAnimSpec(specText, o.specPath);
-    const int last = options.last < 0 ? anim.frames - 1 : options.last;
-    if (options.first < 0 || options.first > last || last >= anim.frames)
-        throw InputError(msg(o.specPath, ": frames ", options.first, "-", last, " are outside 0..", anim.frames - 1));
+    const int last = lastFrame(options, anim);
     const fs::path dir(o.outDir);
     for (const char* sub : {"frames", "vdb", "preview"})
         if (sub == std::string("frames") || (sub == std::string("vdb") && o.writeVdb) || (sub == std::string("preview") && o.render))

@@ -27,6 +27,10 @@ struct AnimateJobOptions {
 /// @throws InputError / IoError for a bad model, spec, frame range or unwritable DIR (before any frame).
 SequenceResult runAnimateJob(const AnimateJobOptions& options);
 
+/// @brief `animate --specs-only`: write each frame's plain spec to DIR/specs/spec.0000.json ...
+///        (what `deform --spec` reads to reproduce that frame); returns how many.
+int writeFrameSpecs(const AnimateJobOptions& options);
+
 /// @brief `animate --merge DIR`: mergeManifests(), then the strip and zip when every frame is
 ///        there (zip: when asked).
 nlohmann::json mergeAnimate(const std::string& dir, bool zip);

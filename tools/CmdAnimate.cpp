@@ -13,7 +13,7 @@ struct AnimateArgs {
     DeformArgs deform;
     std::string frames, shard, merge;
     int shardCount = 0;
-    bool zip = false;
+    bool zip = false, specsOnly = false;
 };
 
 /// "A-B" or "A" into first/last.
@@ -52,6 +52,8 @@ const CommandRegistrar reg(35, [](CLI::App& app) {
     sub->add_option("--shard-count", args->shardCount, "Shard count N with JOB_COMPLETION_INDEX (Kubernetes Indexed Job completions)")
         ->check(CLI::PositiveNumber);
     sub->add_option("--merge", args->merge, "Join DIR/manifest.shard-*.json into DIR/manifest.json and list missing or failed frames");
+    sub->add_flag("--specs-only", args->specsOnly,
+                  "Only write each frame's plain spec to DIR/specs/spec.0000.json ... (deform --spec with one reproduces that frame)");
     addDeformOptions(sub, args->deform);
     sub->add_flag("--vdb", job.writeVdb, "Also write vdb/field.0000.vdb ... (the sequence naming Houdini and Blender read)");
     sub->add_flag("--render", job.render, "Also write preview/frame.0000.png ... and preview/strip.png (all frames side by side)");
@@ -66,9 +68,13 @@ const CommandRegistrar reg(35, [](CLI::App& app) {
         }
         AnimateJobOptions options;
         options.deform = deformJobOptions(args->deform, sub);
-        if (options.deform.input.empty() || options.deform.specPath.empty() || options.deform.outDir.empty())
+        if ((options.deform.input.empty() && !args->specsOnly) || options.deform.specPath.empty() || options.deform.outDir.empty())
             throw UsageError("animate needs INPUT, --spec and -o (or --merge DIR)");
         if (!args->frames.empty()) parseFrames(args->frames, options);
+        if (args->specsOnly) {
+            std::printf("wrote %d frame specs to %s/specs/\n", writeFrameSpecs(options), options.deform.outDir.c_str());
+            return;
+        }
         options.shard = resolveShard(args->shard, args->shardCount);
         options.zip = args->zip;
         const SequenceResult r = runAnimateJob(options);

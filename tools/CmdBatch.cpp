@@ -1,4 +1,4 @@
-/// `splatwarp batch JOBS.json -o DIR`: a list of deform/animate/to-vdb jobs run in this process,
+/// `splatwarp batch JOBS.json -o DIR`: a list of deform/animate/to-vdb/from-vdb jobs run in this process,
 /// with the shards, resume and manifest rules of `animate` (job/Sequence.h).
 #include <algorithm>
 #include <cstdio>
@@ -17,12 +17,12 @@ namespace fs = std::filesystem;
 using json = nlohmann::json;
 
 /// The commands a batch can run and the flag that names their output (folder or file) under DIR.
-/// A new job kind (e.g. from-vdb) is one more line.
+/// A new job kind is one more line.
 struct JobKind {
     const char* name;
     const char* outputFlag;
 };
-const JobKind kJobKinds[] = {{"deform", "-o"}, {"animate", "-o"}, {"to-vdb", "-o"}};
+const JobKind kJobKinds[] = {{"deform", "-o"}, {"animate", "-o"}, {"to-vdb", "-o"}, {"from-vdb", "-o"}};
 
 struct BatchArgs {
     std::string jobsPath, outDir, shard, merge;
@@ -99,7 +99,7 @@ json runJob(const json& job, const fs::path& dir)
 const CommandRegistrar reg(37, [](CLI::App& app) {
     auto args = std::make_shared<BatchArgs>();
     CLI::App* sub = app.add_subcommand(
-        "batch", "Run a list of jobs (deform, animate, to-vdb) with shards, resume and a manifest: "
+        "batch", "Run a list of jobs (deform, animate, to-vdb, from-vdb) with shards, resume and a manifest: "
                  "JOBS.json = {\"jobs\": [{\"kind\", \"input\", \"output\" (under -o DIR), \"args\": [flags]}]}");
     sub->add_option("jobs", args->jobsPath, "Job list JSON");
     sub->add_option("-o,--output", args->outDir, "Output directory: each job writes DIR/<output>; DIR/manifest.json");

@@ -8,6 +8,7 @@
 #include <cstdlib>
 #include <filesystem>
 #include <string>
+#include <unistd.h>
 
 #include "core/Error.h"
 
@@ -25,7 +26,8 @@ inline std::string dataPath(const std::string& rel)
     const std::string var = ::splatwarp::test::dataPath(rel);                                         \
     if (var.empty()) GTEST_SKIP() << "../shared/data/" << (rel) << " not present; skipping"
 
-/// @brief A fresh empty directory per test, removed at the end.
+/// @brief A fresh empty directory per test, removed at the end. The pid keeps worktrees that run
+///        the same test at the same time apart (std::rand() is unseeded: the same in every process).
 class TempDir {
 public:
     TempDir()
@@ -33,7 +35,7 @@ public:
         const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
         mPath = std::filesystem::temp_directory_path() /
                 (std::string("splatwarp-") + (info ? info->test_suite_name() : "t") + "-" +
-                 (info ? info->name() : "x") + "-" + std::to_string(std::rand()));
+                 (info ? info->name() : "x") + "-" + std::to_string(::getpid()) + "-" + std::to_string(std::rand()));
         std::filesystem::remove_all(mPath);
         std::filesystem::create_directories(mPath);
     }
