@@ -17,7 +17,9 @@ total_crashes=0
 printf '%-16s %12s %8s %8s\n' target executions crashes seconds
 for t in "${TARGETS[@]}"; do
   run="build-fuzz/runs/$t"
-  rm -rf "$run" && mkdir -p "$run/corpus" "$run/crashes"
+  # FUZZ_KEEP_CORPUS=1 continues from the previous run's corpus (long runs in several sessions).
+  [ "${FUZZ_KEEP_CORPUS:-0}" = 1 ] || rm -rf "$run"
+  rm -rf "$run/crashes" && mkdir -p "$run/corpus" "$run/crashes"
   t0=$(date +%s)
   # The first corpus dir receives new inputs, the committed seeds stay untouched; a target stops
   # at its first crash.
