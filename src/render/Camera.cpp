@@ -297,7 +297,7 @@ std::vector<Camera> parseCameraFile(const std::string& jsonText, const std::stri
     Json top;
     try {
         top = Json::parse(jsonText);
-    } catch (const Json::parse_error& e) {
+    } catch (const Json::exception& e) { // parse_error, and out_of_range for numbers beyond double (fuzz)
         throw InputError(msg(path, ": not valid JSON: ", e.what()));
     }
     const JsonReader reader{path};

@@ -116,6 +116,8 @@ TEST(CameraTest, MalformedFilesNameTheProblem)
                 "needs 'fl_x' or 'camera_angle_x'");
     expectError("other.json", R"({"cameras": []})", "neither");
     expectError("empty.json", "[]", "no cameras");
+    // Found by fuzz_cameras: a number beyond double made nlohmann throw out_of_range, not parse_error.
+    expectError("overflow.json", R"({"camera_angle_x": 4.8, "w": 10e2222, "frames": []})", "not valid JSON");
     EXPECT_THROW(readCameraFile(dir.file("missing.json")), IoError);
 }
 
