@@ -44,8 +44,8 @@ struct VolumeJudge {
     FeatureOptions features;    ///< the judged model's filter: the grid's own (our files) or none
 };
 
-/// @brief Fog value per unit of fitted opacity: 1 for Field, the grid's maximum for Extinction
-///        (so the Gaussians' opacities stay below 1 while fitting).
+/// @brief Fog value per unit of fitted opacity: 1 for Field, a quarter of the grid's maximum for
+///        Extinction (opacities stay in (0, 1) while fitting; overlapping splats reach the peaks).
 double densityScale(VolumeMeaning resolved, const Volume& volume);
 
 /// @brief Draw the held-out points and look the volume up there (trilinear).
@@ -69,6 +69,9 @@ struct FromVdbOptions {
     /// wdas cloud (1/8 per voxel) 0.286 at 1.0, 0.192 at 1.5, 0.171 at 1.8; the `ring` sample's
     /// to-vdb field 0.720 at 1.0, 0.819 at 1.5 (its splats are thin and already overlap).
     double spread = 0.0;
+    /// Extinction per unit of fitted opacity; <= 0: densityScale(). Values below cutoff * scale
+    /// cannot be represented, so a smaller scale keeps thin smoke.
+    double densityScale = 0.0;
     VolumeFitOptions fitting;   ///< the engine (device, iterations, rounds, Stage II options)
     VolumeJudgeOptions judge;
 };

@@ -66,6 +66,9 @@ void addFitOptions(CLI::App* sub, FromVdbArgs& a)
     sub->add_option("--lr-opacity", s2.lrOpacity, "Logit-opacity learning rate")->capture_default_str();
     sub->add_option("--lr-sh", s2.lrSh, "SH learning rate")->capture_default_str();
     sub->add_option("--lr-rotation", s2.lrRotation, "Quaternion learning rate")->capture_default_str();
+    sub->add_option("--density-scale", a.job.densityScale,
+                    "Extinction per unit of fitted opacity (default 0: a quarter of the grid's maximum)")
+        ->capture_default_str();
     sub->add_flag("--no-fit", a.noFit, "Stop after the moment initialisation (the baseline)");
     sub->add_option("--eval-points", a.job.judge.points, "Held-out points of the error in report.json")
         ->capture_default_str()
