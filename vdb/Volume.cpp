@@ -295,20 +295,31 @@ SampleSet Volume::sampleSet(int band, int perAxis) const
     const openvdb::MaskGrid::Ptr mask = sampleMask(*v.density, band);
     SampleSet s;
     s.shDegree = v.info.shDegree;
-    s.samplesPerAxis = 8 * perAxis;
+    // Cells are 2^3-voxel blocks, their samples consecutive: the engine's sample blocks (up to 64
+    // consecutive samples of one cell) are then compact boxes, which its coverage culls well.
+    s.samplesPerAxis = 2 * perAxis;
     s.spacing = float(v.info.voxelSize / perAxis);
-    s.cellSize = float(8.0 * v.info.voxelSize);
+    s.cellSize = float(2.0 * v.info.voxelSize);
     std::int32_t cell = 0;
-    for (auto leaf = mask->tree().cbeginLeaf(); leaf; ++leaf, ++cell)
-        for (auto it = leaf->cbeginValueOn(); it; ++it)
-            for (int a = 0; a < perAxis; ++a)
-                for (int b = 0; b < perAxis; ++b)
-                    for (int c = 0; c < perAxis; ++c) {
-                        const openvdb::Vec3d offset((a + 0.5) / perAxis - 0.5, (b + 0.5) / perAxis - 0.5, (c + 0.5) / perAxis - 0.5);
-                        const openvdb::Vec3d p = v.density->indexToWorld(it.getCoord().asVec3d() + offset);
-                        for (int k = 0; k < 3; ++k) s.restPositions.push_back(float(p[k]));
-                        s.sampleCell.push_back(cell);
-                    }
+    for (auto leaf = mask->tree().cbeginLeaf(); leaf; ++leaf)
+        for (int block = 0; block < 64; ++block) {
+            const openvdb::Coord base = leaf->origin() + openvdb::Coord(2 * (block >> 4), 2 * ((block >> 2) & 3), 2 * (block & 3));
+            bool any = false;
+            for (int corner = 0; corner < 8; ++corner) {
+                const openvdb::Coord ijk = base + openvdb::Coord(corner >> 2, (corner >> 1) & 1, corner & 1);
+                if (!leaf->isValueOn(ijk)) continue;
+                any = true;
+                for (int a = 0; a < perAxis; ++a)
+                    for (int b = 0; b < perAxis; ++b)
+                        for (int c = 0; c < perAxis; ++c) {
+                            const openvdb::Vec3d offset((a + 0.5) / perAxis - 0.5, (b + 0.5) / perAxis - 0.5, (c + 0.5) / perAxis - 0.5);
+                            const openvdb::Vec3d p = v.density->indexToWorld(ijk.asVec3d() + offset);
+                            for (int k = 0; k < 3; ++k) s.restPositions.push_back(float(p[k]));
+                            s.sampleCell.push_back(cell);
+                        }
+            }
+            cell += any ? 1 : 0;
+        }
     s.targetO.resize(s.sampleCell.size());
     s.targetF.resize(s.sampleCell.size() * std::size_t(featureStride()));
     sample(s.restPositions.data(), s.targetO.size(), s.targetO.data(), s.targetF.data());

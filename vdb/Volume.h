@@ -55,7 +55,7 @@ public:
     /// @brief Samples for the Stage II engine: a sub-lattice of perAxis^3 points per voxel (offsets
     ///        (a + 1/2)/perAxis - 1/2 voxels) in every active voxel and every voxel within `band`
     ///        voxels of one, targets = the trilinear field there (= the voxel values at perAxis 1);
-    ///        cells = 8^3-voxel leaf nodes, identity gradients, none skipped.
+    ///        cells = 2^3-voxel blocks (samples of a cell consecutive), identity gradients, none skipped.
     SampleSet sampleSet(int band, int perAxis = 1) const;
     /// @brief Held-out points: uniform in the voxels of sampleSet(band) (continuous positions).
     std::vector<float> heldOutPoints(std::size_t count, std::uint32_t seed, int band) const;
