@@ -10,6 +10,7 @@
 #include "RenderArgs.h"
 #include "core/Progress.h"
 #include "io/GaussianIO.h"
+#include "ReadArgs.h"
 #include "render/Camera.h"
 #include "render/RenderDevice.h"
 #include "samples/SampleModels.h"
@@ -20,6 +21,7 @@ namespace {
 struct BenchRenderArgs {
     std::string input = "stripes", size = "800x800", device = "auto";
     int repeats = 5;
+    bool dropInvalid = false;
 };
 
 const CommandRegistrar reg(1010, [](CLI::App& app) {
@@ -28,10 +30,11 @@ const CommandRegistrar reg(1010, [](CLI::App& app) {
         "render", "Median time of splat renders (first orbit view; CPU: all cores unless --threads; CUDA: upload, "
                   "render and download of the image)");
     sub->add_option("input", args->input, "Gaussian file, or a sample name (stripes, ring)")->capture_default_str();
+    addDropInvalidFlag(sub, args->dropInvalid);
     sub->add_option("--size", args->size, "Image size WIDTHxHEIGHT")->capture_default_str();
     sub->add_option("--repeats", args->repeats, "Timed renders (after one warm-up)")
         ->capture_default_str()
-        ->check(CLI::PositiveNumber);
+        ->check(positive());
     sub->add_option("--device", args->device, "Where to render: auto (CUDA when compiled in and a GPU is present), cpu, cuda")
         ->capture_default_str()
         ->check(CLI::IsMember({"auto", "cpu", "cuda"}));
@@ -39,7 +42,7 @@ const CommandRegistrar reg(1010, [](CLI::App& app) {
         const auto names = sampleNames();
         const bool sample = !std::filesystem::exists(args->input) &&
                             std::find(names.begin(), names.end(), args->input) != names.end();
-        const GaussianCloud cloud = sample ? makeSample(args->input) : readGaussians(args->input);
+        const GaussianCloud cloud = sample ? makeSample(args->input) : readModel(args->input, args->dropInvalid);
         OrbitOptions o;
         o.views = 1;
         parseImageSize(args->size, o.width, o.height);

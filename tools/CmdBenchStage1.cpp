@@ -8,6 +8,7 @@
 #include "core/Progress.h"
 #include "deform/StageOneDevice.h"
 #include "io/GaussianIO.h"
+#include "ReadArgs.h"
 #include "samples/SampleModels.h"
 
 namespace splatwarp::cli {
@@ -15,6 +16,7 @@ namespace {
 
 struct BenchArgs {
     std::string input;                              // empty: the stripes sample
+    bool dropInvalid = false;
     std::string spec = "samples/specs/bend.json";   // relative to the repository root
     int runs = 5;
     bool json = false;
@@ -30,7 +32,7 @@ double median(std::vector<double> v)
 
 void runBench(const BenchArgs& a)
 {
-    const GaussianCloud rest = a.input.empty() ? makeSample("stripes") : readGaussians(a.input);
+    const GaussianCloud rest = a.input.empty() ? makeSample("stripes") : readModel(a.input, a.dropInvalid);
     const DeformSpec spec = loadDeformSpec(a.spec);
     const bool quiet = !progressEnabled();
     setProgressEnabled(false); // the per-phase lines would swamp the table
@@ -87,9 +89,10 @@ const CommandRegistrar reg(1010, [](CLI::App& app) {
     auto args = std::make_shared<BenchArgs>();
     CLI::App* sub = benchCommand(app)->add_subcommand("stage1", "Time Stage I: graph build, skin weights, ED solve, per-Gaussian update");
     sub->add_option("input", args->input, "Model to deform (default: the stripes sample)")->check(CLI::ExistingFile);
+    addDropInvalidFlag(sub, args->dropInvalid);
     sub->add_option("--spec", args->spec, "Deformation spec (default: samples/specs/bend.json, from the repository root)")
         ->capture_default_str();
-    sub->add_option("--runs", args->runs, "Runs per phase; the median is reported")->check(CLI::Range(1, 1000))->capture_default_str();
+    sub->add_option("--runs", args->runs, "Runs per phase; the median is reported")->check(inRange(1, 1000))->capture_default_str();
     sub->add_flag("--json", args->json, "Print JSON instead of a table");
     sub->add_option("--device", args->device,
                     "Where the per-Gaussian update runs: auto (CUDA when compiled in and a GPU is present), cpu, cuda "

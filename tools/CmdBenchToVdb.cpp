@@ -12,6 +12,7 @@
 #include "core/Error.h"
 #include "core/Progress.h"
 #include "io/GaussianIO.h"
+#include "ReadArgs.h"
 #include "samples/SampleModels.h"
 
 namespace splatwarp::cli {
@@ -19,6 +20,7 @@ namespace {
 
 struct BenchToVdbArgs {
     std::string input;
+    bool dropInvalid = false;
     SampleGridOptions grid;
     std::vector<int> degrees{0, 2};
     std::string device = "auto";
@@ -37,17 +39,18 @@ const CommandRegistrar reg(1040, [](CLI::App& app) {
     CLI::App* sub = benchCommand(app)->add_subcommand(
         "to-vdb", "Sample grid (topology, rest targets) and .vdb export: samples/s, pair evaluations/s, peak memory");
     sub->add_option("input", args->input, "Input Gaussians (default: the procedural stripes sample)");
-    sub->add_option("--cells", args->grid.cells, "Cells along the model's largest extent")->capture_default_str()->check(CLI::PositiveNumber);
+    addDropInvalidFlag(sub, args->dropInvalid);
+    sub->add_option("--cells", args->grid.cells, "Cells along the model's largest extent")->capture_default_str()->check(positive());
     sub->add_option("--samples-per-cell", args->grid.samplesPerAxis, "Samples per cell along each axis")
         ->capture_default_str()
-        ->check(CLI::Range(2, 16));
+        ->check(inRange(2, 16));
     sub->add_option("--degrees", args->degrees, "SH degrees to run at (bands dropped or zero-padded)")
         ->capture_default_str()
-        ->check(CLI::Range(0, 3));
+        ->check(inRange(0, 3));
     addDeviceOption(sub, args->device, "the rest targets run (topology and export stay on the CPU)");
     sub->callback([args] {
         args->grid.device = parseDevice(args->device);
-        const GaussianCloud source = args->input.empty() ? makeSample("stripes") : readGaussians(args->input);
+        const GaussianCloud source = args->input.empty() ? makeSample("stripes") : readModel(args->input, args->dropInvalid);
         const std::string label = args->input.empty() ? std::string("stripes") : args->input;
         const int threads = tbb::this_task_arena::max_concurrency();
         const std::string tmp = (std::filesystem::temp_directory_path() / "splatwarp-bench-to-vdb.vdb").string();

@@ -2,14 +2,16 @@
 #include "Command.h"
 #include "core/Error.h"
 #include "core/Progress.h"
+#include "core/AtomicFile.h"
 #include "io/GaussianIO.h"
+#include "ReadArgs.h"
 
 namespace splatwarp::cli {
 namespace {
 
 struct ConvertArgs {
     std::string input, output;
-    ReadOptions options;
+    bool dropInvalid = false;
 };
 
 const CommandRegistrar reg(21, [](CLI::App& app) {
@@ -18,13 +20,14 @@ const CommandRegistrar reg(21, [](CLI::App& app) {
         "convert", "Convert a Gaussian file (any PLY layout, compressed PLY, .splat, .spz) to graphdeco binary PLY");
     sub->add_option("input", args->input, "Input Gaussian file (format detected from the content)")->required();
     sub->add_option("output", args->output, "Output graphdeco .ply path (written atomically)")->required();
-    sub->add_flag("--drop-invalid", args->options.dropInvalid,
-                  "Drop Gaussians with NaN/Inf values (default: refuse the file)");
+    addDropInvalidFlag(sub, args->dropInvalid);
     sub->callback([args] {
+        OutputSet outputs({args->input});
+        outputs.checkTarget(args->output);
         ReadReport report;
-        const GaussianCloud g = readGaussians(args->input, args->options, &report);
-        for (const std::string& note : report.notes) progress(args->input + ": " + note);
+        const GaussianCloud g = readModel(args->input, args->dropInvalid, &report);
         writePly(args->output, g);
+        outputs.commit();
         progress(msg("converted ", g.size(), " Gaussians (", report.format, ", SH degree ", g.shDegree, ") to ",
                      args->output));
     });

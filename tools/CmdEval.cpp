@@ -8,9 +8,11 @@
 #include "HeldOutEval.h"
 #include "fit/Extinction.h"
 #include "core/Error.h"
+#include "core/Memory.h"
 #include "core/Progress.h"
 #include "deform/DeformSpec.h"
 #include "io/GaussianIO.h"
+#include "ReadArgs.h"
 
 namespace splatwarp::cli {
 namespace {
@@ -24,6 +26,7 @@ struct EvalArgs {
     std::string device = "auto";
     SampleGridOptions grid;
     HeldOutOptions heldOut;
+    bool dropInvalid = false;
 };
 
 void printReport(const FieldErrorReport& r, bool json)
@@ -50,7 +53,7 @@ void addVolumeOptions(CLI::App* sub, EvalArgs& a)
         ->check(CLI::IsMember({"auto", "field", "extinction"}));
     sub->add_option("--band", a.judge.band, "With --volume: empty voxels around the active ones that count")
         ->capture_default_str()
-        ->check(CLI::Range(0, 16));
+        ->check(inRange(0, 16));
 }
 
 /// `eval --volume`: the from-vdb held-out error of any splat model against a volume.
@@ -58,7 +61,7 @@ void evalVolume(const EvalArgs& a)
 {
     if (a.model.empty()) throw UsageError("eval --volume needs --model");
     const Volume volume = readVolume(a.volume, a.read);
-    GaussianCloud model = readGaussians(a.model);
+    GaussianCloud model = readModel(a.model, a.dropInvalid);
     if (model.shDegree != volume.info().shDegree) model = withShDegree(model, volume.info().shDegree);
     const VolumeMeaning meaning = resolveMeaning(parseVolumeMeaning(a.as), volume);
     const double scale = densityScale(meaning, volume);
@@ -78,9 +81,10 @@ const CommandRegistrar reg(35, [](CLI::App& app) {
     sub->add_option("--deformed", a->deformed, "Deformed model to judge (e.g. baseline.ply or deformed.ply)");
     sub->add_option("--spec", a->spec, "The deformation spec that produced it");
     addVolumeOptions(sub, *a);
-    sub->add_option("--points", a->heldOut.points, "Held-out points")->capture_default_str()->check(CLI::PositiveNumber);
+    sub->add_option("--points", a->heldOut.points, "Held-out points")->capture_default_str()->check(positive());
     sub->add_option("--seed", a->heldOut.seed, "Seed of the held-out points")->capture_default_str();
     addGridOptions(sub, a->grid);
+    addDropInvalidFlag(sub, a->dropInvalid);
     sub->add_flag("--json", a->json, "Print JSON (keys opacity, color, points, inside, outside)");
     addDeviceOption(sub, a->device, "the rest targets, the point warping and the feature evaluations run (the grid's topology stays on the CPU)");
     sub->callback([a] {
@@ -88,12 +92,12 @@ const CommandRegistrar reg(35, [](CLI::App& app) {
         if (a->rest.empty() || a->deformed.empty() || a->spec.empty())
             throw UsageError("eval needs --rest, --deformed and --spec (or --volume and --model)");
         const Device device = parseDevice(a->device);
-        const GaussianCloud rest = readGaussians(a->rest);
-        const GaussianCloud deformed = readGaussians(a->deformed);
+        const GaussianCloud rest = readModel(a->rest, a->dropInvalid);
+        const GaussianCloud deformed = readModel(a->deformed, a->dropInvalid);
         if (deformed.shDegree != rest.shDegree)
             throw InputError(msg(a->deformed, ": SH degree ", deformed.shDegree, " differs from the rest model's ", rest.shDegree));
         const Deformation deformation = solveDeformation(rest, loadDeformSpec(a->spec));
-        const SampleGrid grid(rest, withDevice(a->grid, device));
+        const SampleGrid grid = runStage("sample grid", [&] { return SampleGrid(rest, withDevice(a->grid, device)); });
         HeldOutOptions heldOut = a->heldOut;
         heldOut.device = device;
         const HeldOutPoints points = makeHeldOutPoints(grid, deformation, heldOut);

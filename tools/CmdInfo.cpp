@@ -29,7 +29,8 @@ nlohmann::json toJson(const CloudStats& s, const ReadReport& r)
             {"quat_norm", {{"min", s.quatNormMin}, {"max", s.quatNormMax}}},
             {"invalid_values", s.invalidValues},
             {"dropped", r.dropped},
-            {"notes", r.notes}};
+            {"notes", r.notes},
+            {"unusable_gaussians", r.invalidGaussians}};
 }
 
 const CommandRegistrar reg(20, [](CLI::App& app) {
@@ -38,7 +39,8 @@ const CommandRegistrar reg(20, [](CLI::App& app) {
     sub->add_option("file", args->input, "Input Gaussian file")->required();
     sub->add_flag("--json", args->json, "Print the summary as JSON on stdout");
     sub->add_flag("--drop-invalid", args->dropInvalid,
-                  "Drop Gaussians with NaN/Inf values before the statistics (default: keep and count them)");
+                  "Drop unusable Gaussians (NaN/Inf, overflowing scales, zero quaternions) before the statistics "
+                  "(default: keep them, count them and warn)");
     sub->callback([args] {
         ReadOptions options;
         options.dropInvalid = args->dropInvalid;
@@ -46,8 +48,13 @@ const CommandRegistrar reg(20, [](CLI::App& app) {
         ReadReport report;
         const GaussianCloud g = readGaussians(args->input, options, &report);
         const CloudStats s = computeCloudStats(g);
+        const std::vector<CloudWarning> warnings = cloudWarnings(g, s);
         if (args->json) {
-            std::printf("%s\n", toJson(s, report).dump(2).c_str());
+            nlohmann::json j = toJson(s, report);
+            j["warnings"] = nlohmann::json::array();
+            for (const CloudWarning& w : warnings)
+                j["warnings"].push_back({{"kind", w.kind}, {"count", w.count}, {"message", w.message}});
+            std::printf("%s\n", j.dump(2, ' ', false, nlohmann::json::error_handler_t::replace).c_str());
             return;
         }
         std::printf("file:            %s\n", args->input.c_str());
@@ -61,7 +68,8 @@ const CommandRegistrar reg(20, [](CLI::App& app) {
         std::printf("quaternion norm: min %g  max %g\n", s.quatNormMin, s.quatNormMax);
         std::printf("invalid values:  %zu\n", s.invalidValues);
         if (report.dropped) std::printf("dropped:         %zu Gaussians\n", report.dropped);
-        for (const std::string& note : report.notes) std::printf("note:            %s\n", note.c_str());
+        for (const std::string& note : report.notes) std::printf("note:            %s\n", printable(note).c_str());
+        for (const CloudWarning& w : warnings) std::printf("warning:         %s\n", w.message.c_str());
     });
 });
 

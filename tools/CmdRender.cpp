@@ -3,7 +3,9 @@
 #include <filesystem>
 
 #include "Command.h"
+#include "ReadArgs.h"
 #include "RenderArgs.h"
+#include "core/AtomicFile.h"
 #include "core/Error.h"
 #include "core/Progress.h"
 #include "image/ImageIO.h"
@@ -17,12 +19,18 @@ namespace {
 struct RenderArgs {
     std::string input, output, size, cameraFile, background = "0,0,0", format = "png", device = "auto";
     int orbit = 0;
+    bool dropInvalid = false;
     OrbitOptions orbitOptions;
 };
 
 void run(const RenderArgs& a)
 {
-    const GaussianCloud cloud = readGaussians(a.input);
+    OutputSet outputs({a.input, a.cameraFile});
+    const std::string ext = std::filesystem::path(a.output).extension().string();
+    if (!ext.empty() && !isImagePath(a.output) && !std::filesystem::is_directory(a.output))
+        throw UsageError(msg("-o ", a.output, ": unsupported image extension '", ext,
+                             "' (supported: .png, .exr; a directory name for several views)"));
+    const GaussianCloud cloud = readModel(a.input, a.dropInvalid);
     int width = 0, height = 0;
     if (!a.size.empty()) parseImageSize(a.size, width, height);
     RenderOptions renderOptions;
@@ -52,9 +60,9 @@ void run(const RenderArgs& a)
     if (!single) {
         if (isImagePath(a.output))
             throw UsageError(msg("-o ", a.output, ": ", cameras.size(), " views need a directory, not an image file"));
-        std::error_code ec;
-        std::filesystem::create_directories(a.output, ec);
-        if (ec) throw IoError(msg(a.output, ": cannot create directory: ", ec.message()));
+        outputs.createDirectory(a.output);
+    } else {
+        outputs.checkTarget(a.output);
     }
     for (std::size_t i = 0; i < cameras.size(); ++i) {
         Stopwatch watch;
@@ -67,6 +75,7 @@ void run(const RenderArgs& a)
         progress(msg("rendered ", cloud.size(), " Gaussians at ", image.width, "x", image.height, " on ",
                      deviceName(used), " in ", int(watch.ms()), " ms -> ", path));
     }
+    outputs.commit(); // every view or none
 }
 
 const CommandRegistrar reg(60, [](CLI::App& app) {
@@ -79,17 +88,20 @@ const CommandRegistrar reg(60, [](CLI::App& app) {
     sub->add_option("--size", args->size,
                     "Image size WIDTHxHEIGHT (default 512x512 for orbits; camera files: their own size, rescaled when given)");
     auto* orbit = sub->add_option("--orbit", args->orbit, "Render N views on an orbit around the model into the -o directory")
-                      ->check(CLI::PositiveNumber);
+                      ->check(positive());
     sub->add_option("--camera", args->cameraFile, "Camera file: graphdeco cameras.json or NeRF transforms.json")
         ->check(CLI::ExistingFile)
         ->excludes(orbit);
     sub->add_option("--elevation", args->orbitOptions.elevationDeg, "Orbit elevation above the model's equator, degrees")
-        ->capture_default_str();
+        ->capture_default_str()
+        ->check(openInterval(-90.0, 90.0));
     sub->add_option("--fov", args->orbitOptions.fovDeg, "Orbit cameras' vertical field of view, degrees")
-        ->capture_default_str();
+        ->capture_default_str()
+        ->check(openInterval(0.0, 180.0));
     sub->add_option("--distance", args->orbitOptions.distanceFactor,
                     "Orbit distance as a multiple of the distance at which the model's bounding sphere just fits")
-        ->capture_default_str();
+        ->capture_default_str()
+        ->check(positive());
     sub->add_option("--up", args->orbitOptions.up, "Orbit up axis: x, y, z, -x, -y, -z or auto (smallest extent)")
         ->capture_default_str()
         ->check(CLI::IsMember({"auto", "x", "y", "z", "-x", "-y", "-z", "+x", "+y", "+z"}));
@@ -101,6 +113,7 @@ const CommandRegistrar reg(60, [](CLI::App& app) {
                     "Where to render: auto (CUDA when compiled in and a GPU is present), cpu, cuda")
         ->capture_default_str()
         ->check(CLI::IsMember({"auto", "cpu", "cuda"}));
+    addDropInvalidFlag(sub, args->dropInvalid);
     sub->callback([args] { run(*args); });
 });
 

@@ -2,6 +2,7 @@
 #include "Command.h"
 #include "core/Error.h"
 #include "core/Progress.h"
+#include "core/AtomicFile.h"
 #include "io/GaussianIO.h"
 #include "samples/SampleModels.h"
 
@@ -23,8 +24,11 @@ const CommandRegistrar reg(10, [](CLI::App& app) {
     sub->add_option("--count", args->options.count, "Number of Gaussians (default: stripes 20000, ring 16000)");
     sub->add_option("--seed", args->options.seed, "Random seed (deterministic output per seed)")->capture_default_str();
     sub->callback([args] {
+        OutputSet outputs;
+        outputs.checkTarget(args->output);
         const GaussianCloud g = makeSample(args->name, args->options);
         writePly(args->output, g);
+        outputs.commit();
         progress(msg("wrote ", g.size(), " Gaussians (SH degree ", g.shDegree, ") to ", args->output));
     });
 });

@@ -5,9 +5,12 @@
 #include "deform/WarpDevice.h"
 #include "VdbExport.h"
 #include "core/Error.h"
+#include "core/Memory.h"
 #include "core/Progress.h"
 #include "deform/DeformSpec.h"
+#include "core/AtomicFile.h"
 #include "io/GaussianIO.h"
+#include "ReadArgs.h"
 
 namespace splatwarp::cli {
 namespace {
@@ -17,6 +20,7 @@ struct ToVdbArgs {
     std::string device = "auto";
     SampleGridOptions grid;
     VdbExportOptions vdb;
+    bool dropInvalid = false;
 };
 
 const CommandRegistrar reg(40, [](CLI::App& app) {
@@ -26,6 +30,7 @@ const CommandRegistrar reg(40, [](CLI::App& app) {
     sub->add_option("input", args->input, "Input Gaussians (.ply, .splat, compressed .ply, .spz)")->required();
     sub->add_option("-o,--output", args->output, "Output .vdb path")->required();
     addGridOptions(sub, args->grid);
+    addDropInvalidFlag(sub, args->dropInvalid);
     addDeviceOption(sub, args->device, "the rest targets and the --spec warping run (topology and export stay on the CPU)");
     sub->add_flag("--sh-grids", args->vdb.shGrids, "Also write one Vec3S grid sh_<k> per SH coefficient of the radial features");
     sub->add_flag("--half", args->vdb.half, "Store float grids as 16-bit half floats");
@@ -33,10 +38,12 @@ const CommandRegistrar reg(40, [](CLI::App& app) {
                     "Deformation spec (JSON): warp the samples and add the per-cell `stretch` grid (largest singular "
                     "value of the cell's deformation gradient); SH grids are then rotated to the warped frame");
     sub->callback([args] {
-        const GaussianCloud cloud = readGaussians(args->input);
+        OutputSet outputs({args->input, args->spec});
+        outputs.checkTarget(args->output);
+        const GaussianCloud cloud = readModel(args->input, args->dropInvalid);
         progress(msg("read ", cloud.size(), " Gaussians (SH degree ", cloud.shDegree, ") from ", args->input));
         const Device device = parseDevice(args->device);
-        SampleGrid grid(cloud, withDevice(args->grid, device));
+        SampleGrid grid = runStage("sample grid", [&] { return SampleGrid(cloud, withDevice(args->grid, device)); });
         args->vdb.source = args->input;
         if (!args->spec.empty()) {
             const Deformation deformation = solveDeformation(cloud, loadDeformSpec(args->spec));
@@ -46,7 +53,8 @@ const CommandRegistrar reg(40, [](CLI::App& app) {
             args->vdb.spec = args->spec;
             args->vdb.stretch = true;
         }
-        writeSampleGridVdb(args->output, grid, args->vdb);
+        runStage("VDB export", [&] { writeSampleGridVdb(args->output, grid, args->vdb); });
+        outputs.commit();
     });
 });
 

@@ -23,6 +23,18 @@ GlobalOptions& globalOptions();
 /// @brief Add every registered subcommand to app, in --help order (main, and `batch` for each job).
 void addCommands(CLI::App& app);
 
+/// @brief Checks every command's options get (main calls it once all commands are registered):
+///        each float option refuses NaN/Inf and each text option an empty value (usage errors).
+void addCommonChecks(CLI::App& app);
+
+/// @brief A float flag that must lie strictly between lo and hi (e.g. a field of view in (0, 180)).
+CLI::Validator openInterval(double lo, double hi);
+/// @brief Number checks with readable messages, used instead of CLI::Range / PositiveNumber /
+///        NonNegativeNumber (whose messages print 309-digit bounds).
+CLI::Validator inRange(double lo, double hi);
+CLI::Validator positive();
+CLI::Validator nonNegative();
+
 /// @brief The `bench` parent command (created on first use): each benchmark registers
 ///        `bench NAME` with `benchCommand(app)->add_subcommand(...)` from a CommandRegistrar
 ///        of order >= 1000.

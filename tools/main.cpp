@@ -1,12 +1,15 @@
 /// The `splatwarp` command line: parse, call the library, map errors to exit codes
 /// (0 success, 1 bad input or failed job, 2 usage error).
 #include <algorithm>
+#include <cmath>
 #include <cstdio>
 #include <memory>
+#include <new>
 #include <tbb/global_control.h>
 #include <vector>
 
 #include "Command.h"
+#include "core/AtomicFile.h"
 #include "core/Error.h"
 #include "core/Progress.h"
 #include "splatwarp/Version.h"
@@ -39,12 +42,67 @@ void addCommands(CLI::App& app)
     auto entries = registry();
     std::stable_sort(entries.begin(), entries.end(), [](const auto& a, const auto& b) { return a.order < b.order; });
     for (auto& e : entries) e.setup(app);
+    addCommonChecks(app);
 }
 
 GlobalOptions& globalOptions()
 {
     static GlobalOptions g;
     return g;
+}
+
+namespace {
+/// Float flags: CLI11 parses "nan", "inf" and "1e999" into values every range check lets through.
+const CLI::Validator kFinite(
+    [](std::string& text) {
+        double v = 0.0;
+        if (CLI::detail::lexical_cast(text, v) && !std::isfinite(v)) return "must be a finite number, got '" + text + "'";
+        return std::string();
+    },
+    "FINITE");
+const CLI::Validator kNonEmpty([](std::string& text) { return text.empty() ? std::string("must not be empty") : std::string(); },
+                               "");
+} // namespace
+
+namespace {
+/// A number check with a readable message (CLI11's Range prints std::to_string: 309 digits for
+/// DBL_MAX, "0.000000" for 1e-8).
+CLI::Validator numberCheck(std::function<bool(double)> ok, const std::string& what, const std::string& label)
+{
+    return CLI::Validator(
+        [ok, what](std::string& text) {
+            double v = 0.0;
+            if (!CLI::detail::lexical_cast(text, v) || !ok(v)) return msg("must be ", what, ", got '", text, "'");
+            return std::string();
+        },
+        label);
+}
+} // namespace
+
+CLI::Validator openInterval(double lo, double hi)
+{
+    return numberCheck([lo, hi](double v) { return v > lo && v < hi; }, msg("strictly between ", lo, " and ", hi),
+                       msg("in (", lo, ", ", hi, ")"));
+}
+
+CLI::Validator inRange(double lo, double hi)
+{
+    return numberCheck([lo, hi](double v) { return v >= lo && v <= hi; }, msg("in [", lo, ", ", hi, "]"),
+                       msg("in [", lo, ", ", hi, "]"));
+}
+
+CLI::Validator positive() { return numberCheck([](double v) { return v > 0; }, "positive", "POSITIVE"); }
+
+CLI::Validator nonNegative() { return numberCheck([](double v) { return v >= 0; }, "non-negative", "NONNEGATIVE"); }
+
+void addCommonChecks(CLI::App& app)
+{
+    for (CLI::Option* option : app.get_options()) {
+        const std::string type = option->get_type_name();
+        if (type.rfind("FLOAT", 0) == 0) option->check(kFinite);
+        if (type.rfind("TEXT", 0) == 0) option->check(kNonEmpty);
+    }
+    for (CLI::App* sub : app.get_subcommands([](CLI::App*) { return true; })) addCommonChecks(*sub);
 }
 
 CLI::App* benchCommand(CLI::App& app)
@@ -73,9 +131,10 @@ int main(int argc, char** argv)
     cli::GlobalOptions& global = cli::globalOptions();
     app.add_flag("-q,--quiet", global.quiet, "No progress lines on stderr");
     app.add_option("--threads", global.threads, "Worker threads for the CPU path (0 = all cores)")
-        ->check(CLI::NonNegativeNumber);
+        ->check(cli::nonNegative());
 
     cli::addCommands(app);
+    installSignalCleanup();
 
     std::unique_ptr<tbb::global_control> threadLimit;
     app.parse_complete_callback([&] {
@@ -96,13 +155,16 @@ int main(int argc, char** argv)
         app.exit(e);
         return 2;
     } catch (const UsageError& e) {
-        std::fprintf(stderr, "splatwarp: usage error: %s\n", e.what());
+        std::fprintf(stderr, "splatwarp: usage error: %s\n", printable(e.what()).c_str());
         return 2;
     } catch (const Error& e) {
-        std::fprintf(stderr, "splatwarp: error: %s\n", e.what());
+        std::fprintf(stderr, "splatwarp: error: %s\n", printable(e.what()).c_str());
+        return 1;
+    } catch (const std::bad_alloc&) {
+        std::fprintf(stderr, "splatwarp: error: out of memory (lower --cells / --samples-per-cell, or see --max-memory)\n");
         return 1;
     } catch (const std::exception& e) {
-        std::fprintf(stderr, "splatwarp: internal error: %s\n", e.what());
+        std::fprintf(stderr, "splatwarp: internal error: %s\n", printable(e.what()).c_str());
         return 1;
     }
     return 0;

@@ -15,6 +15,7 @@
 #include "SampleGridImpl.h"
 #include "VdbLibrary.h"
 #include "core/Error.h"
+#include "core/Memory.h"
 #include "core/Progress.h"
 #include "field/FeatureDevice.h"
 #include "field/FeatureField.h"
@@ -79,7 +80,47 @@ struct TopologyOp {
     void join(TopologyOp& o) { tree.topologyUnion(o.tree); }
 };
 
+/// Refuse before allocating when `cells` (a lower bound or the exact count) cannot fit the budget.
+void checkMemory(const SampleGridOptions& o, int shDegree, double cells, const char* what)
+{
+    const double perCell = double(sampleGridBytesPerCell(o, shDegree));
+    if (o.maxMemoryBytes == 0 || cells * perCell <= double(o.maxMemoryBytes)) return;
+    throw InputError(msg("sample grid: ", what, " ", cells, " cells x ", formatBytes(perCell), " = ",
+                         formatBytes(cells * perCell), ", more than --max-memory ", formatBytes(double(o.maxMemoryBytes)),
+                         "; lower --cells (or raise --cell-size) or --samples-per-cell, or raise --max-memory"));
+}
+
+/// Cells of the largest single Gaussian box: every one of them becomes active, so this is a lower
+/// bound of the grid, known before the topology (which itself could exhaust memory) is built.
+double largestBoxCells(const std::vector<PreparedGaussian>& prepared, double h)
+{
+    double most = 0.0;
+    for (const PreparedGaussian& g : prepared) {
+        Vec3d lo, hi;
+        gaussianBox(g, lo, hi);
+        double v = 1.0;
+        for (int k = 0; k < 3; ++k) {
+            // OpenVDB coordinates are int32 (and dilation adds one): keep well inside.
+            if (!(std::fabs(lo[k] / h) < 1e9 && std::fabs(hi[k] / h) < 1e9))
+                throw InputError(msg("sample grid: cell size ", h, " is too small for the model's coordinates (cell "
+                                     "index beyond 1e9); raise --cell-size or lower --cells"));
+            v *= std::floor(hi[k] / h) - std::floor(lo[k] / h) + 1.0;
+        }
+        most = std::max(most, v);
+    }
+    return most;
+}
+
 } // namespace
+
+std::size_t sampleGridBytesPerCell(const SampleGridOptions& o, int shDegree)
+{
+    const std::size_t perCell = std::size_t(o.samplesPerAxis) * o.samplesPerAxis * o.samplesPerAxis;
+    const std::size_t stride = std::size_t(3 * (shDegree + 1) * (shDegree + 1));
+    // rest + warped positions, targets F and O, sample cell; cell: coords, gradient, skip, index voxel.
+    const std::size_t perSample = 12 + 12 + 4 * stride + 4 + 4 + o.extraBytesPerSample;
+    return perCell * perSample + 12 + 36 + 1 + 8;
+}
 
 openvdb::Coord SampleGrid::Impl::cellOf(const Vec3d& p) const
 {
@@ -135,11 +176,14 @@ SampleGrid::SampleGrid(const GaussianCloud& cloud, const SampleGridOptions& opti
 
     // Active cells: every cell a Gaussian's box overlaps, then one cell of 26-neighbour dilation.
     const std::vector<PreparedGaussian> prepared = prepareCloud(cloud, filterVariance, cutoff, options.threaded);
+    checkMemory(options, cloud.shDegree, largestBoxCells(prepared, h), "the largest Gaussian alone covers");
     TopologyOp topo(prepared, im);
     if (options.threaded)
         tbb::parallel_reduce(tbb::blocked_range<std::size_t>(0, n, kGrain), topo);
     else
         topo(tbb::blocked_range<std::size_t>(0, n));
+    // Tiles still count as their volume here: checked before dilation expands them into voxels.
+    checkMemory(options, cloud.shDegree, double(topo.tree.activeVoxelCount()), "the Gaussians cover at least");
     openvdb::tools::dilateActiveValues(topo.tree, 1, openvdb::tools::NN_FACE_EDGE_VERTEX, openvdb::tools::EXPAND_TILES,
                                        options.threaded);
     topo.tree.voxelizeActiveTiles(options.threaded);
@@ -154,6 +198,7 @@ SampleGrid::SampleGrid(const GaussianCloud& cloud, const SampleGridOptions& opti
     std::vector<std::size_t> leafStart(leaves.leafCount() + 1, 0);
     for (std::size_t l = 0; l < leaves.leafCount(); ++l) leafStart[l + 1] = leafStart[l] + leaves.leaf(l).onVoxelCount();
     const std::size_t cells = leafStart.back();
+    checkMemory(options, cloud.shDegree, double(cells), "needs");
     if (cells > std::size_t(std::numeric_limits<std::int32_t>::max()) / std::size_t(na * na * na))
         throw InputError(msg("sample grid: ", cells, " cells x ", na * na * na, " samples is too many; use fewer cells"));
     im.cellCoords.resize(3 * cells);

@@ -40,7 +40,16 @@ struct SampleGridOptions {
     /// Gaussians' cells up in the NanoVDB index grid on the GPU; under Auto a GPU out-of-memory
     /// falls back to the CPU. Both give the same targets to float rounding (expf, summation).
     Device device = Device::Cpu;
+    /// Refuse (InputError naming the flags and the estimate) a grid whose host memory, estimated
+    /// from the cell count before the per-sample arrays are allocated, exceeds this (0 = no limit).
+    std::size_t maxMemoryBytes = 0;
+    /// Host bytes per sample that the caller's later stages add (e.g. Stage II), counted in the estimate.
+    std::size_t extraBytesPerSample = 0;
 };
+
+/// @brief Host bytes one active cell costs (its n^3 samples' positions, targets and indices, the
+///        cell's coordinates, gradient and index-grid voxel), plus extraBytesPerSample per sample.
+std::size_t sampleGridBytesPerCell(const SampleGridOptions& options, int shDegree);
 
 /// @brief A copy of grid options with another target device (for callers holding const options).
 inline SampleGridOptions withDevice(SampleGridOptions options, Device device)

@@ -1,6 +1,9 @@
 #include "VdbExport.h"
 
 #include <Eigen/SVD>
+#include <cerrno>
+#include <cstring>
+#include <fstream>
 #include <openvdb/openvdb.h>
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_reduce.h>
@@ -105,6 +108,32 @@ float largestSingularValue(const float* f)
     return float(Eigen::JacobiSVD<Eigen::Matrix3d>(m).singularValues()(0));
 }
 
+/// openvdb::io::File::write neither flushes nor checks its stream, so a full disk or `ulimit -f`
+/// left a truncated file reported as written: write the same seekable archive to our own stream.
+class CheckedArchive : public openvdb::io::Archive {
+public:
+    void writeTo(std::ostream& os, const openvdb::GridPtrVec& grids, const openvdb::MetaMap& meta) const
+    {
+        Archive::write(os, grids, /*seekable=*/true, meta);
+    }
+};
+
+void writeCheckedVdb(const std::string& path, const std::string& temp, const openvdb::GridPtrVec& grids,
+                     const openvdb::MetaMap& meta)
+{
+    std::ofstream os(temp, std::ios::binary);
+    if (!os) throw IoError(msg(path, ": cannot open for writing: ", std::strerror(errno)));
+    try {
+        CheckedArchive archive;
+        archive.setCompression(openvdb::io::COMPRESS_ZIP | openvdb::io::COMPRESS_ACTIVE_MASK);
+        archive.writeTo(os, grids, meta);
+    } catch (const openvdb::Exception& e) {
+        throw IoError(msg(path, ": cannot write the VDB file: ", e.what()));
+    }
+    os.close();
+    if (!os) throw IoError(msg(path, ": write failed (disk full or file size limit?)"));
+}
+
 } // namespace
 
 void writeSampleGridVdb(const std::string& path, const SampleGrid& grid, const VdbExportOptions& options)
@@ -167,14 +196,7 @@ void writeSampleGridVdb(const std::string& path, const SampleGrid& grid, const V
     }
 
     AtomicFile out(path);
-    try {
-        openvdb::io::File file(out.tempPath());
-        file.setCompression(openvdb::io::COMPRESS_ZIP | openvdb::io::COMPRESS_ACTIVE_MASK);
-        file.write(grids, fileMeta);
-        file.close();
-    } catch (const openvdb::Exception& e) {
-        throw IoError(msg(path, ": cannot write the VDB file: ", e.what()));
-    }
+    writeCheckedVdb(path, out.tempPath(), grids, fileMeta);
     out.commit();
     progress(msg("wrote ", grids.size(), " grids (", set.sampleCount(), " samples, ", set.cellCount(), " cells) to ", path,
                  " in ", int(watch.ms()), " ms"));

@@ -1,13 +1,19 @@
 #pragma once
 /// @file AtomicFile.h
-/// @brief Write-to-temporary-then-rename, so a failed job never leaves a half-written output.
+/// @brief Write-to-temporary-then-rename, so a failed job never leaves a half-written output, and
+///        OutputSet, so a command's outputs appear together or not at all.
 #include <string>
+#include <vector>
 
 namespace splatwarp {
 
-/// @brief Owns a temporary path next to the destination. Write to tempPath(), then commit()
-///        renames it into place; if commit() is never reached (an exception), the destructor
-///        removes the temporary file.
+/// @brief Owns a short temporary path next to the destination (".sw<pid>-<n>.tmp", so a
+///        255-byte file name still fits). Write to tempPath(), then commit() renames it into place
+///        (or hands it to the active OutputSet); if commit() is never reached (an exception, a
+///        signal), the temporary file is removed.
+/// @throws IoError from the constructor when the destination must not be written: empty path, a
+///         directory, a symlink, a device/FIFO/socket, or (with an active OutputSet) one of the
+///         command's inputs.
 class AtomicFile {
 public:
     explicit AtomicFile(std::string finalPath);
@@ -17,15 +23,66 @@ public:
 
     const std::string& tempPath() const { return mTemp; }
     const std::string& finalPath() const { return mFinal; }
-    /// @brief Rename the temporary file onto the final path. Throws IoError on failure.
+    /// @brief Rename the temporary file onto the final path, or defer that to the active
+    ///        OutputSet. Throws IoError on failure.
     void commit();
 
 private:
     std::string mFinal, mTemp;
+    int mSlot = -1; ///< signal-cleanup registration
     bool mCommitted = false;
 };
 
-/// @brief Write a whole string atomically (reports, JSON).
+/// @brief Write a whole string atomically (reports, JSON); checks flush and close.
 void writeFileAtomic(const std::string& path, const std::string& contents);
+
+/// @brief Throws IoError when path must not be replaced by a regular file (see AtomicFile).
+void checkOutputPath(const std::string& path);
+
+/// @brief One command's outputs, committed together. While it lives (one at a time per process),
+///        AtomicFile::commit() only stages; commit() renames every staged file into place at the
+///        end. Destroyed uncommitted (exception) it removes the staged files and the directories
+///        it created; SIGINT/SIGTERM/SIGHUP do the same (installSignalCleanup()).
+class OutputSet {
+public:
+    /// @param inputs files the command reads: an output that is the same file is refused.
+    explicit OutputSet(std::vector<std::string> inputs = {});
+    ~OutputSet();
+    OutputSet(const OutputSet&) = delete;
+    OutputSet& operator=(const OutputSet&) = delete;
+
+    /// @brief The active set, or nullptr.
+    static OutputSet* active();
+    /// @brief create_directories(dir), remembering what it created (removed again on failure).
+    void createDirectory(const std::string& dir);
+    /// @brief Remove this file at commit (a stale output of an earlier run that this run does not write).
+    void removeOnCommit(const std::string& path);
+    /// @brief Rename every staged file into place; throws IoError (and rolls back the rest) on failure.
+    void commit();
+
+    /// @brief Refuse a destination that is one of the inputs (AtomicFile does; commands call
+    ///        checkTarget() first to fail before any work).
+    void checkNotInput(const std::string& path) const;
+    /// @brief checkOutputPath() and checkNotInput().
+    void checkTarget(const std::string& path) const;
+    /// @brief For AtomicFile: take over a written temporary file (and its cleanup slot).
+    void stage(const std::string& temp, const std::string& finalPath, int slot);
+
+private:
+    struct Staged {
+        std::string temp, final;
+        int slot;
+    };
+    std::vector<std::string> mInputs, mStale;
+    std::vector<Staged> mStaged;
+    std::vector<std::pair<std::string, int>> mCreatedDirs; ///< outermost first, with cleanup slots
+    OutputSet* mPrevious = nullptr;
+    bool mCommitted = false;
+};
+
+/// @brief Install the SIGINT/SIGTERM/SIGHUP handlers that remove registered temporaries and
+///        created output directories before the process dies of the signal, and ignore SIGXFSZ so
+///        a write past `ulimit -f` fails (and is reported) instead of killing the process.
+void installSignalCleanup();
 
 } // namespace splatwarp

@@ -41,4 +41,8 @@ std::string msg(const Args&... args)
     return os.str();
 }
 
+/// @brief Text safe to print on a terminal: control bytes and invalid UTF-8 become \\xNN, and
+///        text beyond maxBytes is cut ("..."), so file contents echoed in a message cannot garble it.
+std::string printable(const std::string& text, std::size_t maxBytes = 2000);
+
 } // namespace splatwarp

@@ -117,6 +117,29 @@ Deformation solveDeformation(const GaussianCloud& rest, const DeformSpec& spec, 
     return d;
 }
 
+namespace {
+/// A solve that overflowed or ran out of iterations must not pass for a deformation (it used to
+/// give an undeformed model with null energies and exit 0).
+void checkSolve(const Deformation& d, const std::string& source, const EdOptions& options)
+{
+    const EdReport& r = d.report.solver;
+    bool finite = std::isfinite(r.final.total());
+    for (std::size_t j = 0; finite && j < d.transforms.size(); ++j) {
+        const Vec3d moved = d.graph.nodes()[j] + d.transforms.t[j];
+        for (int a = 0; a < 3; ++a) finite = finite && std::fabs(moved[a]) <= 1e15;
+        for (int a = 0; a < 3; ++a)
+            for (int b = 0; b < 3; ++b) finite = finite && std::isfinite(d.transforms.A[j][a][b]);
+    }
+    if (!finite)
+        throw InputError(msg(source, ": the deformation solve overflowed (energy ", r.final.total(),
+                             "): are the handles' translations, scales or angles far too large for the model?"));
+    if (!r.converged)
+        throw InputError(msg(source, ": the deformation solve did not converge (", r.iterations, " of at most ",
+                             options.maxIterations, " Gauss-Newton iterations, energy ", r.final.total(),
+                             "): are the handles' translations, scales or angles far too large for the model?"));
+}
+} // namespace
+
 Deformation solveDeformation(const DeformationGraph& graph, const GaussianCloud& rest, const DeformSpec& spec,
                              const EdOptions& options, const NodeTransforms* warmStart)
 {
@@ -130,6 +153,7 @@ Deformation solveDeformation(const DeformationGraph& graph, const GaussianCloud&
                      "; handle ", r.toHandle, " wins"));
     const EdConstraints& c = d.handles.constraints;
     d.transforms = solveEd(d.graph, c, options, &d.report.solver, warmStart);
+    checkSolve(d, spec.source, options);
 
     const std::size_t n = d.graph.nodeCount();
     d.nodeMoving.assign(n, 0);

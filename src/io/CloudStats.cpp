@@ -1,6 +1,7 @@
 #include "io/CloudStats.h"
 
 #include <algorithm>
+#include "core/Error.h"
 #include <cmath>
 #include <limits>
 #include <tbb/blocked_range.h>
@@ -125,6 +126,43 @@ CloudStats computeCloudStats(const GaussianCloud& g, bool threaded)
         s.scaleMedian = std::exp(double(*mid)); // exp is monotonic: median of exp = exp of median
     }
     return s;
+}
+
+std::vector<CloudWarning> cloudWarnings(const GaussianCloud& g, const CloudStats& stats)
+{
+    std::vector<CloudWarning> out;
+    const auto add = [&](const char* kind, std::size_t count, const std::string& text) {
+        if (count) out.push_back({kind, count, text});
+    };
+    add("non-finite", stats.invalidValues,
+        msg(stats.invalidValues, " NaN/Inf values (other commands refuse the file; --drop-invalid drops those Gaussians)"));
+    Vec3d span = stats.bboxMax - stats.bboxMin;
+    const double extent = std::max(span.x, std::max(span.y, span.z));
+    std::size_t offUnit = 0, nearZero = 0, huge = 0, tiny = 0;
+    for (std::size_t i = 0; i < g.size(); ++i) {
+        double q2 = 0;
+        for (int a = 0; a < 4; ++a) q2 += double(g.rotations[4 * i + a]) * g.rotations[4 * i + a];
+        const double q = std::sqrt(q2);
+        offUnit += std::isfinite(q) && std::fabs(q - 1.0) > 0.01 ? 1 : 0;
+        nearZero += q < 1e-6 ? 1 : 0;
+        const float* ls = &g.logScales[3 * i];
+        const double s = std::exp(double(std::max(ls[0], std::max(ls[1], ls[2]))));
+        huge += extent > 0 && s > 10.0 * extent ? 1 : 0;
+        tiny += extent > 0 && s < 1e-6 * extent ? 1 : 0;
+    }
+    add("unnormalised-quaternions", offUnit,
+        msg(offUnit, " quaternions are not unit length (norm ", stats.quatNormMin, " .. ", stats.quatNormMax,
+            "); they are normalised on use", nearZero ? msg(", but ", nearZero, " are near zero and have no defined rotation") : ""));
+    add("extreme-scales", huge + tiny,
+        msg(huge, " Gaussians are larger than 10x the centres' extent (", extent, ") and ", tiny,
+            " smaller than 1e-6 of it (largest scale ", stats.scaleMax, ", smallest ", stats.scaleMin, ")"));
+    const double far = std::max(std::max(std::fabs(stats.bboxMin.x), std::fabs(stats.bboxMax.x)),
+                                std::max(std::max(std::fabs(stats.bboxMin.y), std::fabs(stats.bboxMax.y)),
+                                         std::max(std::fabs(stats.bboxMin.z), std::fabs(stats.bboxMax.z))));
+    add("extreme-extent", far > 1e6 ? g.size() : 0,
+        msg("centres reach ", far, " units from the origin: float32 resolves only ", far * 6e-8,
+            " units there (recentre the model)"));
+    return out;
 }
 
 } // namespace splatwarp

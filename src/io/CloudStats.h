@@ -2,6 +2,8 @@
 /// @file CloudStats.h
 /// @brief Summary statistics of a Gaussian cloud (what `splatwarp info` prints).
 #include <cstddef>
+#include <string>
+#include <vector>
 
 #include "core/GaussianCloud.h"
 
@@ -18,6 +20,18 @@ struct CloudStats {
     double quatNormMin = 0, quatNormMax = 0;     ///< |q| of the raw quaternions
     std::size_t invalidValues = 0;               ///< NaN/Inf values anywhere in the cloud
 };
+
+/// @brief Something in a cloud other commands refuse, drop or may render badly.
+struct CloudWarning {
+    std::string kind;      ///< "non-finite", "unnormalised-quaternions", "extreme-scales", "extreme-extent"
+    std::size_t count = 0; ///< Gaussians (or values, for non-finite) concerned
+    std::string message;   ///< one line for the user
+};
+
+/// @brief Warnings for what a cloud holds: NaN/Inf values, quaternions far from unit length (or
+///        near zero), scales far beyond the centres' extent (or below 1e-6 of it), centres beyond
+///        1e6 units (float precision). `info` prints them and lists them in --json.
+std::vector<CloudWarning> cloudWarnings(const GaussianCloud& g, const CloudStats& stats);
 
 /// @brief Compute the statistics (double precision accumulation).
 /// @param threaded run the per-Gaussian reduction with oneTBB (same result as serial up to the

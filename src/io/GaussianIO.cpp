@@ -4,6 +4,7 @@
 #include <cstring>
 #include <filesystem>
 #include <fstream>
+#include <limits>
 #include <sstream>
 
 #include "core/Error.h"
@@ -25,22 +26,39 @@ std::string readWholeFile(const std::string& path)
     return ss.str();
 }
 
-// Number of non-finite values of Gaussian i; `first` receives the name of the first one.
+// Values that are finite on disk but overflow in use: exp(log-scale) squared into a float
+// covariance, squared distances of centres, |q|^2 of a quaternion.
+constexpr float kMaxAbsLogScale = 40.0f; // exp(40)^2 = 5.5e34 < FLT_MAX
+constexpr float kMaxAbsCentre = 1e15f;   // (1e15)^2 = 1e30 < FLT_MAX
+constexpr double kMinQuatNorm = 1e-12, kMaxQuatNorm = 1e18;
+
+// Number of unusable values of Gaussian i (NaN/Inf, or out of the limits above); `first`
+// receives the name and value of the first one.
 int countInvalid(const GaussianCloud& g, std::size_t i, std::string* first)
 {
     int bad = 0;
-    const auto check = [&](float v, const auto& name) {
-        if (std::isfinite(v)) return;
-        if (bad++ == 0 && first) *first = msg(name(), "' is ", v);
+    const auto check = [&](float v, float limit, const auto& name) {
+        if (std::isfinite(v) && std::fabs(v) <= limit) return;
+        if (bad++ == 0 && first)
+            *first = std::isfinite(v) ? msg(name(), "' is ", v, " (|value| must be <= ", limit, " to stay finite in use)")
+                                      : msg(name(), "' is ", v);
     };
+    const float inf = std::numeric_limits<float>::infinity();
     static const char* const xyz[] = {"x", "y", "z"};
-    for (int a = 0; a < 3; ++a) check(g.means[3 * i + a], [&] { return std::string(xyz[a]); });
+    for (int a = 0; a < 3; ++a) check(g.means[3 * i + a], kMaxAbsCentre, [&] { return std::string(xyz[a]); });
     const float* sh = g.shOf(i);
     for (int j = 0; j < g.shCoeffs(); ++j)
-        for (int c = 0; c < 3; ++c) check(sh[3 * j + c], [&] { return shPropertyName(g.shDegree, j, c); });
-    check(g.opacities[i], [] { return std::string("opacity"); });
-    for (int a = 0; a < 3; ++a) check(g.logScales[3 * i + a], [&] { return "scale_" + std::to_string(a); });
-    for (int a = 0; a < 4; ++a) check(g.rotations[4 * i + a], [&] { return "rot_" + std::to_string(a); });
+        for (int c = 0; c < 3; ++c) check(sh[3 * j + c], inf, [&] { return shPropertyName(g.shDegree, j, c); });
+    check(g.opacities[i], inf, [] { return std::string("opacity"); });
+    for (int a = 0; a < 3; ++a) check(g.logScales[3 * i + a], kMaxAbsLogScale, [&] { return "scale_" + std::to_string(a); });
+    double q2 = 0.0;
+    for (int a = 0; a < 4; ++a) {
+        check(g.rotations[4 * i + a], inf, [&] { return "rot_" + std::to_string(a); });
+        q2 += double(g.rotations[4 * i + a]) * g.rotations[4 * i + a];
+    }
+    if (std::isfinite(q2) && !(std::sqrt(q2) >= kMinQuatNorm && std::sqrt(q2) <= kMaxQuatNorm) && bad++ == 0 && first)
+        *first = msg("rot_0..3' have norm ", std::sqrt(q2), " (no defined rotation; must be in [", kMinQuatNorm, ", ",
+                     kMaxQuatNorm, "])");
     return bad;
 }
 
@@ -65,13 +83,13 @@ void applyInvalidPolicy(const std::string& path, GaussianCloud& g, const ReadOpt
     if (!options.dropInvalid)
         throw InputError(msg(path, ": Gaussian ", firstBad, ": property '", firstName, " (", report.invalidGaussians,
                              " Gaussians hold ", report.invalidValues,
-                             " NaN/Inf values; --drop-invalid / ReadOptions::dropInvalid drops them)"));
+                             " NaN/Inf or unusable values; --drop-invalid / ReadOptions::dropInvalid drops them)"));
     GaussianCloud kept;
     kept.shDegree = g.shDegree;
     for (std::size_t i = 0; i < g.size(); ++i)
         if (!bad[i]) kept.append(g, i);
     report.dropped = report.invalidGaussians;
-    report.notes.push_back(msg("dropped ", report.dropped, " Gaussians with NaN/Inf values"));
+    report.notes.push_back(msg("dropped ", report.dropped, " Gaussians with NaN/Inf or unusable values"));
     g = std::move(kept);
 }
 

@@ -11,7 +11,9 @@ namespace splatwarp {
 
 /// @brief Options for readGaussians().
 struct ReadOptions {
-    /// Drop Gaussians with NaN/Inf values (and report how many) instead of refusing the file.
+    /// Drop unusable Gaussians (and report how many) instead of refusing the file: NaN/Inf values,
+    /// or values finite on disk that overflow in use (|log-scale| > 40, |centre| > 1e15, a
+    /// quaternion norm outside [1e-12, 1e18]).
     bool dropInvalid = false;
     /// Keep Gaussians with NaN/Inf values as read and only count them (for `info`); wins over
     /// dropInvalid. Default false: such files are refused.
@@ -22,7 +24,7 @@ struct ReadOptions {
 struct ReadReport {
     std::string format;               ///< "ply-binary-le", "ply-binary-be", "ply-ascii", "splat", "ply-compressed", "spz-v2", "spz-v3"
     std::size_t dropped = 0;          ///< Gaussians dropped by dropInvalid
-    std::size_t invalidValues = 0;    ///< NaN/Inf values found (before any drop)
+    std::size_t invalidValues = 0;    ///< NaN/Inf or unusable values found (before any drop)
     std::size_t invalidGaussians = 0; ///< Gaussians holding at least one of them
     std::vector<std::string> notes;   ///< e.g. ignored extra properties
 };

@@ -4,6 +4,7 @@
 #include <cerrno>
 #include <cstdlib>
 #include <sstream>
+#include <unordered_set>
 
 #include "core/Error.h"
 
@@ -106,6 +107,8 @@ PlyHeader parsePlyHeader(const std::string& path, const std::string& data)
     if (!hasPlyMagic(data)) throw InputError(msg(path, ": not a PLY file (first line is not 'ply')"));
     PlyHeader h;
     bool haveFormat = false;
+    // Names seen so far, so duplicate checks stay linear in the header size (200k lines).
+    std::unordered_set<std::string> elementNames, propertyNames;
     std::size_t pos = 0;
     for (int lineNo = 1;; ++lineNo) {
         const std::size_t eol = data.find('\n', pos);
@@ -141,8 +144,9 @@ PlyHeader parsePlyHeader(const std::string& path, const std::string& data)
                 throw InputError(where() + "expected 'element <name> <count>' with a non-negative integer count");
             e.name = words[0];
             e.line = lineNo;
-            if (h.find(e.name)) throw InputError(where() + "element '" + e.name + "' declared twice");
+            if (!elementNames.insert(e.name).second) throw InputError(where() + "element '" + e.name + "' declared twice");
             h.elements.push_back(e);
+            propertyNames.clear();
         } else if (key == "property") {
             if (h.elements.empty()) throw InputError(where() + "property before any element");
             PlyProperty p;
@@ -155,7 +159,7 @@ PlyHeader parsePlyHeader(const std::string& path, const std::string& data)
             if (!ok) throw InputError(where() + "expected 'property <type> <name>' or 'property list <type> <type> <name>' with a known type");
             p.name = words.back();
             PlyElement& e = h.elements.back();
-            if (e.find(p.name) >= 0)
+            if (!propertyNames.insert(p.name).second)
                 throw InputError(where() + "property '" + p.name + "' declared twice in element '" + e.name + "'");
             e.properties.push_back(p);
         } else {

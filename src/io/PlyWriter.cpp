@@ -60,8 +60,8 @@ void writePly(const std::string& path, const GaussianCloud& g)
         // Little-endian host assumed (x86-64, aarch64); checked at compile time below.
         static_assert(sizeof(float) == 4, "float32 expected");
         out.write(reinterpret_cast<const char*>(body.data()), std::streamsize(body.size() * sizeof(float)));
-        out.flush();
-        if (!out) throw IoError(msg(path, ": write failed"));
+        out.close();
+        if (!out) throw IoError(msg(path, ": write failed (disk full or file size limit?)"));
     }
     file.commit();
 }

@@ -41,7 +41,7 @@ void expectCliRefuses(const TempDir& dir, const std::string& input, const std::s
     EXPECT_EQ(runCli("convert " + input + " " + out, log), 1);
     EXPECT_FALSE(std::filesystem::exists(out));
     for (const auto& e : std::filesystem::directory_iterator(dir.path()))
-        EXPECT_EQ(e.path().string().find(".tmp-"), std::string::npos) << e.path();
+        EXPECT_EQ(e.path().filename().string().find(".tmp"), std::string::npos) << e.path();
     const std::string text = readBytes(log);
     EXPECT_NE(text.find(part), std::string::npos) << text;
     EXPECT_NE(text.find(input), std::string::npos) << text;

@@ -96,12 +96,14 @@ TEST(PlyReader, IntegerTypesDecodeInBothByteOrders)
                 x = next;
                 next = next >= 120.0f ? (isSigned ? -100.0f : 0.0f) : next + 1.0f;
             }
+        ReadOptions keep; // log-scales up to 120 overflow exp() in use; decoding is what is tested here
+        keep.keepInvalid = true;
         for (const char* format : {"binary_little_endian", "binary_big_endian", "ascii"}) {
             PlyVariant v;
             v.type = type;
             v.format = format;
             writeBytes(dir.file("i.ply"), plyBytes(g, v));
-            EXPECT_TRUE(sameBits(g, load(dir.file("i.ply")))) << type << " " << format;
+            EXPECT_TRUE(sameBits(g, readGaussians(dir.file("i.ply"), keep))) << type << " " << format;
         }
     }
 }

@@ -1,0 +1,48 @@
+#include "core/Memory.h"
+
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <unistd.h>
+
+namespace splatwarp {
+
+std::size_t physicalMemoryBytes()
+{
+    const long pages = ::sysconf(_SC_PHYS_PAGES), pageSize = ::sysconf(_SC_PAGE_SIZE);
+    return pages > 0 && pageSize > 0 ? std::size_t(pages) * std::size_t(pageSize) : 0;
+}
+
+std::size_t defaultMemoryBudget() { return physicalMemoryBytes() / 4 * 3; }
+
+std::size_t parseByteSize(const std::string& text, const std::string& flag)
+{
+    char* end = nullptr;
+    const double v = std::strtod(text.c_str(), &end);
+    double unit = 1.0;
+    const std::string suffix = end ? std::string(end) : std::string();
+    if (suffix == "K" || suffix == "k") unit = 1024.0;
+    else if (suffix == "M" || suffix == "m") unit = 1024.0 * 1024.0;
+    else if (suffix == "G" || suffix == "g") unit = 1024.0 * 1024.0 * 1024.0;
+    else if (suffix == "T" || suffix == "t") unit = 1024.0 * 1024.0 * 1024.0 * 1024.0;
+    else if (!suffix.empty()) unit = -1.0;
+    const double bytes = v * unit;
+    if (end == text.c_str() || unit < 0 || !std::isfinite(bytes) || !(bytes > 0) || bytes > 1e18)
+        throw UsageError(msg(flag, " must be a positive size such as 8G, 512M or 1073741824, got '", text, "'"));
+    return std::size_t(bytes);
+}
+
+std::string formatBytes(double bytes)
+{
+    static const char* const units[] = {"B", "KiB", "MiB", "GiB", "TiB", "PiB", "EiB"};
+    int u = 0;
+    while (bytes >= 1024.0 && u < 6) {
+        bytes /= 1024.0;
+        ++u;
+    }
+    char text[64];
+    std::snprintf(text, sizeof(text), u == 0 ? "%.0f %s" : "%.3g %s", bytes, units[u]);
+    return text;
+}
+
+} // namespace splatwarp

@@ -1,0 +1,129 @@
+/// AtomicFile and OutputSet: refused destinations, all-or-nothing commits, cleanup on failure
+/// and on SIGTERM (issue 11 groups 2, 4 and the 249-character name of group 10).
+#include <gtest/gtest.h>
+
+#include <csignal>
+#include <filesystem>
+#include <fstream>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include "core/AtomicFile.h"
+#include "core/Error.h"
+#include "support/TestSupport.h"
+
+using namespace splatwarp;
+using namespace splatwarp::test;
+namespace fs = std::filesystem;
+
+namespace {
+
+std::string slurp(const std::string& path)
+{
+    std::ifstream in(path, std::ios::binary);
+    return std::string(std::istreambuf_iterator<char>(in), {});
+}
+
+std::size_t entries(const fs::path& dir)
+{
+    std::size_t n = 0;
+    for ([[maybe_unused]] const auto& e : fs::directory_iterator(dir)) ++n;
+    return n;
+}
+
+std::string ioErrorMessage(const std::function<void()>& f)
+{
+    try {
+        f();
+    } catch (const IoError& e) {
+        return e.what();
+    }
+    return "";
+}
+
+} // namespace
+
+TEST(OutputSet, RefusesDestinationsThatAreNotPlainNewOrRegularFiles)
+{
+    TempDir dir;
+    EXPECT_NE(ioErrorMessage([] { AtomicFile f(""); }).find("empty output path"), std::string::npos);
+    EXPECT_NE(ioErrorMessage([&] { AtomicFile f(dir.path().string()); }).find("is a directory"), std::string::npos);
+    // /dev/null is a character device: it used to be replaced by a regular file.
+    EXPECT_NE(ioErrorMessage([] { AtomicFile f("/dev/null"); }).find("not a regular file"), std::string::npos);
+    writeFileAtomic(dir.file("target"), "x");
+    fs::create_symlink(dir.file("target"), dir.file("link"));
+    EXPECT_NE(ioErrorMessage([&] { writeFileAtomic(dir.file("link"), "y"); }).find("symbolic link"), std::string::npos);
+    EXPECT_TRUE(fs::is_symlink(dir.file("link")));
+    EXPECT_EQ(slurp(dir.file("target")), "x");
+}
+
+TEST(OutputSet, RefusesAnOutputThatIsAnInputUnderAnotherName)
+{
+    TempDir dir;
+    writeFileAtomic(dir.file("model.ply"), "model");
+    OutputSet outputs({dir.file("model.ply")});
+    const std::string sameFile = (dir.path() / "." / "model.ply").string();
+    EXPECT_NE(ioErrorMessage([&] { writeFileAtomic(sameFile, "vdb"); }).find("is also an input"), std::string::npos);
+    EXPECT_EQ(slurp(dir.file("model.ply")), "model");
+}
+
+TEST(OutputSet, CommitsAllOutputsTogetherOrNone)
+{
+    TempDir dir;
+    const fs::path out = dir.path() / "a" / "b";
+    {
+        OutputSet outputs;
+        outputs.createDirectory(out.string());
+        writeFileAtomic((out / "one.txt").string(), "1");
+        writeFileAtomic((out / "two.txt").string(), "2");
+        EXPECT_FALSE(fs::exists(out / "one.txt")); // staged, not visible yet
+        // No commit (a later stage failed): the staged files and the created folders go.
+    }
+    EXPECT_EQ(entries(dir.path()), 0u);
+    {
+        OutputSet outputs;
+        outputs.createDirectory(out.string());
+        writeFileAtomic((out / "stale.txt").string(), "old");
+        outputs.commit();
+    }
+    {
+        OutputSet outputs;
+        outputs.createDirectory(out.string());
+        writeFileAtomic((out / "one.txt").string(), "1");
+        outputs.removeOnCommit((out / "stale.txt").string());
+        outputs.commit();
+    }
+    EXPECT_EQ(slurp((out / "one.txt").string()), "1");
+    EXPECT_FALSE(fs::exists(out / "stale.txt"));
+    EXPECT_EQ(entries(out), 1u);
+}
+
+TEST(OutputSet, NameOf249CharactersStillHasATemporary)
+{
+    TempDir dir;
+    const std::string name = std::string(245, 'n') + ".ply";
+    writeFileAtomic(dir.file(name), "ok");
+    EXPECT_EQ(slurp(dir.file(name)), "ok");
+}
+
+TEST(OutputSet, SigtermRemovesStagedFilesAndCreatedFolders)
+{
+    TempDir dir;
+    const fs::path out = dir.path() / "job";
+    const pid_t child = fork();
+    ASSERT_GE(child, 0);
+    if (child == 0) {
+        installSignalCleanup();
+        OutputSet outputs;
+        outputs.createDirectory(out.string());
+        writeFileAtomic((out / "baseline.ply").string(), "staged");
+        AtomicFile partial((out / "deformed.ply").string());
+        std::ofstream(partial.tempPath()) << "half written";
+        std::raise(SIGTERM);
+        _exit(0); // not reached
+    }
+    int status = 0;
+    ASSERT_EQ(waitpid(child, &status, 0), child);
+    EXPECT_TRUE(WIFSIGNALED(status) && WTERMSIG(status) == SIGTERM);
+    EXPECT_EQ(entries(dir.path()), 0u) << "left: " << (fs::exists(out) ? "job/" : "");
+}

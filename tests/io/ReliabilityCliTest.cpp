@@ -1,0 +1,223 @@
+/// Issue 11, one minimised reproduction per group, run against the CLI: exit codes, messages and
+/// what is (not) left on disk.
+#include <gtest/gtest.h>
+
+#include <chrono>
+#include <filesystem>
+#include <sys/stat.h>
+
+#include "PlyTestFiles.h"
+#include "io/GaussianIO.h"
+#include "io/PlyHeader.h"
+#include "support/TestSupport.h"
+
+using namespace splatwarp;
+using namespace splatwarp::test;
+namespace fs = std::filesystem;
+
+namespace {
+
+/// A small model file (stripes-like random cloud) and a log path in a fresh directory.
+struct Fixture {
+    TempDir dir;
+    std::string model = dir.file("m.ply"), log = dir.file("log.txt");
+    Fixture(std::size_t n = 400)
+    {
+        GaussianCloud g = randomCloud(n, 1, 7);
+        for (float& v : g.logScales) v = 0.25f * v - 3.5f; // scales 0.02..0.05 in a 4-unit cube: a cheap grid
+        writePly(model, g);
+    }
+    std::string text() const { return readBytes(log); }
+    bool has(const std::string& part) const { return text().find(part) != std::string::npos; }
+};
+
+bool noTemporaries(const fs::path& dir)
+{
+    for (const auto& e : fs::recursive_directory_iterator(dir))
+        if (e.path().filename().string().find(".tmp") != std::string::npos) return false;
+    return true;
+}
+
+} // namespace
+
+// Group 1: a VDB write cut by `ulimit -f` reported success and left a truncated file.
+TEST(Reliability, VdbWritePastFileSizeLimitFails)
+{
+    Fixture f;
+    const std::string out = f.dir.file("out.vdb");
+    ASSERT_EQ(runCli("-q sample stripes --count 2000 -o " + f.model), 0); // --cells 16: a 0.7 MB .vdb
+    const int rc = std::system(("(trap '' XFSZ; ulimit -f 64; " + std::string(SPLATWARP_CLI) + " -q to-vdb " + f.model +
+                                " -o " + out + " --cells 16 > " + f.log + " 2>&1); exit $?")
+                                   .c_str());
+    EXPECT_EQ(WEXITSTATUS(rc), 1) << f.text();
+    EXPECT_TRUE(f.has("write failed")) << f.text();
+    EXPECT_FALSE(fs::exists(out));
+    EXPECT_TRUE(noTemporaries(f.dir.path()));
+}
+
+// Group 2: outputs that are inputs, device nodes or symlinks were replaced.
+TEST(Reliability, InputsDevicesAndSymlinksAreNeverReplaced)
+{
+    Fixture f;
+    const std::string before = readBytes(f.model);
+    EXPECT_EQ(runCli("-q to-vdb " + f.model + " -o " + f.dir.file(".") + "/m.ply", f.log), 1);
+    EXPECT_TRUE(f.has("is also an input")) << f.text();
+    EXPECT_EQ(readBytes(f.model), before);
+    EXPECT_EQ(runCli("-q convert " + f.model + " /dev/null", f.log), 1);
+    EXPECT_TRUE(f.has("not a regular file")) << f.text();
+    struct stat st {};
+    ASSERT_EQ(::stat("/dev/null", &st), 0);
+    EXPECT_TRUE(S_ISCHR(st.st_mode));
+    fs::create_symlink(f.model, f.dir.file("link.ply"));
+    EXPECT_EQ(runCli("-q convert " + f.model + " " + f.dir.file("link.ply"), f.log), 1);
+    EXPECT_TRUE(fs::is_symlink(f.dir.file("link.ply")));
+}
+
+// Group 3: in-range flags ended in std::bad_alloc (exit 134) or ate all memory.
+TEST(Reliability, MemoryIsEstimatedBeforeAllocating)
+{
+    Fixture f;
+    const std::string out = f.dir.file("out.vdb");
+    EXPECT_EQ(runCli("-q to-vdb " + f.model + " -o " + out + " --cells 100000", f.log), 1);
+    EXPECT_TRUE(f.has("--max-memory")) << f.text();
+    EXPECT_EQ(runCli("-q to-vdb " + f.model + " -o " + out + " --cell-size 1e-6", f.log), 1);
+    EXPECT_TRUE(f.has("--cell-size")) << f.text();
+    EXPECT_EQ(runCli("-q to-vdb " + f.model + " -o " + out + " --cells 16 --max-memory 64K", f.log), 1);
+    EXPECT_TRUE(f.has("more than --max-memory 64 KiB")) << f.text();
+    EXPECT_EQ(runCli("-q to-vdb " + f.model + " -o " + out + " --max-memory lots", f.log), 2);
+    EXPECT_FALSE(fs::exists(out));
+    EXPECT_EQ(runCli("-q to-vdb " + f.model + " -o " + out + " --cells 16", f.log), 0) << f.text();
+}
+
+// Group 4: `render --orbit` left the views written before a failure; a bad camera directory too.
+TEST(Reliability, RenderViewsAppearTogetherOrNotAtAll)
+{
+    Fixture f;
+    const std::string views = f.dir.file("views");
+    // The output folder exists but one view name is taken by a directory: the whole set fails.
+    fs::create_directories(fs::path(views) / "view_002.png");
+    EXPECT_EQ(runCli("-q render " + f.model + " --orbit 3 --size 16x16 -o " + views, f.log), 1);
+    EXPECT_FALSE(fs::exists(fs::path(views) / "view_000.png")) << f.text();
+    EXPECT_TRUE(noTemporaries(f.dir.path()));
+    EXPECT_EQ(runCli("-q render " + f.model + " --orbit 2 --size 16x16 -o " + f.dir.file("new/views"), f.log), 0);
+    EXPECT_TRUE(fs::exists(f.dir.file("new/views/view_001.png")));
+}
+
+// Group 6: a handle translation of 1e30 gave exit 0, an undeformed model and null energies.
+TEST(Reliability, OverflowingSolveIsAnError)
+{
+    Fixture f;
+    const std::string spec = f.dir.file("far.json");
+    writeBytes(spec, R"({"version": 1, "units": "bbox", "graph": {"nodes": 32, "k": 4},
+      "handles": [{"box": {"min": [-0.1, -0.1, -0.1], "max": [0.3, 1.1, 1.1]}, "fixed": true},
+                  {"box": {"min": [0.7, -0.1, -0.1], "max": [1.1, 1.1, 1.1]}, "translate": [1e30, 0, 0]}]})");
+    EXPECT_EQ(runCli("-q deform " + f.model + " --spec " + spec + " --stage1-only -o " + f.dir.file("out"), f.log), 1);
+    EXPECT_TRUE(f.has("far.json: the deformation solve")) << f.text();
+    EXPECT_FALSE(fs::exists(f.dir.file("out"))); // no output, and no empty folder either
+}
+
+// Group 4: a failure after Stage I left baseline.ply; --stage1-only left an old deformed.ply.
+TEST(Reliability, DeformOutputsAppearTogetherAndReplaceStaleOnes)
+{
+    Fixture f;
+    const std::string spec = f.dir.file("none.json"), out = f.dir.file("out");
+    writeBytes(spec, R"({"version": 1, "units": "bbox", "graph": {"nodes": 16, "k": 4},
+      "handles": [{"box": {"min": [-0.1, -0.1, -0.1], "max": [0.3, 1.1, 1.1]}, "fixed": true}]})");
+    // Fails in the sample grid, after Stage I has produced baseline.ply.
+    EXPECT_EQ(runCli("-q deform " + f.model + " --spec " + spec + " -o " + out + " --iterations 1 --max-memory 1K", f.log), 1);
+    EXPECT_TRUE(f.has("sample grid")) << f.text();
+    EXPECT_FALSE(fs::exists(out));
+    fs::create_directories(out);
+    writeBytes(out + "/deformed.ply", "stale");
+    EXPECT_EQ(runCli("-q deform " + f.model + " --spec " + spec + " -o " + out + " --stage1-only", f.log), 0) << f.text();
+    EXPECT_TRUE(fs::exists(out + "/baseline.ply"));
+    EXPECT_FALSE(fs::exists(out + "/deformed.ply"));
+    // Its own output as the next input.
+    EXPECT_EQ(runCli("-q deform " + out + "/baseline.ply --spec " + spec + " -o " + out + " --stage1-only", f.log), 1);
+    EXPECT_TRUE(f.has("is also an input")) << f.text();
+}
+
+// Group 7: NaN/Inf passed the flag checks; --fov / --distance out of range were exit 1.
+TEST(Reliability, NonFiniteAndOutOfRangeFlagsAreUsageErrors)
+{
+    Fixture f;
+    const std::string img = f.dir.file("i.png"), vdb = f.dir.file("o.vdb");
+    for (const std::string& args :
+         {"render " + f.model + " -o " + img + " --elevation nan", "render " + f.model + " -o " + img + " --fov inf",
+          "render " + f.model + " -o " + img + " --fov 180", "render " + f.model + " -o " + img + " --distance 0",
+          "to-vdb " + f.model + " -o " + vdb + " --cutoff nan", "to-vdb " + f.model + " -o " + vdb + " --cell-size -inf",
+          "deform " + f.model + " --spec x.json -o " + f.dir.file("d") + " --boundary-weight nan"}) {
+        EXPECT_EQ(runCli(args, f.log), 2) << args << "\n" << f.text();
+        const std::string flag = args.substr(args.rfind(" --"), args.rfind(' ') - args.rfind(" --")).substr(1);
+        EXPECT_TRUE(f.has(flag)) << flag << " not named in: " << f.text();
+    }
+    // Readable bounds (CLI11 printed DBL_MAX with all 309 digits, 1e-8 as 0.000000).
+    EXPECT_EQ(runCli("to-vdb " + f.model + " -o " + vdb + " --cells -3", f.log), 2);
+    EXPECT_LT(f.text().size(), 300u) << f.text();
+    EXPECT_EQ(runCli("to-vdb " + f.model + " -o " + vdb + " --cutoff 1", f.log), 2);
+    EXPECT_TRUE(f.has("1e-08")) << f.text();
+}
+
+// Group 8: 200k property lines took 81 s (quadratic duplicate checks); 200k elements never ended.
+TEST(Reliability, PlyHeaderParsingIsLinear)
+{
+    for (const char* kind : {"property float p", "element e"}) {
+        std::string header = "ply\nformat binary_little_endian 1.0\nelement vertex 0\n";
+        for (int i = 0; i < 200000; ++i) header += std::string(kind) + std::to_string(i) + (kind[0] == 'e' ? " 0\n" : "\n");
+        header += "end_header\n";
+        const auto start = std::chrono::steady_clock::now();
+        const PlyHeader h = parsePlyHeader("big.ply", header);
+        const double s = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+        EXPECT_EQ(h.elements.size(), kind[0] == 'e' ? 200001u : 1u);
+        EXPECT_LT(s, 5.0) << kind; // ~0.2 s measured; the quadratic parser took 81 s
+    }
+}
+
+// Group 9: log-scale 1e30 is finite on disk but exp() overflows; it was silently dropped later.
+TEST(Reliability, ValuesThatOverflowInUseAreRefusedOrDropped)
+{
+    Fixture f;
+    GaussianCloud g = randomCloud(8, 0, 3);
+    g.logScales[3 * 5 + 1] = 1e30f;
+    g.rotations[4 * 6] = g.rotations[4 * 6 + 1] = g.rotations[4 * 6 + 2] = g.rotations[4 * 6 + 3] = 0.0f;
+    const std::string path = f.dir.file("huge.ply");
+    writePly(path, g);
+    const std::string m = inputErrorMessage([&] { readGaussians(path); });
+    EXPECT_NE(m.find("Gaussian 5: property 'scale_1' is 1e+30"), std::string::npos) << m;
+    ReadOptions drop;
+    drop.dropInvalid = true;
+    ReadReport report;
+    EXPECT_EQ(readGaussians(path, drop, &report).size(), 6u);
+    EXPECT_EQ(report.dropped, 2u);
+    EXPECT_EQ(runCli("-q render " + path + " -o " + f.dir.file("r.png") + " --size 8x8", f.log), 1);
+    EXPECT_TRUE(f.has("scale_1")) << f.text();
+    EXPECT_EQ(runCli("-q render " + path + " -o " + f.dir.file("r.png") + " --size 8x8 --drop-invalid", f.log), 0);
+    EXPECT_EQ(runCli("info --json " + path, f.log), 0);
+    EXPECT_TRUE(f.has("\"unusable_gaussians\": 2")) << f.text();
+    EXPECT_TRUE(f.has("\"extreme-scales\"")) << f.text();
+}
+
+// Group 10: messages.
+TEST(Reliability, MessagesAreReadableAndNameTheFile)
+{
+    Fixture f;
+    const std::string garbage = f.dir.file("garbage.ply");
+    writeBytes(garbage, std::string("ply\nformat ascii 1.0\n\x1b[2J\x07\xff\xfe bogus\nend_header\n"));
+    EXPECT_EQ(runCli("info " + garbage, f.log), 1);
+    for (char c : f.text()) EXPECT_TRUE(c == '\n' || static_cast<unsigned char>(c) >= 0x20) << int(c);
+    EXPECT_TRUE(f.has("\\x1b[2J\\x07\\xff\\xfe")) << f.text();
+
+    const std::string empty = f.dir.file("empty.ply");
+    writePly(empty, GaussianCloud{});
+    EXPECT_EQ(runCli("-q to-vdb " + empty + " -o " + f.dir.file("e.vdb"), f.log), 1);
+    EXPECT_TRUE(f.has(empty + ": the file holds no Gaussians")) << f.text();
+
+    EXPECT_EQ(runCli("-q deform " + f.model + " --spec " + f.dir.path().string() + " -o " + f.dir.file("d"), f.log), 1);
+    EXPECT_TRUE(f.has("is a directory")) << f.text();
+    EXPECT_EQ(runCli("-q to-vdb " + f.model + " -o ''", f.log), 2);
+    EXPECT_EQ(runCli("-q render " + f.model + " -o " + f.dir.file("out.jpg"), f.log), 2);
+    EXPECT_TRUE(f.has(".png, .exr")) << f.text();
+    EXPECT_FALSE(fs::exists(f.dir.file("out.jpg")));
+    const std::string longName = f.dir.file(std::string(245, 'n') + ".ply");
+    EXPECT_EQ(runCli("-q convert " + f.model + " " + longName, f.log), 0) << f.text();
+}
