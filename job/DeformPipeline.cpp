@@ -6,6 +6,7 @@
 #include "VdbExport.h"
 #include "core/AtomicFile.h"
 #include "core/Error.h"
+#include "core/Memory.h"
 #include "core/Progress.h"
 #include "deform/DeformReport.h"
 #include "deform/WarpDevice.h"
@@ -73,7 +74,7 @@ void writeExtras(const DeformRest& rest, const GaussianCloud& stage1, const Gaus
 {
     Stopwatch clock;
     if (!out.vdb.empty()) {
-        const SampleGrid fieldGrid(fitted, withDevice(o.grid, o.device));
+        const SampleGrid fieldGrid = runStage("field.vdb sample grid", [&] { return SampleGrid(fitted, withDevice(o.grid, o.device)); });
         VdbExportOptions vo;
         vo.source = out.deformed;
         vo.threaded = o.grid.threaded;
@@ -142,6 +143,14 @@ GaussianCloud stageTwo(DeformRest& rest, const Deformation& deformation, const S
     return fitted;
 }
 
+/// Host bytes Stage II adds per sample (positions, static and gradient features, energies, pair
+/// counts; src/stage2), for the memory estimate made before the sample grid allocates.
+std::size_t stageTwoBytesPerSample(int shDegree)
+{
+    const std::size_t stride = std::size_t(3 * (shDegree + 1) * (shDegree + 1));
+    return 12 + 2 * 4 * stride + 2 * 4 + 12 + 4 + 8;
+}
+
 } // namespace
 
 GraphOptions graphOptionsOf(const DeformSpec& spec, const DeformJobOptions& o)
@@ -158,7 +167,12 @@ std::unique_ptr<DeformRest> prepareDeformRest(const DeformJobOptions& o, const G
     resolveDevice(o.device); // fail before any work when the device cannot run
     auto rest = std::make_unique<DeformRest>();
     Stopwatch clock;
-    rest->model = readGaussians(o.input, ReadOptions{}, &rest->read);
+    ReadOptions readOptions;
+    readOptions.dropInvalid = o.dropInvalid;
+    rest->model = readGaussians(o.input, readOptions, &rest->read);
+    for (const std::string& note : rest->read.notes) progress(o.input + ": " + note);
+    if (rest->model.empty())
+        throw InputError(msg(o.input, ": no Gaussians", rest->read.dropped ? " left after dropping unusable ones" : ""));
     rest->readMs = clock.ms();
     progress(msg("read ", rest->model.size(), " Gaussians (SH degree ", rest->model.shDegree, ") from ", o.input));
     clock.reset();
@@ -172,7 +186,9 @@ std::unique_ptr<DeformRest> prepareDeformRest(const DeformJobOptions& o, const G
     if (o.stage1Only) return rest;
     // The rest field sampled into sparse cells; every frame warps a copy of it.
     clock.reset();
-    rest->grid = std::make_unique<SampleGrid>(rest->model, withDevice(o.grid, o.device));
+    SampleGridOptions gridOptions = withDevice(o.grid, o.device);
+    gridOptions.extraBytesPerSample += stageTwoBytesPerSample(rest->model.shDegree);
+    rest->grid = runStage("sample grid", [&] { return std::make_unique<SampleGrid>(rest->model, gridOptions); });
     rest->sampleGridMs = clock.ms();
     if (o.evaluate || o.evalEvery > 0) {
         clock.reset();
@@ -209,7 +225,7 @@ nlohmann::json runDeformFrame(DeformRest& rest, const DeformSpec& spec, const De
     }
     if (!o.stage1Only) {
         report["timingsMs"]["sampleGrid"] = rest.sampleGridMs;
-        const GaussianCloud fitted = stageTwo(rest, deformation, stage1, o, report);
+        const GaussianCloud fitted = runStage("Stage II", [&] { return stageTwo(rest, deformation, stage1, o, report); });
         clock.reset();
         writePly(out.deformed, fitted);
         writeMs += clock.ms();
@@ -228,11 +244,13 @@ nlohmann::json runDeformFrame(DeformRest& rest, const DeformSpec& spec, const De
 nlohmann::json runDeformJob(const DeformJobOptions& o)
 {
     const Stopwatch total;
+    // All outputs appear together at the end or none; a failure or a signal removes the folder too.
+    OutputSet outputs({o.input, o.specPath});
     const DeformSpec spec = loadDeformSpec(o.specPath);
     std::unique_ptr<DeformRest> rest = prepareDeformRest(o, graphOptionsOf(spec, o));
-    std::error_code ec;
-    std::filesystem::create_directories(o.outDir, ec);
-    if (ec) throw IoError(msg(o.outDir, ": cannot create output directory: ", ec.message()));
+    outputs.createDirectory(o.outDir);
+    if (o.stage1Only)
+        for (const char* stale : {"deformed.ply", "field.vdb", "compare.png"}) outputs.removeOnCommit(outPath(o, stale));
     FrameOutputs out;
     out.baseline = outPath(o, "baseline.ply");
     if (!o.stage1Only) out.deformed = outPath(o, "deformed.ply");
@@ -242,6 +260,7 @@ nlohmann::json runDeformJob(const DeformJobOptions& o)
     report["timingsMs"]["total"] = total.ms(); // the rest side included
     const std::string reportPath = outPath(o, "report.json");
     writeFileAtomic(reportPath, report.dump(2) + "\n");
+    outputs.commit();
     progress(msg("wrote ", o.outDir, "/{", o.stage1Only ? "baseline.ply" : "baseline.ply, deformed.ply", ", report.json}"));
     return report;
 }

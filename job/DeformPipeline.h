@@ -27,7 +27,8 @@ struct DeformJobOptions {
     std::string input;     ///< model to deform (any supported format)
     std::string specPath;  ///< deformation spec JSON
     std::string outDir;    ///< created if missing
-    bool stage1Only = false;           ///< stop after Stage I (baseline.ply only)
+    bool stage1Only = false;           ///< stop after Stage I (baseline.ply only; runDeformJob removes an earlier run's deformed.ply, field.vdb, compare.png)
+    bool dropInvalid = false;          ///< drop unusable Gaussians of the input instead of refusing it
     std::optional<int> nodes, k;       ///< override the spec's graph block
     std::optional<std::uint32_t> seed;
     EdOptions ed;

@@ -50,7 +50,7 @@ const CommandRegistrar reg(35, [](CLI::App& app) {
     sub->add_option("--frames", args->frames, "Only frames A-B (inclusive), e.g. 0-11");
     sub->add_option("--shard", args->shard, "Take frames f with f mod N = I (I/N); default from SLURM_ARRAY_TASK_ID/COUNT or JOB_COMPLETION_INDEX");
     sub->add_option("--shard-count", args->shardCount, "Shard count N with JOB_COMPLETION_INDEX (Kubernetes Indexed Job completions)")
-        ->check(CLI::PositiveNumber);
+        ->check(positive());
     sub->add_option("--merge", args->merge, "Join DIR/manifest.shard-*.json into DIR/manifest.json and list missing or failed frames");
     sub->add_flag("--specs-only", args->specsOnly,
                   "Only write each frame's plain spec to DIR/specs/spec.0000.json ... (deform --spec with one reproduces that frame)");

@@ -104,7 +104,7 @@ const CommandRegistrar reg(37, [](CLI::App& app) {
     sub->add_option("jobs", args->jobsPath, "Job list JSON");
     sub->add_option("-o,--output", args->outDir, "Output directory: each job writes DIR/<output>; DIR/manifest.json");
     sub->add_option("--shard", args->shard, "Take jobs j with j mod N = I (I/N); default from SLURM_ARRAY_TASK_ID/COUNT or JOB_COMPLETION_INDEX");
-    sub->add_option("--shard-count", args->shardCount, "Shard count N with JOB_COMPLETION_INDEX")->check(CLI::PositiveNumber);
+    sub->add_option("--shard-count", args->shardCount, "Shard count N with JOB_COMPLETION_INDEX")->check(positive());
     sub->add_option("--merge", args->merge, "Join DIR/manifest.shard-*.json into DIR/manifest.json and list missing or failed jobs");
     sub->callback([args] {
         if (!args->merge.empty()) {

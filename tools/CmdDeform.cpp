@@ -16,7 +16,7 @@ const CommandRegistrar reg(30, [](CLI::App& app) {
                   "(fit the Gaussians to the warped radiance field)");
     sub->add_option("input", job.input, "Input model (.ply graphdeco/compressed, .splat, .spz)")->required();
     sub->add_option("--spec", job.specPath, "Deformation spec JSON (see samples/specs/README.md)")->required();
-    sub->add_option("-o,--output", job.outDir, "Output directory (created): baseline.ply, deformed.ply, report.json")->required();
+    sub->add_option("-o,--output", job.outDir, "Output directory (created): baseline.ply, deformed.ply, report.json; all appear together at the end, or none")->required();
     addDeformOptions(sub, *args);
     sub->add_flag("--vdb", job.writeVdb, "Also write field.vdb: the Stage II model's sampled field (as `to-vdb`)");
     sub->add_flag("--render", job.render, "Also write compare.png: rest | Stage I | Stage II from a few orbit views");

@@ -8,6 +8,7 @@
 #include "Command.h"
 #include "DeformPipeline.h"
 #include "GridArgs.h"
+#include "ReadArgs.h"
 #include "core/Device.h"
 
 namespace splatwarp::cli {
@@ -24,23 +25,26 @@ struct DeformArgs {
 inline void addDeformOptions(CLI::App* sub, DeformArgs& args)
 {
     DeformJobOptions& job = args.job;
-    sub->add_flag("--stage1-only", job.stage1Only, "Stop after Stage I (write the Stage I model only)");
-    sub->add_option("--nodes", args.nodes, "Graph node count (overrides the spec's graph.nodes)")->check(CLI::PositiveNumber);
-    sub->add_option("--k", args.k, "Nearest nodes per point and edges per node (overrides graph.k)")->check(CLI::Range(1, 64));
+    sub->add_flag("--stage1-only", job.stage1Only,
+                  "Stop after Stage I (write the Stage I model only; deform also removes deformed.ply, field.vdb and "
+                  "compare.png of an earlier run in the output directory, so no stale result sits beside them)");
+    addDropInvalidFlag(sub, job.dropInvalid);
+    sub->add_option("--nodes", args.nodes, "Graph node count (overrides the spec's graph.nodes)")->check(positive());
+    sub->add_option("--k", args.k, "Nearest nodes per point and edges per node (overrides graph.k)")->check(inRange(1, 64));
     sub->add_option("--seed", args.seed, "Seed of the farthest-point sampling (overrides graph.seed)");
     addGridOptions(sub, job.grid);
-    sub->add_option("--iterations", job.stage2.iterations, "Stage II Adam iterations")->capture_default_str()->check(CLI::NonNegativeNumber);
+    sub->add_option("--iterations", job.stage2.iterations, "Stage II Adam iterations")->capture_default_str()->check(nonNegative());
     sub->add_option("--boundary-weight", job.stage2.boundaryWeight,
                     "lambda2: extra weight of |O* - O| where the target is empty (keeps Gaussians out of empty space)")
         ->capture_default_str()
-        ->check(CLI::NonNegativeNumber);
+        ->check(nonNegative());
     sub->add_flag("--no-lpf", args.noLpf, "Turn off the adaptive anisotropic low-pass filter");
     sub->add_option("--rebuild-every", job.stage2.rebuildEvery, "Rebuild the Gaussian-sample coverage every K iterations")
         ->capture_default_str()
-        ->check(CLI::PositiveNumber);
+        ->check(positive());
     sub->add_option("--eval-every", job.evalEvery, "Record the held-out field error every K Stage II iterations in the report")
-        ->check(CLI::NonNegativeNumber);
-    sub->add_option("--eval-points", job.heldOut.points, "Held-out points for the field errors")->capture_default_str()->check(CLI::PositiveNumber);
+        ->check(nonNegative());
+    sub->add_option("--eval-points", job.heldOut.points, "Held-out points for the field errors")->capture_default_str()->check(positive());
     sub->add_flag("--no-eval", args.noEval, "Skip the held-out field errors");
     sub->add_option("--device", args.device, "Where the computing stages run (Stage I update, field targets, sample and held-out warping, held-out evaluation, Stage II, --render): auto (CUDA when compiled in and a GPU is present; out of GPU memory falls back to the CPU), cpu, cuda")
         ->capture_default_str()
