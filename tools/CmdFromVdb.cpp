@@ -36,27 +36,27 @@ void addFitOptions(CLI::App* sub, FromVdbArgs& a)
         ->capture_default_str();
     sub->add_option("--iterations", a.job.fitting.iterations, "Stage II iterations (all rounds together)")
         ->capture_default_str()
-        ->check(CLI::NonNegativeNumber);
+        ->check(nonNegative());
     sub->add_option("--rounds", a.job.fitting.rounds,
                     "Fit rounds; between rounds transparent Gaussians are pruned and those with the largest "
                     "residual split (10% of the budget is held back for splits when > 1)")
         ->capture_default_str()
-        ->check(CLI::Range(1, 100));
+        ->check(inRange(1, 100));
     sub->add_option("--boundary-weight", a.job.fitting.stage2.boundaryWeight,
                     "lambda2: extra weight of samples with zero value (keeps splats out of empty space)")
         ->capture_default_str()
-        ->check(CLI::NonNegativeNumber);
+        ->check(nonNegative());
     sub->add_option("--band", a.job.band, "Empty voxels around the active region that train and judge")
         ->capture_default_str()
-        ->check(CLI::Range(0, 16));
+        ->check(inRange(0, 16));
     sub->add_option("--samples-per-voxel", a.job.samplesPerAxis,
                     "Training samples per voxel along each axis (trilinear targets; n^3 per voxel)")
         ->capture_default_str()
-        ->check(CLI::Range(1, 4));
+        ->check(inRange(1, 4));
     sub->add_option("--spread", a.job.spread,
                     "Initial standard deviations = moments times this (default 0: 1.5 for extinction, 1.0 for field)")
         ->capture_default_str()
-        ->check(CLI::PositiveNumber);
+        ->check(positive());
     StageTwoOptions& s2 = a.job.fitting.stage2;
     sub->add_option("--lr-position", s2.lrPositionStart, "Position learning rate at the start (times the volume's extent)")
         ->capture_default_str();
@@ -72,7 +72,7 @@ void addFitOptions(CLI::App* sub, FromVdbArgs& a)
     sub->add_flag("--no-fit", a.noFit, "Stop after the moment initialisation (the baseline)");
     sub->add_option("--eval-points", a.job.judge.points, "Held-out points of the error in report.json")
         ->capture_default_str()
-        ->check(CLI::PositiveNumber);
+        ->check(positive());
 }
 
 const CommandRegistrar reg(45, [](CLI::App& app) {
@@ -92,7 +92,7 @@ const CommandRegistrar reg(45, [](CLI::App& app) {
     addFitOptions(sub, *a);
     addDeviceOption(sub, a->device, "the Stage II fit runs");
     sub->add_flag("--render", a->render, "Also write OUT.png: the splats beside a ray-marched render of the volume");
-    sub->add_option("--size", a->size, "Square size of each --render picture")->capture_default_str()->check(CLI::Range(16, 4096));
+    sub->add_option("--size", a->size, "Square size of each --render picture")->capture_default_str()->check(inRange(16, 4096));
     sub->callback([a] {
         a->job.meaning = parseVolumeMeaning(a->as);
         a->job.fit = !a->noFit;
