@@ -130,12 +130,11 @@ void CpuSolver::describe(StageTwoReport& r) const
 void CpuSolver::prepare()
 {
     PhaseClock clock(mTimes.forward);
-    StageTwoOptions now = mOptions; // the reach of zero steps: the Gaussian as it is (with the pad margin)
     parallelFor(mG, 256, mOptions.threaded, [&](std::size_t k) {
         const GaussianParams<double> p = unpackParams(row(k));
         const Mat3d& filter = mSetup.filter[mSetup.moving[k]];
         mKernels[k] = PreparedGaussian::from(prepareParams(p, filter, double(mOptions.cutoff)));
-        stageTwoCoverageSlabs(p, filter, 0, 0.0, now, mNowSlabs[k]);
+        stageTwoCoverageSlabs(p, filter, 0, 0.0, mOptions, mNowSlabs[k]); // zero steps: the Gaussian as it is
     });
 }
 

@@ -1,12 +1,10 @@
 #include "stage2/StageTwoCommon.h"
 
-#include <tbb/blocked_range.h>
-#include <tbb/parallel_for.h>
-
 #include <algorithm>
 #include <cmath>
 
 #include "core/Error.h"
+#include "core/ParallelFor.h"
 #include "field/FeatureField.h"
 
 namespace splatwarp {
@@ -53,13 +51,6 @@ StageTwoSetup setupStageTwo(const GaussianCloud& cloud, const SampleSet& samples
     const bool threaded = options.threaded;
     const int stride = cloud.shStride();
     const float cutoff = options.cutoff;
-    auto forEach = [threaded](std::size_t n, std::size_t grain, const auto& op) {
-        const tbb::blocked_range<std::size_t> all(0, n, grain);
-        auto body = [&](const tbb::blocked_range<std::size_t>& r) {
-            for (std::size_t i = r.begin(); i != r.end(); ++i) op(i);
-        };
-        threaded ? tbb::parallel_for(all, body) : body(all);
-    };
 
     // Samples used: those whose cell is not skipped.
     for (std::size_t j = 0; j < samples.sampleCount(); ++j)
@@ -83,7 +74,7 @@ StageTwoSetup setupStageTwo(const GaussianCloud& cloud, const SampleSet& samples
     const std::size_t n = cloud.size();
     st.filter.assign(n, Mat3d());
     if (options.lowPassFilter)
-        forEach(n, 1024, [&](std::size_t i) {
+        parallelFor(n, 1024, threaded, [&](std::size_t i) {
             if (gaussianCell[i] >= 0)
                 st.filter[i] = lowPassFilter(samples.cellGradient.data() + 9 * std::size_t(gaussianCell[i]),
                                              double(options.lambdaLpf), double(samples.spacing));
@@ -95,7 +86,7 @@ StageTwoSetup setupStageTwo(const GaussianCloud& cloud, const SampleSet& samples
     st.fStatic.assign(s * std::size_t(stride), 0.0f);
     st.oStatic.assign(s, 0.0f);
     std::vector<PreparedGaussian> prepared(n);
-    forEach(n, 1024, [&](std::size_t i) {
+    parallelFor(n, 1024, threaded, [&](std::size_t i) {
         if (moving[i]) return; // left out of the bins (empty box)
         prepared[i] = PreparedGaussian::from(prepareParams(gaussianParamsOf(cloud, i), st.filter[i], double(cutoff)));
     });
