@@ -140,8 +140,9 @@ __global__ void edgeKernel(std::size_t g, const float* lo /* [G,3] */, const flo
 ///        their largest size over rebuilds. Used by Stage II's coverage and the feature evaluator.
 class BoxBins {
 public:
-    /// Bin entries allowed per box before the cell doubles: the CPU coverage bins at half
-    /// GaussianBins::suggestCellSize (<= 32 entries per box), so up to 8x that.
+    /// Bin entries allowed per box before the cell doubles: the per-sample reference coverage
+    /// (tests/cuda/SampleCoverage.h) bins at half GaussianBins::suggestCellSize (<= 32 entries
+    /// per box), so up to 8x that.
     static constexpr double kMaxEntriesPerBox = 256.0;
 
     /// @brief Bin g boxes lo, hi [G,3] (device; empty boxes, lo > hi, are left out). Cell edge:

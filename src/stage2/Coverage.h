@@ -1,15 +1,10 @@
 #pragma once
 /// @file Coverage.h
-/// @brief Which Gaussians may touch which samples, in deformed space: the Gaussians' (padded)
-///        boxes are binned (GaussianBins) and each sample keeps the boxes containing it. Stored
-///        both ways (CSR): per sample for the forward pass, per Gaussian for the backward
-///        gather, each list in ascending order so sums run in a fixed order. Optional slabs
-///        (CoverageSlabs) cut the box down for thin or turned Gaussians, whose boxes hold many
-///        samples they can never reach.
+/// @brief Coverage slabs: three slabs along a Gaussian's own axes that, with its padded box,
+///        bound where it can reach. They cut the box down for thin or turned Gaussians, whose
+///        boxes hold many samples they can never reach. Used by the CPU block coverage
+///        (SampleBlocks.h) and the CUDA per-sample coverage.
 #include <cmath>
-#include <cstddef>
-#include <cstdint>
-#include <vector>
 
 #include "core/HostDevice.h"
 
@@ -31,24 +26,5 @@ struct CoverageSlabs {
     }
 };
 
-class Coverage {
-public:
-    /// @param lo,hi   [g,3] boxes (empty boxes, hi < lo, cover nothing)
-    /// @param points  [s,3] sample positions
-    /// @param slabs   [g] or null: a pair also needs the point inside box i's slabs
-    void build(const float* lo, const float* hi, std::size_t g, const float* points, std::size_t s,
-               bool threaded = true, const CoverageSlabs* slabs = nullptr);
-
-    std::size_t pairCount() const { return mSampleItems.size(); }
-    /// @brief Gaussians (box indices) covering sample j: [sampleBegin(j), sampleBegin(j+1)).
-    const std::vector<std::uint32_t>& sampleOffsets() const { return mSampleOffsets; }
-    const std::vector<std::uint32_t>& sampleItems() const { return mSampleItems; }
-    /// @brief Samples covered by box i.
-    const std::vector<std::uint32_t>& gaussianOffsets() const { return mGaussianOffsets; }
-    const std::vector<std::uint32_t>& gaussianItems() const { return mGaussianItems; }
-
-private:
-    std::vector<std::uint32_t> mSampleOffsets, mSampleItems, mGaussianOffsets, mGaussianItems;
-};
 
 } // namespace splatwarp

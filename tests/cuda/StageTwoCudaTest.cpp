@@ -23,7 +23,7 @@
 #include "DeviceBuffer.h"
 #include "StageTwoCuda.h"
 #include "core/Device.h"
-#include "stage2/Coverage.h"
+#include "SampleCoverage.h"
 #include "stage2/StageTwoCommon.h"
 #include "stage2/StageTwoDevice.h"
 #include "stage2/StageTwoTestProblem.h"
@@ -156,7 +156,7 @@ TEST(StageTwoCuda, OutOfMemoryNamesTheBuffer)
 }
 
 // Coverage: the GPU's sort-based binning finds exactly the pairs the per-sample reference
-// Coverage finds for the same boxes and slabs (pure comparisons: exact), and its boxes and slabs
+// SampleCoverage finds for the same boxes and slabs (pure comparisons: exact), and its boxes and slabs
 // match the host's formulas.
 TEST(StageTwoCuda, CoverageMatchesCpu)
 {
@@ -182,7 +182,7 @@ TEST(StageTwoCuda, CoverageMatchesCpu)
             EXPECT_NEAR(probe.slabs[k].half[a], slabs.half[a], 1e-6f * (1 + std::fabs(slabs.half[a]))) << "slab " << k;
         }
     }
-    Coverage cpu;
+    SampleCoverage cpu;
     cpu.build(probe.boxLo.data(), probe.boxHi.data(), g, st.x.data(), st.used.size(), true, probe.slabs.data());
     EXPECT_GT(cpu.pairCount(), 0u);
     EXPECT_EQ(probe.sampleOffsets, cpu.sampleOffsets());

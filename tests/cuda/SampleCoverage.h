@@ -1,14 +1,43 @@
-#include "stage2/Coverage.h"
-
+#pragma once
+/// @file SampleCoverage.h
+/// @brief The per-sample coverage (the CPU's layout before the block engine), kept as the
+///        reference for the CUDA Stage II coverage, which still builds per-sample lists: the
+///        Gaussians' (padded) boxes are binned (GaussianBins) and each sample keeps the boxes
+///        (and slabs) containing it, stored both ways (CSR), each list ascending.
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
 
+#include <cstddef>
+#include <cstdint>
+#include <vector>
+
 #include "core/Error.h"
 #include "field/GaussianBins.h"
+#include "stage2/Coverage.h"
 
-namespace splatwarp {
+namespace splatwarp::test {
 
-void Coverage::build(const float* lo, const float* hi, std::size_t g, const float* points, std::size_t s,
+class SampleCoverage {
+public:
+    /// @param lo,hi   [g,3] boxes (empty boxes, hi < lo, cover nothing)
+    /// @param points  [s,3] sample positions
+    /// @param slabs   [g] or null: a pair also needs the point inside box i's slabs
+    void build(const float* lo, const float* hi, std::size_t g, const float* points, std::size_t s,
+               bool threaded = true, const CoverageSlabs* slabs = nullptr);
+
+    std::size_t pairCount() const { return mSampleItems.size(); }
+    /// @brief Gaussians (box indices) covering sample j: [sampleBegin(j), sampleBegin(j+1)).
+    const std::vector<std::uint32_t>& sampleOffsets() const { return mSampleOffsets; }
+    const std::vector<std::uint32_t>& sampleItems() const { return mSampleItems; }
+    /// @brief Samples covered by box i.
+    const std::vector<std::uint32_t>& gaussianOffsets() const { return mGaussianOffsets; }
+    const std::vector<std::uint32_t>& gaussianItems() const { return mGaussianItems; }
+
+private:
+    std::vector<std::uint32_t> mSampleOffsets, mSampleItems, mGaussianOffsets, mGaussianItems;
+};
+
+inline void SampleCoverage::build(const float* lo, const float* hi, std::size_t g, const float* points, std::size_t s,
                      bool threaded, const CoverageSlabs* slabs)
 {
     GaussianBins bins;
@@ -59,4 +88,4 @@ void Coverage::build(const float* lo, const float* hi, std::size_t g, const floa
             mGaussianItems[cursor[mSampleItems[e]]++] = std::uint32_t(j);
 }
 
-} // namespace splatwarp
+} // namespace splatwarp::test
