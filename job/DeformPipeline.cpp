@@ -1,6 +1,7 @@
 #include "DeformPipeline.h"
 
 #include <filesystem>
+#include <sstream>
 
 #include "deform/SampleWarp.h"
 #include "VdbExport.h"
@@ -94,6 +95,38 @@ void writeExtras(const DeformRest& rest, const GaussianCloud& stage1, const Gaus
     }
 }
 
+/// The errors of one frame: the judge (what `eval` prints for the same files) and the error at
+/// the training lattice (its cells, cutoff and rest filter; what Stage II fits).
+struct FrameErrors {
+    std::optional<Judge> judge;
+    std::optional<HeldOutPoints> lattice;
+    std::optional<FieldErrorTarget> latticeTarget;
+    Device device = Device::Cpu;
+
+    FrameErrors(const DeformRest& rest, const Deformation& deformation, const DeformJobOptions& o) : device(o.device)
+    {
+        if (!rest.judge) return;
+        judge.emplace(rest.model, *rest.judge, deformation, o.device, o.grid.threaded);
+        lattice = *rest.latticePoints;
+        warpHeldOutPoints(*lattice, deformation, o.device, o.grid.threaded);
+        latticeTarget = rotatedTarget(*rest.latticeRest, *lattice);
+    }
+
+    /// stage["field_error"] (the judge) and stage["lattice_error"] of a model, with progress lines.
+    void record(const GaussianCloud& model, const std::string& label, nlohmann::json& stage) const
+    {
+        const JudgeReport j = judge->judge(model);
+        stage["field_error"] = judgeJson(j);
+        progress(label + ", judged as `splatwarp eval` prints it:");
+        std::istringstream lines(judgeText(j));
+        for (std::string line; std::getline(lines, line);) progress(line);
+        const FieldErrorReport l = evaluateHeldOut(*latticeTarget, model, *lattice, device);
+        stage["lattice_error"] = fieldErrorJson(l);
+        stage["lattice_error"]["filterVariance"] = lattice->features.filterVariance;
+        progress(msg(label, " error at the training lattice: opacity ", l.opacity, ", color ", l.color));
+    }
+};
+
 /// Stage II on a warped copy of the rest samples, with the held-out errors; returns the fitted model.
 GaussianCloud stageTwo(DeformRest& rest, const Deformation& deformation, const StageOneResult& stage1,
                        const DeformJobOptions& o, nlohmann::json& report)
@@ -105,27 +138,21 @@ GaussianCloud stageTwo(DeformRest& rest, const Deformation& deformation, const S
     report["warpDevice"] = warpDevice;
     progress(msg("warped ", rest.grid->stats().samples, " samples in ", int(clock.ms()), " ms on ", warpDevice));
 
-    std::optional<HeldOutPoints> heldOut;
-    std::optional<FieldErrorTarget> target;
-    if (rest.heldOut) {
-        clock.reset();
-        heldOut = rest.heldOut;
-        warpHeldOutPoints(*heldOut, deformation, o.device, o.grid.threaded);
-        target = rotatedTarget(*rest.heldOutRest, *heldOut);
-        const FieldErrorReport e1 = evaluateHeldOut(*target, stage1.deformed, *heldOut, o.device);
-        report["stage1"]["field_error"] = fieldErrorJson(e1);
+    clock.reset();
+    const FrameErrors errors(rest, deformation, o);
+    if (errors.judge) {
+        errors.record(stage1.deformed, "Stage I", report["stage1"]);
         report["timingsMs"]["evaluate"] = rest.heldOutMs + clock.ms();
-        progress(msg("Stage I held-out field error: opacity ", e1.opacity, ", color ", e1.color));
     }
 
     GaussianCloud fitted = stage1.deformed;
     nlohmann::json curve = nlohmann::json::array();
     auto onEval = [&](int iteration, const GaussianCloud& current) {
-        const FieldErrorReport e = evaluateHeldOut(*target, current, *heldOut, o.device);
+        const FieldErrorReport e = errors.judge->fieldError(current);
         nlohmann::json j = fieldErrorJson(e);
         j["iteration"] = iteration;
         curve.push_back(j);
-        progress(msg("Stage II iteration ", iteration, ": held-out opacity error ", e.opacity));
+        progress(msg("Stage II iteration ", iteration, ": judged opacity error ", e.opacity));
     };
     progress(msg("Stage II: ", o.stage2.iterations, " iterations on ", stage1.movingCount, " moving Gaussians"));
     const StageTwoReport r2 = runStageTwo(o.device, fitted, samples, stage1.moving, rest.grid->gaussianCell(), o.stage2,
@@ -135,11 +162,7 @@ GaussianCloud stageTwo(DeformRest& rest, const Deformation& deformation, const S
     report["stage2"] = stageTwoJson(r2, *rest.grid, o.stage2);
     report["timingsMs"]["stage2"] = r2.msTotal;
     if (o.evalEvery > 0) report["stage2"]["eval_curve"] = curve;
-    if (heldOut) {
-        const FieldErrorReport e2 = evaluateHeldOut(*target, fitted, *heldOut, o.device);
-        report["stage2"]["field_error"] = fieldErrorJson(e2);
-        progress(msg("Stage II held-out field error: opacity ", e2.opacity, ", color ", e2.color));
-    }
+    if (errors.judge) errors.record(fitted, "Stage II", report["stage2"]);
     return fitted;
 }
 
@@ -194,9 +217,12 @@ std::unique_ptr<DeformRest> prepareDeformRest(const DeformJobOptions& o, const G
         clock.reset();
         HeldOutOptions heldOutOptions = o.heldOut;
         heldOutOptions.device = o.device;
-        rest->heldOut = drawHeldOutPoints(*rest->grid, heldOutOptions);
-        rest->heldOutRest = unrotatedTarget(rest->model, *rest->heldOut, o.device);
+        rest->judge = prepareJudgeRest(rest->model, heldOutOptions, o.device);
+        rest->latticePoints = drawHeldOutPoints(*rest->grid, heldOutOptions);
+        rest->latticeRest = unrotatedTarget(rest->model, *rest->latticePoints, o.device);
         rest->heldOutMs = clock.ms();
+        progress(msg("judge: ", heldOutOptions.points, " held-out points in the rest model's active region (",
+                     int(rest->heldOutMs), " ms with the training-lattice points)"));
     }
     return rest;
 }

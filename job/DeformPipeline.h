@@ -11,7 +11,7 @@
 
 #include <nlohmann/json.hpp>
 
-#include "HeldOutEval.h"
+#include "Judge.h"
 #include "SampleGrid.h"
 #include "core/Device.h"
 #include "deform/DeformSpec.h"
@@ -35,8 +35,8 @@ struct DeformJobOptions {
     StageOneOptions stage1;
     SampleGridOptions grid;
     StageTwoOptions stage2;
-    HeldOutOptions heldOut;
-    bool evaluate = true;   ///< held-out field errors of Stage I and Stage II in the report
+    HeldOutOptions heldOut; ///< points and seed of the judge (and of the training-lattice error)
+    bool evaluate = true;   ///< the judge's errors of Stage I and Stage II in the report (and the training-lattice error)
     int evalEvery = 0;      ///< also record the held-out error every K Stage II iterations (0 = off)
     bool writeVdb = false;  ///< field.vdb: the Stage II model's field (same grids as `to-vdb`)
     bool render = false;    ///< compare.png: rest | Stage I | Stage II from a few orbit views
@@ -49,7 +49,8 @@ struct DeformJobOptions {
 GraphOptions graphOptionsOf(const DeformSpec& spec, const DeformJobOptions& options);
 
 /// @brief What a deform run computes from the rest model alone: the model, the deformation graph,
-///        Stage I's rig (and device engine), the rest SampleGrid and the held-out rest side.
+///        Stage I's rig (and device engine), the rest SampleGrid, the judge's rest side and the
+///        training lattice's held-out rest side.
 ///        Shared by every frame of an animation; not copyable or movable (the engine refers to it).
 struct DeformRest {
     GaussianCloud model;
@@ -58,8 +59,9 @@ struct DeformRest {
     StageOneRig rig;
     std::unique_ptr<StageOneUpdater> stageOne;
     std::unique_ptr<SampleGrid> grid;           ///< null with stage1Only
-    std::optional<HeldOutPoints> heldOut;       ///< rest points X; warped per frame
-    std::optional<FieldErrorTarget> heldOutRest; ///< rest features at X, not yet rotated
+    std::optional<JudgeRest> judge;              ///< the fixed judge's points and rest features (eval's)
+    std::optional<HeldOutPoints> latticePoints;  ///< training-lattice points X; warped per frame
+    std::optional<FieldErrorTarget> latticeRest; ///< rest features at X with the grid's filter, not yet rotated
     double readMs = 0, graphMs = 0, rigMs = 0, sampleGridMs = 0, heldOutMs = 0;
 
     DeformRest() = default;

@@ -1,8 +1,10 @@
 #pragma once
 /// @file HeldOutEval.h
-/// @brief Field fidelity of a deformed model at held-out points: random points X in the active
-///        rest cells of a SampleGrid (continuous positions, not the training samples), pushed
-///        through the deformation x = phi(X); see fieldError() in src/field/FieldError.h.
+/// @brief Field fidelity of a deformed model at held-out points X (continuous positions, not the
+///        training samples) pushed through the deformation x = phi(X); see fieldError() in
+///        src/field/FieldError.h. Two point sets: the fixed judge's (drawJudgePoints(): the rest
+///        model alone decides them, no low-pass filter; what `eval` and the reports use) and the
+///        training lattice's (drawHeldOutPoints(): a SampleGrid's active cells and rest filter).
 #include <cstdint>
 #include <vector>
 
@@ -31,7 +33,33 @@ struct HeldOutPoints {
     std::size_t size() const { return rest.size() / 3; }
 };
 
-/// @brief Draw held-out points in the grid's active cells and warp them with the deformation.
+/// Cells of the judge's region lattice along the rest model's largest extent: a constant of the
+/// judge, so the region never depends on training flags. It only bounds where points fall.
+constexpr int kJudgeRegionCells = 128;
+
+/// @brief The judge's region: the cells of an h = extent / kJudgeRegionCells lattice that any
+///        Gaussian's unfiltered cutoff box (alpha*G >= 1/255) overlaps, plus one cell around them
+///        (the outside band). Cell (i,j,k) spans [i h, (i+1) h) x ... with i = origin[0] + cells[3c].
+struct JudgeRegion {
+    double cellSize = 0.0;
+    std::int64_t origin[3] = {0, 0, 0};
+    std::vector<std::int32_t> cells; ///< [C,3] coordinates relative to origin, in x-major order
+    std::size_t size() const { return cells.size() / 3; }
+};
+
+/// @throws InputError when no Gaussian reaches the cutoff or the model has zero extent
+JudgeRegion judgeRegion(const GaussianCloud& rest, bool threaded = true);
+
+/// @brief The feature options of the judge: cutoff 1/255 and no low-pass filter (each model's
+///        own Gaussians only, as a renderer sees them).
+FeatureOptions judgeFeatureOptions();
+
+/// @brief The fixed judge's held-out points: uniform over judgeRegion(rest), features with
+///        judgeFeatureOptions(); depends on the rest model, points and seed only.
+HeldOutPoints drawJudgePoints(const GaussianCloud& rest, const HeldOutOptions& options = {});
+
+/// @brief Draw held-out points in the grid's active cells and warp them with the deformation
+///        (the training-lattice error: the grid's cells, cutoff and rest filter).
 HeldOutPoints makeHeldOutPoints(const SampleGrid& grid, const Deformation& deformation, const HeldOutOptions& options = {});
 
 /// @brief The rest side of makeHeldOutPoints(): the points X only (warped = X, rotations identity).

@@ -31,7 +31,7 @@ const CommandRegistrar reg(30, [](CLI::App& app) {
         if (report.contains("stage2") && report["stage2"].contains("field_error")) {
             const auto& e1 = report["stage1"]["field_error"];
             const auto& e2 = report["stage2"]["field_error"];
-            std::printf("held-out field error (opacity, color): Stage I %.4g, %.4g -> Stage II %.4g, %.4g\n",
+            std::printf("judged field error (opacity, color): Stage I %.6g, %.6g -> Stage II %.6g, %.6g\n",
                         e1["opacity"].get<double>(), e1["color"].get<double>(), e2["opacity"].get<double>(),
                         e2["color"].get<double>());
         }

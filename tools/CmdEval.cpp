@@ -1,11 +1,14 @@
-/// `splatwarp eval --rest REST.ply --deformed DEF.ply --spec SPEC.json`: held-out field fidelity of
-/// any deformed model against the rest model pushed through the spec's deformation.
+/// `splatwarp eval --rest REST.ply --deformed DEF.ply --spec SPEC.json`: the fixed judge (job/Judge.h)
+/// of any deformed model against the rest model pushed through the spec's deformation; `--lattice`
+/// gives the error at a training lattice instead (its cells, cutoff and rest filter).
 #include <cstdio>
+#include <optional>
 
 #include "Command.h"
 #include "GridArgs.h"
 #include "FromVdb.h"
 #include "HeldOutEval.h"
+#include "Judge.h"
 #include "fit/Extinction.h"
 #include "core/Error.h"
 #include "core/Memory.h"
@@ -27,17 +30,17 @@ struct EvalArgs {
     SampleGridOptions grid;
     HeldOutOptions heldOut;
     bool dropInvalid = false;
+    bool lattice = false;
+    std::optional<int> nodes, k;
+    std::optional<std::uint32_t> graphSeed;
 };
 
 void printReport(const FieldErrorReport& r, bool json)
 {
-    if (json) {
+    if (json)
         std::printf("%s\n", fieldErrorJson(r).dump(2).c_str());
-        return;
-    }
-    std::printf("held-out points: %zu (%zu inside, %zu outside)\n", r.points, r.insidePoints, r.outsidePoints);
-    std::printf("opacity error:   %.6g (inside %.6g, outside %.6g)\n", r.opacity, r.opacityInside, r.opacityOutside);
-    std::printf("color error:     %.6g (inside %.6g, outside %.6g)\n", r.color, r.colorInside, r.colorOutside);
+    else
+        std::printf("%s", judgeText(JudgeReport{r, std::nullopt}).c_str());
 }
 
 void addVolumeOptions(CLI::App* sub, EvalArgs& a)
@@ -75,34 +78,57 @@ void evalVolume(const EvalArgs& a)
 const CommandRegistrar reg(35, [](CLI::App& app) {
     auto a = std::make_shared<EvalArgs>();
     CLI::App* sub = app.add_subcommand(
-        "eval", "Field fidelity of a deformed model: relative L1 error of opacity and SH features at held-out points "
-                "of the rest field pushed through the spec's deformation (inside the object and outside it)");
+        "eval", "Field fidelity of a deformed model (the fixed judge): relative L1 error of opacity and SH features at "
+                "held-out points of the rest model's active region pushed through the spec's deformation, no low-pass "
+                "filter (inside the object and outside it); image PSNR for rigid specs");
     sub->add_option("--rest", a->rest, "Rest (undeformed) model");
     sub->add_option("--deformed", a->deformed, "Deformed model to judge (e.g. baseline.ply or deformed.ply)");
     sub->add_option("--spec", a->spec, "The deformation spec that produced it");
+    sub->add_option("--nodes", a->nodes, "Graph node count (overrides the spec's graph.nodes, as deform's --nodes)")->check(positive());
+    sub->add_option("--k", a->k, "Nearest nodes per point and edges per node (overrides graph.k, as deform's --k)")->check(inRange(1, 64));
+    sub->add_option("--graph-seed", a->graphSeed, "Seed of the graph's node sampling (overrides graph.seed, as deform's --seed)");
     addVolumeOptions(sub, *a);
     sub->add_option("--points", a->heldOut.points, "Held-out points")->capture_default_str()->check(positive());
     sub->add_option("--seed", a->heldOut.seed, "Seed of the held-out points")->capture_default_str();
     addGridOptions(sub, a->grid);
     addDropInvalidFlag(sub, a->dropInvalid);
-    sub->add_flag("--json", a->json, "Print JSON (keys opacity, color, points, inside, outside)");
+    sub->add_flag("--json", a->json, "Print JSON (keys opacity, color, points, inside, outside; image_psnr for rigid specs)");
     addDeviceOption(sub, a->device, "the rest targets, the point warping and the feature evaluations run (the grid's topology stays on the CPU)");
-    sub->callback([a] {
+    sub->add_flag("--lattice", a->lattice,
+                  "Judge at a training lattice instead (--cells, --cell-size, --samples-per-cell, --cutoff: its active "
+                  "cells and rest filter; what deform's report calls lattice_error)");
+    sub->callback([a, sub] {
         if (!a->volume.empty()) return evalVolume(*a);
         if (a->rest.empty() || a->deformed.empty() || a->spec.empty())
             throw UsageError("eval needs --rest, --deformed and --spec (or --volume and --model)");
+        if (!a->lattice)
+            for (const char* flag : {"--cells", "--cell-size", "--samples-per-cell", "--cutoff"})
+                if (sub->count(flag) > 0)
+                    throw UsageError(msg("eval: ", flag, " sets a training lattice, which the judge does not depend on; "
+                                         "add --lattice for the error at that lattice"));
         const Device device = parseDevice(a->device);
         const GaussianCloud rest = readModel(a->rest, a->dropInvalid);
         const GaussianCloud deformed = readModel(a->deformed, a->dropInvalid);
         if (deformed.shDegree != rest.shDegree)
             throw InputError(msg(a->deformed, ": SH degree ", deformed.shDegree, " differs from the rest model's ", rest.shDegree));
-        const Deformation deformation = solveDeformation(rest, loadDeformSpec(a->spec));
-        const SampleGrid grid = runStage("sample grid", [&] { return SampleGrid(rest, withDevice(a->grid, device)); });
+        DeformSpec spec = loadDeformSpec(a->spec);
+        if (a->nodes) spec.graph.nodes = *a->nodes;
+        if (a->k) spec.graph.k = *a->k;
+        if (a->graphSeed) spec.graph.seed = *a->graphSeed;
+        const Deformation deformation = solveDeformation(rest, spec);
         HeldOutOptions heldOut = a->heldOut;
         heldOut.device = device;
-        const HeldOutPoints points = makeHeldOutPoints(grid, deformation, heldOut);
-        const FieldErrorReport r = evaluateHeldOut(rest, deformed, points, device);
-        printReport(r, a->json);
+        if (a->lattice) {
+            const SampleGrid grid = runStage("sample grid", [&] { return SampleGrid(rest, withDevice(a->grid, device)); });
+            const HeldOutPoints points = makeHeldOutPoints(grid, deformation, heldOut);
+            return printReport(evaluateHeldOut(rest, deformed, points, device), a->json);
+        }
+        const Judge judge(rest, prepareJudgeRest(rest, heldOut, device), deformation, device);
+        const JudgeReport r = judge.judge(deformed);
+        if (a->json)
+            std::printf("%s\n", judgeJson(r).dump(2).c_str());
+        else
+            std::printf("%s", judgeText(r).c_str());
     });
 });
 

@@ -1,0 +1,128 @@
+#include "Judge.h"
+
+#include <cmath>
+#include <cstdio>
+#include <limits>
+
+#include "core/Polar.h"
+#include "image/Metrics.h"
+#include "render/RenderDevice.h"
+
+namespace splatwarp {
+
+namespace {
+
+/// The rest cameras moved with the model: x_cam = C (R X + t) must equal x_cam = C X for the
+/// rest camera C, so the moved camera's rotation is C.rotation R^T.
+Camera movedCamera(const Camera& restCamera, const RigidMotion& m)
+{
+    Camera c = restCamera;
+    c.rotation = restCamera.rotation * m.rotation.transposed();
+    c.translation = restCamera.translation - c.rotation * m.translation;
+    return c;
+}
+
+} // namespace
+
+std::optional<RigidMotion> rigidMotionOf(const Deformation& d)
+{
+    const std::vector<Vec3d>& g = d.graph.nodes();
+    const EdConstraints& c = d.handles.constraints;
+    const std::size_t n = g.size();
+    if (n == 0 || c.target.size() != n) return std::nullopt;
+    Vec3d cg, ct, lo = g[0], hi = g[0];
+    for (std::size_t j = 0; j < n; ++j) {
+        if (!c.fixed[j] && !c.hasTarget[j]) return std::nullopt; // a free node: the solver decides it
+        cg += g[j] / double(n);
+        ct += c.target[j] / double(n);
+        for (int k = 0; k < 3; ++k) { lo[k] = std::min(lo[k], g[j][k]); hi[k] = std::max(hi[k], g[j][k]); }
+    }
+    // Kabsch: the rotation maximising sum (t - ct) . R (g - cg) is the polar rotation of H.
+    Mat3d h;
+    for (std::size_t j = 0; j < n; ++j)
+        for (int a = 0; a < 3; ++a)
+            for (int b = 0; b < 3; ++b) h.m[a][b] += (c.target[j][a] - ct[a]) * (g[j][b] - cg[b]);
+    RigidMotion m;
+    m.rotation = polarRotation(h);
+    m.translation = ct - m.rotation * cg;
+    const double extent = std::max(hi.x - lo.x, std::max(hi.y - lo.y, hi.z - lo.z));
+    for (std::size_t j = 0; j < n; ++j)
+        if (length(m.rotation * g[j] + m.translation - c.target[j]) > 1e-9 * std::max(extent, 1e-30)) return std::nullopt;
+    return m;
+}
+
+nlohmann::json judgeJson(const JudgeReport& r)
+{
+    nlohmann::json j = fieldErrorJson(r.field);
+    if (r.psnr)
+        j["image_psnr"] = {{"db", std::isfinite(r.psnr->db) ? nlohmann::json(r.psnr->db) : nlohmann::json(nullptr)},
+                           {"views", r.psnr->views},
+                           {"size", r.psnr->size}};
+    return j;
+}
+
+std::string judgeText(const JudgeReport& report)
+{
+    const FieldErrorReport& r = report.field;
+    char text[512];
+    int n = std::snprintf(text, sizeof text,
+                          "held-out points: %zu (%zu inside, %zu outside)\n"
+                          "opacity error:   %.6g (inside %.6g, outside %.6g)\n"
+                          "color error:     %.6g (inside %.6g, outside %.6g)\n",
+                          r.points, r.insidePoints, r.outsidePoints, r.opacity, r.opacityInside, r.opacityOutside,
+                          r.color, r.colorInside, r.colorOutside);
+    std::string out(text, std::size_t(n));
+    if (report.psnr) {
+        std::snprintf(text, sizeof text, "image PSNR:      %.6g dB (rigid spec: %d views of %dx%d against the rest model)\n",
+                      report.psnr->db, report.psnr->views, report.psnr->size, report.psnr->size);
+        out += text;
+    }
+    return out;
+}
+
+JudgeRest prepareJudgeRest(const GaussianCloud& rest, const HeldOutOptions& options, Device device)
+{
+    JudgeRest j;
+    j.points = drawJudgePoints(rest, options);
+    j.unrotated = unrotatedTarget(rest, j.points, device);
+    return j;
+}
+
+Judge::Judge(const GaussianCloud& restModel, const JudgeRest& rest, const Deformation& deformation, Device device,
+             bool threaded)
+    : mPoints(rest.points), mDevice(device)
+{
+    warpHeldOutPoints(mPoints, deformation, device, threaded);
+    mTarget = rotatedTarget(rest.unrotated, mPoints);
+    const std::optional<RigidMotion> motion = rigidMotionOf(deformation);
+    if (!motion) return;
+    OrbitOptions orbit;
+    orbit.views = kViews;
+    orbit.width = orbit.height = kSize;
+    for (const Camera& c : orbitCameras(restModel, orbit)) {
+        mMovedCameras.push_back(movedCamera(c, *motion));
+        mTruth.push_back(renderGaussians(device, restModel, c));
+    }
+}
+
+FieldErrorReport Judge::fieldError(const GaussianCloud& deformed) const
+{
+    return evaluateHeldOut(mTarget, deformed, mPoints, mDevice);
+}
+
+JudgeReport Judge::judge(const GaussianCloud& deformed) const
+{
+    JudgeReport r;
+    r.field = fieldError(deformed);
+    if (!rigid()) return r;
+    // One PSNR over every view's pixels: the mean of the per-view squared errors.
+    double mse = 0.0;
+    for (std::size_t v = 0; v < mTruth.size(); ++v) {
+        const double db = psnr(renderGaussians(mDevice, deformed, mMovedCameras[v]), mTruth[v]);
+        mse += (std::isfinite(db) ? std::pow(10.0, -db / 10.0) : 0.0) / double(mTruth.size());
+    }
+    r.psnr = ImagePsnr{mse > 0.0 ? -10.0 * std::log10(mse) : std::numeric_limits<double>::infinity(), kViews, kSize};
+    return r;
+}
+
+} // namespace splatwarp

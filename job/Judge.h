@@ -1,0 +1,81 @@
+#pragma once
+/// @file Judge.h
+/// @brief The fixed judge of `eval` and of the `deform` / `animate` reports (README "eval"): the
+///        held-out field error at drawJudgePoints() (the rest model alone decides the points; no
+///        low-pass filter on either side), pushed through the spec's own deformation, and for a
+///        rigid spec the image PSNR against the rest model seen from the inversely moved cameras.
+#include <optional>
+#include <string>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+#include "HeldOutEval.h"
+#include "image/Image.h"
+#include "render/Camera.h"
+
+namespace splatwarp {
+
+/// @brief x = rotation X + translation.
+struct RigidMotion {
+    Mat3d rotation = Mat3d::identity();
+    Vec3d translation;
+};
+
+/// @brief The one rigid motion of a rigid spec: every graph node held by a handle (fixed or
+///        moved) and one rigid motion taking every node to its target (within 1e-9 of the nodes'
+///        extent); nothing otherwise. The solved node transforms follow it to the ED solver's tolerance.
+std::optional<RigidMotion> rigidMotionOf(const Deformation& deformation);
+
+/// @brief Image PSNR over all views and colour channels (linear RGB on black, peak 1).
+struct ImagePsnr {
+    double db = 0.0;   ///< +infinity for identical images
+    int views = 0;
+    int size = 0;      ///< pixels per view (square)
+};
+
+/// @brief What the judge says about one model.
+struct JudgeReport {
+    FieldErrorReport field;
+    std::optional<ImagePsnr> psnr; ///< rigid specs only
+};
+
+/// @brief fieldErrorJson() keys, plus "image_psnr" {db (null when infinite), views, size} for a rigid spec.
+nlohmann::json judgeJson(const JudgeReport& report);
+
+/// @brief The lines `eval` prints for a report (and `deform` for each stage), '\n'-terminated.
+std::string judgeText(const JudgeReport& report);
+
+/// @brief The rest side of the judge (once per rest model): its points and rest features, unrotated.
+struct JudgeRest {
+    HeldOutPoints points;
+    FieldErrorTarget unrotated;
+};
+
+/// @brief drawJudgePoints() and the rest features there, on `device`.
+JudgeRest prepareJudgeRest(const GaussianCloud& rest, const HeldOutOptions& options, Device device);
+
+/// @brief The judge of one deformation: the points warped and the rest side rotated once; for a
+///        rigid spec, the ground-truth images rendered once.
+class Judge {
+public:
+    /// Views and size of the rigid-spec PSNR renders (orbit cameras around the rest model).
+    static constexpr int kViews = 4, kSize = 256;
+
+    Judge(const GaussianCloud& restModel, const JudgeRest& rest, const Deformation& deformation, Device device,
+          bool threaded = true);
+    /// @brief The field error and, for a rigid spec, the image PSNR of a deformed model.
+    JudgeReport judge(const GaussianCloud& deformed) const;
+    /// @brief The field error alone (the Stage II curve).
+    FieldErrorReport fieldError(const GaussianCloud& deformed) const;
+    bool rigid() const { return !mTruth.empty(); }
+
+private:
+    HeldOutPoints mPoints;
+    FieldErrorTarget mTarget;
+    Device mDevice;
+    std::vector<Camera> mMovedCameras; ///< the rest cameras moved with the model
+    std::vector<Image> mTruth;         ///< the rest model from the rest cameras
+};
+
+} // namespace splatwarp

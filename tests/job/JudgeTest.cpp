@@ -1,0 +1,106 @@
+// The fixed judge: its region and points depend on the rest model alone, no filter, rigid specs.
+#include <gtest/gtest.h>
+
+#include <array>
+#include <cmath>
+#include <set>
+
+#include "Judge.h"
+#include "deform/DeformSpec.h"
+#include "field/PreparedGaussian.h"
+#include "samples/SampleModels.h"
+#include "../field/FieldTestModels.h"
+
+using namespace splatwarp;
+
+namespace {
+
+const std::string kSpecs = std::string(SPLATWARP_SOURCE_DIR) + "/samples/specs/";
+
+GaussianCloud smallStripes()
+{
+    SampleOptions so;
+    so.count = 2000;
+    return makeSample("stripes", so);
+}
+
+} // namespace
+
+TEST(Judge, RegionIsTheGaussiansBoxesAndOneCellAround)
+{
+    const GaussianCloud g = test::randomCloud(40, 0, 7);
+    const JudgeRegion region = judgeRegion(g);
+    const double h = region.cellSize;
+    ASSERT_GT(region.size(), 0u);
+    // The cell edge: the largest extent of the union of the cutoff boxes over 128 cells.
+    Vec3d lo(1e30, 1e30, 1e30), hi = -lo;
+    std::vector<PreparedGaussian> prepared = prepareCloud(g, 0.0, kDefaultCutoff);
+    for (const PreparedGaussian& p : prepared)
+        for (int k = 0; k < 3; ++k) {
+            lo[k] = std::min(lo[k], double(p.mean[k] - p.halfExtent[k]));
+            hi[k] = std::max(hi[k], double(p.mean[k] + p.halfExtent[k]));
+        }
+    EXPECT_NEAR(h, std::max(hi.x - lo.x, std::max(hi.y - lo.y, hi.z - lo.z)) / kJudgeRegionCells, 1e-6 * h);
+    // Every cell lies within one cell of some Gaussian's box, and every box's cells are in.
+    std::set<std::array<std::int64_t, 3>> cells;
+    for (std::size_t c = 0; c < region.size(); ++c)
+        cells.insert({region.origin[0] + region.cells[3 * c], region.origin[1] + region.cells[3 * c + 1],
+                      region.origin[2] + region.cells[3 * c + 2]});
+    std::size_t inBox = 0;
+    for (const auto& cell : cells) {
+        bool near = false, in = false;
+        for (const PreparedGaussian& p : prepared) {
+            bool n = true, i = true;
+            for (int k = 0; k < 3; ++k) {
+                const auto a = std::int64_t(std::floor((p.mean[k] - p.halfExtent[k]) / h));
+                const auto b = std::int64_t(std::floor((p.mean[k] + p.halfExtent[k]) / h));
+                n = n && cell[k] >= a - 1 && cell[k] <= b + 1;
+                i = i && cell[k] >= a && cell[k] <= b;
+            }
+            near = near || n;
+            in = in || i;
+        }
+        EXPECT_TRUE(near);
+        inBox += in;
+    }
+    for (const PreparedGaussian& p : prepared) {
+        std::array<std::int64_t, 3> corner;
+        for (int k = 0; k < 3; ++k) corner[k] = std::int64_t(std::floor((p.mean[k] + p.halfExtent[k]) / h)) + 1;
+        EXPECT_TRUE(cells.count(corner)) << "band cell beyond a box corner";
+    }
+    EXPECT_LT(inBox, cells.size()); // a band exists
+}
+
+TEST(Judge, PointsDependOnTheRestModelAndSeedOnlyAndUseNoFilter)
+{
+    const GaussianCloud rest = smallStripes();
+    HeldOutOptions o;
+    o.points = 5000;
+    const HeldOutPoints a = drawJudgePoints(rest, o), b = drawJudgePoints(rest, o);
+    EXPECT_EQ(a.rest, b.rest);
+    EXPECT_EQ(a.features.filterVariance, 0.0f);
+    EXPECT_EQ(a.features.cutoff, kDefaultCutoff);
+    o.seed = 2;
+    EXPECT_NE(drawJudgePoints(rest, o).rest, a.rest);
+    // The rest model against itself at rest: zero error, both sides of the split populated.
+    const JudgeRest jr = prepareJudgeRest(rest, HeldOutOptions{5000, 1, Device::Cpu}, Device::Cpu);
+    const FieldErrorReport e = evaluateHeldOut(jr.unrotated, rest, jr.points);
+    EXPECT_EQ(e.opacity, 0.0);
+    EXPECT_GT(e.insidePoints, 500u);
+    EXPECT_GT(e.outsidePoints, 500u);
+}
+
+TEST(Judge, RigidSpecsAreRecognisedWithTheirMotion)
+{
+    const GaussianCloud rest = smallStripes();
+    const Deformation rigid = solveDeformation(rest, loadDeformSpec(kSpecs + "rigid.json"));
+    const std::optional<RigidMotion> m = rigidMotionOf(rigid);
+    ASSERT_TRUE(m);
+    // rigid.json: 45 degrees about (1,1,0): the axis stays put, the angle from the trace.
+    const Vec3d axis = Vec3d(1, 1, 0) / std::sqrt(2.0);
+    EXPECT_LT(length(m->rotation * axis - axis), 1e-9);
+    const double cosAngle = (m->rotation.m[0][0] + m->rotation.m[1][1] + m->rotation.m[2][2] - 1.0) / 2.0;
+    EXPECT_NEAR(cosAngle, std::cos(M_PI / 4), 1e-9);
+    EXPECT_FALSE(rigidMotionOf(solveDeformation(rest, loadDeformSpec(kSpecs + "bend.json"))));
+    EXPECT_FALSE(rigidMotionOf(solveDeformation(rest, loadDeformSpec(kSpecs + "twist.json"))));
+}
