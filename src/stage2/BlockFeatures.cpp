@@ -53,7 +53,7 @@ FeatureStats evaluateBlockFeatures(const GaussianCloud& cloud, const float* poin
     parallelFor(blocks.count(), 4, options.threaded, [&](std::size_t b) {
         const std::size_t s0 = blocks.slot[b], j0 = blocks.first[b];
         const BlockPoints pts{&blocks.px[s0], &blocks.py[s0], &blocks.pz[s0], blocks.lanesOf(b), blocks.samplesOf(b),
-                          &blocks.chunkLo[3 * (s0 / kSimdLanes)], &blocks.chunkHi[3 * (s0 / kSimdLanes)]};
+                          blocks.chunksOf(b)};
         const std::size_t lanes = std::size_t(pts.lanes);
         alignas(32) float f[kMaxShStride * kMaxBlockSamples] = {}, o[kMaxBlockSamples] = {}, w[kMaxBlockSamples];
         for (std::uint64_t e = coverage.blockOffsets()[b]; e < coverage.blockOffsets()[b + 1]; ++e) {

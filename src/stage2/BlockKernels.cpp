@@ -44,12 +44,37 @@ struct FastExpOps<VecF> {
 
 namespace {
 
-/// Sum of the lanes of an accumulator in a fixed order, in double.
+typedef float VecF4 __attribute__((vector_size(16)));
+typedef double VecD4 __attribute__((vector_size(32)));
+
+/// Lanes l and l + 4 of v added in double.
+inline __attribute__((always_inline)) VecD4 halves(VecF v)
+{
+    return __builtin_convertvector(__builtin_shufflevector(v, v, 0, 1, 2, 3), VecD4) +
+           __builtin_convertvector(__builtin_shufflevector(v, v, 4, 5, 6, 7), VecD4);
+}
+
+/// Sum of the lanes of an accumulator in double, in a fixed order:
+/// ((l0 + l4) + (l1 + l5)) + ((l2 + l6) + (l3 + l7)).
 inline __attribute__((always_inline)) double laneSum(VecF v)
 {
-    double s = 0;
-    for (int l = 0; l < L; ++l) s += double(v[l]);
-    return s;
+    const VecD4 h = halves(v);
+    return (h[0] + h[1]) + (h[2] + h[3]);
+}
+
+/// laneSum() of n accumulators rounded to float, four at a time by a transpose (same order).
+inline __attribute__((always_inline)) void laneSums(const VecF* acc, int n, float* out)
+{
+    int i = 0;
+    for (; i + 4 <= n; i += 4) {
+        const VecD4 s0 = halves(acc[i]), s1 = halves(acc[i + 1]), s2 = halves(acc[i + 2]), s3 = halves(acc[i + 3]);
+        const VecD4 t0 = __builtin_shufflevector(s0, s1, 0, 4, 2, 6) + __builtin_shufflevector(s0, s1, 1, 5, 3, 7);
+        const VecD4 t1 = __builtin_shufflevector(s2, s3, 0, 4, 2, 6) + __builtin_shufflevector(s2, s3, 1, 5, 3, 7);
+        const VecD4 u = __builtin_shufflevector(t0, t1, 0, 1, 4, 5) + __builtin_shufflevector(t0, t1, 2, 3, 6, 7);
+        const VecF4 f = __builtin_convertvector(u, VecF4);
+        std::memcpy(out + i, &f, sizeof f);
+    }
+    for (; i < n; ++i) out[i] = float(laneSum(acc[i]));
 }
 
 /// One chunk of blockWeights(); Directions also writes A d. Returns the byte mask of the
@@ -86,42 +111,77 @@ inline __attribute__((always_inline)) unsigned weightChunk(const PreparedGaussia
 
 } // namespace
 
-std::uint64_t chunksOf(std::uint64_t mask)
+namespace {
+
+/// Relative slack of the chunk tests, far beyond the float rounding of the lanes' p - m, u and q.
+constexpr float kChunkSlack = 1e-4f;
+
+/// Bit c set for each chunk c of the block that may hold a lane where g counts: those meeting
+/// its box and its padded ellipsoid |L^-1 (p - m)| <= sqrt(radius2), all chunks of a block
+/// tested at once. For p = centre + e (|e_a| <= half_a), |L^-1 (p - m)| >= |L^-1 (centre - m)|
+/// - sum_a half_a |column a of L^-1|; box and ellipsoid are widened by generous rounding slack.
+inline __attribute__((always_inline)) unsigned liveChunks(const PreparedGaussian& g, const BlockPoints& b)
 {
-    std::uint64_t out = 0;
-    for (int t0 = 0; t0 < 64; t0 += L)
-        if (chunkOn(mask, t0)) out |= std::uint64_t(0xffu) << t0;
-    return out;
+    const unsigned all = b.lanes >= 64 ? 0xffu : (1u << (b.lanes / L)) - 1u;
+    if (!(g.radius2 >= 0.0f)) return 0; // never counts (weight() fails q <= radius2 everywhere)
+    if (!b.chunks) return all;
+    const float* c = b.chunks;
+    const float* iv = g.invL;
+    // Column norms of L^-1 (rows 00 | 10 11 | 20 21 22).
+    const float n0 = std::sqrt(iv[0] * iv[0] + iv[1] * iv[1] + iv[3] * iv[3]);
+    const float n1 = std::sqrt(iv[2] * iv[2] + iv[4] * iv[4]), n2 = std::fabs(iv[5]);
+    const float reachFactor = 1.0f + kChunkSlack;
+    const float slack[3] = {kChunkSlack * (std::fabs(g.mean.x) + std::fabs(g.halfExtent.x)),
+                            kChunkSlack * (std::fabs(g.mean.y) + std::fabs(g.halfExtent.y)),
+                            kChunkSlack * (std::fabs(g.mean.z) + std::fabs(g.halfExtent.z))};
+    const VecF ex = loadF(c + 3 * L) * reachFactor + slack[0], ey = loadF(c + 4 * L) * reachFactor + slack[1],
+               ez = loadF(c + 5 * L) * reachFactor + slack[2];
+    const VecF dx = loadF(c) - g.mean.x, dy = loadF(c + L) - g.mean.y, dz = loadF(c + 2 * L) - g.mean.z;
+    const VecI box = (absF(dx) <= ex + g.halfExtent.x) & (absF(dy) <= ey + g.halfExtent.y) & (absF(dz) <= ez + g.halfExtent.z);
+    const VecF ux = iv[0] * dx, uy = iv[1] * dx + iv[2] * dy, uz = iv[3] * dx + iv[4] * dy + iv[5] * dz;
+    const VecF reach = (ex * n0 + ey * n1 + ez * n2 + std::sqrt(g.radius2)) * reachFactor;
+    const VecI live = box & (ux * ux + uy * uy + uz * uz <= reach * reach);
+    unsigned bits = 0;
+    for (int l = 0; l < L; ++l) bits |= unsigned(live[l] & 1) << l;
+    return bits & all;
 }
 
-SPLATWARP_SIMD_CLONES std::uint64_t blockWeights(const PreparedGaussian& g, const BlockPoints& b, float cutoff, float* w,
-                                                 float* ax, float* ay, float* az, std::uint64_t chunks,
-                                                 const CoverageSlabs* slabs)
+/// Byte mask of the real (not padding) lanes of the chunk at t0.
+inline unsigned realLanes(const BlockPoints& b, int t0)
+{
+    const int n = b.samples - t0;
+    return n >= L ? 0xffu : (n <= 0 ? 0u : (1u << n) - 1u);
+}
+
+} // namespace
+
+SPLATWARP_SIMD_CLONES std::uint64_t blockWeights(const PreparedGaussian& g, const BlockPoints& b, float cutoff, float* w)
 {
     std::uint64_t mask = 0;
-    // The Gaussian's box, widened far beyond the rounding of m +- h and of the lanes' p - m, so the
-    // chunk test below only skips chunks whose every lane fails |p - m| <= h.
-    float lo[3], hi[3];
-    for (int a = 0; a < 3; ++a) {
-        const float m = g.mean[a], h = g.halfExtent[a], slack = 1e-5f * (std::fabs(m) + std::fabs(h));
-        lo[a] = m - h - slack;
-        hi[a] = m + h + slack;
+    for (unsigned live = liveChunks(g, b); live != 0; live &= live - 1) {
+        const int t0 = __builtin_ctz(live) * L;
+        const unsigned bits = weightChunk<false>(g, b.px + t0, b.py + t0, b.pz + t0, cutoff, w + t0, nullptr, nullptr, nullptr);
+        mask |= std::uint64_t(bits & realLanes(b, t0)) << t0; // padding lanes repeat the last sample and may count
     }
-    for (int t0 = 0; t0 < b.lanes; t0 += L) {
-        if (!chunkOn(chunks, t0)) continue;
-        if (b.chunkLo) { // a chunk wholly outside the Gaussian's box fails weight()'s first test in every lane
-            const float* cl = b.chunkLo + 3 * (t0 / L);
-            const float* ch = b.chunkHi + 3 * (t0 / L);
-            if (ch[0] < lo[0] || cl[0] > hi[0] || ch[1] < lo[1] || cl[1] > hi[1] || ch[2] < lo[2] || cl[2] > hi[2]) continue;
-            if (slabs && !boxMeetsSlabs(cl, ch, *slabs)) continue;
-        }
-        const unsigned bits = ax ? weightChunk<true>(g, b.px + t0, b.py + t0, b.pz + t0, cutoff, w + t0, ax + t0, ay + t0, az + t0)
-                                 : weightChunk<false>(g, b.px + t0, b.py + t0, b.pz + t0, cutoff, w + t0, nullptr, nullptr,
-                                                      nullptr);
+    return mask;
+}
+
+SPLATWARP_SIMD_CLONES std::uint64_t blockWeightsKept(const PreparedGaussian& g, const BlockPoints& b, float cutoff, float* w,
+                                                     float* kept, int& keptChunks)
+{
+    std::uint64_t mask = 0;
+    keptChunks = 0;
+    for (unsigned live = liveChunks(g, b); live != 0; live &= live - 1) {
+        const int t0 = __builtin_ctz(live) * L;
+        float* k = kept + std::size_t(keptChunks) * kKeptChunkFloats;
+        const unsigned bits = weightChunk<true>(g, b.px + t0, b.py + t0, b.pz + t0, cutoff, w + t0, k + L, k + 2 * L, k + 3 * L) &
+                              realLanes(b, t0);
+        if (bits == 0) continue; // the slot is reused by the next chunk
+        std::memcpy(k, w + t0, L * sizeof(float));
+        ++keptChunks;
         mask |= std::uint64_t(bits) << t0;
     }
-    // Padding lanes repeat the last sample and may count: keep only the real samples.
-    return b.samples >= 64 ? mask : mask & ((std::uint64_t(1) << b.samples) - 1);
+    return mask;
 }
 
 SPLATWARP_SIMD_CLONES void blockAccumulate(const float* w, int lanes, std::uint64_t mask, const float* h, int stride, float* f,
@@ -138,35 +198,67 @@ SPLATWARP_SIMD_CLONES void blockAccumulate(const float* w, int lanes, std::uint6
     }
 }
 
-SPLATWARP_SIMD_CLONES void blockBackward(const float* w, const float* ax, const float* ay, const float* az, int lanes,
-                                         std::uint64_t mask, const float* gF, const float* gO, const float* h, int stride,
-                                         float alpha, BlockPairSums& sums)
+SPLATWARP_SIMD_CLONES void blockBackward(const float* kept, int lanes, std::uint64_t mask, const float* gF, const float* gO,
+                                         const float* h, int stride, float alpha, float* out)
 {
-    VecF mean[3] = {}, sigma[6] = {}, dAlpha = {}, sh[kMaxShStride];
-    for (int c = 0; c < stride; ++c) sh[c] = VecF{};
+    // Accumulators: dE/dmu 3, dE/dSigma' 6, sum of dE/dw w (dE/dalpha times alpha), then dE/dH.
+    VecF acc[kPairSums + kMaxShStride];
+    for (int c = 0; c < kPairSums + stride; ++c) acc[c] = VecF{};
+    VecF* sh = acc + kPairSums;
     for (int t0 = 0; t0 < lanes; t0 += L) {
         if (!chunkOn(mask, t0)) continue;
         VecF gw = loadF(gO + t0);
         for (int c = 0; c < stride; ++c) gw = gw + loadF(gF + c * lanes + t0) * h[c];
-        const VecF wl = loadF(w + t0), x = loadF(ax + t0), y = loadF(ay + t0), z = loadF(az + t0);
+        const VecF wl = loadF(kept), x = loadF(kept + L), y = loadF(kept + 2 * L), z = loadF(kept + 3 * L);
+        kept += kKeptChunkFloats;
         const VecF gq = gw * wl; // see pairBackward()
-        mean[0] += x * gq;
-        mean[1] += y * gq;
-        mean[2] += z * gq;
+        acc[0] += x * gq;
+        acc[1] += y * gq;
+        acc[2] += z * gq;
         const VecF hq = gq * 0.5f;
-        sigma[0] += hq * x * x;
-        sigma[1] += hq * x * y;
-        sigma[2] += hq * x * z;
-        sigma[3] += hq * y * y;
-        sigma[4] += hq * y * z;
-        sigma[5] += hq * z * z;
-        dAlpha += gw * wl / alpha;
+        acc[3] += hq * x * x;
+        acc[4] += hq * x * y;
+        acc[5] += hq * x * z;
+        acc[6] += hq * y * y;
+        acc[7] += hq * y * z;
+        acc[8] += hq * z * z;
+        acc[9] += gq;
         for (int c = 0; c < stride; ++c) sh[c] += wl * loadF(gF + c * lanes + t0);
     }
-    for (int a = 0; a < 3; ++a) sums.mean[a] += laneSum(mean[a]);
-    for (int a = 0; a < 6; ++a) sums.sigma[a] += laneSum(sigma[a]);
-    sums.alpha += laneSum(dAlpha);
-    for (int c = 0; c < stride; ++c) sums.sh[c] += laneSum(sh[c]);
+    laneSums(acc, 9, out);
+    out[9] = float(laneSum(acc[9]) / double(alpha));
+    laneSums(sh, stride, out + kPairSums);
+}
+
+namespace {
+
+inline __attribute__((always_inline)) VecF signOf(VecF v)
+{
+    return select(v > 0.0f, splat(1.0f), select(v < 0.0f, splat(-1.0f), VecF{}));
+}
+
+} // namespace
+
+SPLATWARP_SIMD_CLONES void blockLoss(const float* f, const float* o, const float* tF, const float* tO, int lanes, int samples,
+                                     int stride, float lambda1, float lambda2, float* gF, float* gO, float* terms)
+{
+    const VecI lane = {0, 1, 2, 3, 4, 5, 6, 7};
+    for (int t0 = 0; t0 < lanes; t0 += L) {
+        const VecI real = lane + t0 < samples;
+        VecF e = {};
+        for (int c = 0; c < stride; ++c) {
+            const VecF r = loadF(f + c * lanes + t0) - loadF(tF + c * lanes + t0);
+            e += absF(r);
+            storeF(gF + c * lanes + t0, select(real, signOf(r), VecF{}));
+        }
+        const VecF target = loadF(tO + t0), ro = loadF(o + t0) - target, aro = absF(ro);
+        const VecI empty = target == 0.0f;
+        const VecF weight = lambda1 + select(empty, splat(lambda2), VecF{});
+        storeF(gO + t0, select(real, weight * signOf(ro), VecF{}));
+        storeF(terms + t0, select(real, e, VecF{}));
+        storeF(terms + lanes + t0, select(real, lambda1 * aro, VecF{}));
+        storeF(terms + 2 * lanes + t0, select(real & empty, lambda2 * aro, VecF{}));
+    }
 }
 
 } // namespace splatwarp

@@ -5,12 +5,11 @@
 ///        and the baseline with runtime dispatch (core/Simd.h). Per lane they do exactly what
 ///        PreparedGaussian::weight() and the scalar pair maths (PairGradients.h) do, in float.
 ///        A 64-bit lane mask says which lanes count; chunks whose lanes all fail the cheap tests
-///        (box, Mahalanobis radius) skip the exponential, and the backward pass visits only the
-///        chunks the forward pass found counting.
+///        (box, Mahalanobis radius) skip the exponential, and the forward pass keeps the weights
+///        of the chunks that count for the backward pass.
 #include <cstdint>
 
 #include "core/Simd.h"
-#include "stage2/Coverage.h"
 #include "field/PreparedGaussian.h"
 
 namespace splatwarp {
@@ -23,39 +22,48 @@ constexpr int kMaxShStride = 48;
 struct BlockPoints {
     const float *px, *py, *pz; ///< [lanes]
     int lanes, samples;
-    const float *chunkLo = nullptr, *chunkHi = nullptr; ///< [lanes/kSimdLanes, 3] chunk bounds, or null
+    const float* chunks = nullptr; ///< [6, kSimdLanes] chunk centres and half sizes (SampleBlocks::chunks), or null
 };
 
-/// @brief Mask of the lanes of the chunks holding any lane of `mask` (each chunk kSimdLanes wide).
-std::uint64_t chunksOf(std::uint64_t mask);
-
-/// @brief alpha*G of g at the lanes of the chunks in `chunks` (0 where the pair does not
-///        count, exactly as PreparedGaussian::weight(); lanes of other chunks are left alone);
-///        with ax/ay/az non-null also A d (0 where it does not count).
-///        With `slabs` (slabs holding every point where g can count, e.g. its own axes), chunks
-///        whose bounds miss them are skipped too.
+/// @brief alpha*G of g at the lanes of every chunk (0 where the pair does not count, exactly as
+///        PreparedGaussian::weight(); lanes of skipped chunks are left alone). With chunk bounds,
+///        chunks that miss the Gaussian's box or its (padded) cutoff ellipsoid are skipped,
+///        all of a block's chunks tested at once; the tests are conservative, so no counting
+///        lane is ever skipped.
 /// @return the mask of the real samples' lanes that count
-std::uint64_t blockWeights(const PreparedGaussian& g, const BlockPoints& b, float cutoff, float* w, float* ax = nullptr,
-                           float* ay = nullptr, float* az = nullptr, std::uint64_t chunks = ~std::uint64_t(0),
-                           const CoverageSlabs* slabs = nullptr);
+std::uint64_t blockWeights(const PreparedGaussian& g, const BlockPoints& b, float cutoff, float* w);
+
+/// Floats a counting chunk keeps for the backward pass (blockWeightsKept): w, then A d x, y, z.
+constexpr int kKeptChunkFloats = 4 * kSimdLanes;
+
+/// @brief blockWeights() over every chunk that also keeps, for each chunk with a counting lane,
+///        its w and A d (kKeptChunkFloats floats, chunks ascending) at `kept`, so the backward
+///        pass need not evaluate the pair again. Same bits as blockWeights().
+/// @param kept  room for lanes/kSimdLanes chunks; keptChunks: out, how many were written
+std::uint64_t blockWeightsKept(const PreparedGaussian& g, const BlockPoints& b, float cutoff, float* w, float* kept,
+                               int& keptChunks);
 
 /// @brief Forward accumulation f[c][t] += w[t] h[c], o[t] += w[t] over the chunks holding `mask`.
 /// @param f  [stride][lanes]; o: [lanes]
 void blockAccumulate(const float* w, int lanes, std::uint64_t mask, const float* h, int stride, float* f, float* o);
 
-/// @brief A Gaussian's backward sums over its pairs (dE/dmu, dE/dSigma' upper triangle
-///        xx xy xz yy yz zz, dE/dalpha, dE/dH), in double across blocks.
-struct BlockPairSums {
-    double mean[3] = {0, 0, 0};
-    double sigma[6] = {0, 0, 0, 0, 0, 0};
-    double alpha = 0;
-    double sh[kMaxShStride] = {};
-};
+/// Backward sums of one (block, Gaussian) pair before its SH ones: dE/dmu 3, dE/dSigma' upper
+/// triangle xx xy xz yy yz zz, dE/dalpha.
+constexpr int kPairSums = 10;
 
-/// @brief Add one block's pairs of a Gaussian to its backward sums (pairBackward() per pair,
-///        per-lane float partial sums reduced in a fixed order), over the chunks holding `mask`.
-/// @param w, ax, ay, az  from blockWeights(); gF: [stride][lanes] dE/dF; gO: [lanes] dE/dO (0 in padding)
-void blockBackward(const float* w, const float* ax, const float* ay, const float* az, int lanes, std::uint64_t mask,
-                   const float* gF, const float* gO, const float* h, int stride, float alpha, BlockPairSums& sums);
+/// @brief The backward sums of one block's pairs of a Gaussian (pairBackward() per pair, per-lane
+///        float partial sums, lanes reduced in double in a fixed order) from the chunks
+///        blockWeightsKept() kept (those holding `mask`).
+/// @param gF: [stride][lanes] dE/dF; gO: [lanes] dE/dO (0 in padding)
+/// @param out [kPairSums + stride]: dE/dmu, dE/dSigma' (upper triangle), dE/dalpha, dE/dH
+void blockBackward(const float* kept, int lanes, std::uint64_t mask, const float* gF, const float* gO, const float* h,
+                   int stride, float alpha, float* out);
+
+/// @brief sampleLoss() on every lane of a block (the same operations per lane, so the same bits).
+///        Lanes at or past `samples` get zero gradients and terms.
+/// @param f, tF  [stride][lanes] current and target F; o, tO: [lanes]
+/// @param gF     out [stride][lanes] dE/dF; gO: out [lanes]; terms: out [3][lanes] (see sampleLoss())
+void blockLoss(const float* f, const float* o, const float* tF, const float* tO, int lanes, int samples, int stride,
+               float lambda1, float lambda2, float* gF, float* gO, float* terms);
 
 } // namespace splatwarp

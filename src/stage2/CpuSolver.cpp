@@ -25,6 +25,23 @@ private:
     Stopwatch mWatch;
 };
 
+/// Rows of `stride` floats per used sample (rowOf(j)) in the block layout: [stride][lanes] per
+/// block, padding lanes 0.
+template <typename RowOf>
+std::vector<float> toSlots(const SampleBlocks& blocks, std::size_t stride, const RowOf& rowOf)
+{
+    std::vector<float> out(blocks.slots() * stride, 0.0f);
+    for (std::size_t b = 0; b < blocks.count(); ++b) {
+        const std::size_t lanes = std::size_t(blocks.lanesOf(b));
+        float* dst = out.data() + std::size_t(blocks.slot[b]) * stride;
+        for (std::size_t t = 0; t < std::size_t(blocks.samplesOf(b)); ++t) {
+            const float* src = rowOf(blocks.first[b] + t);
+            for (std::size_t c = 0; c < stride; ++c) dst[c * lanes + t] = src[c];
+        }
+    }
+    return out;
+}
+
 class CpuSolver final : public StageTwoSolver {
 public:
     CpuSolver(const GaussianCloud& cloud, const SampleSet& samples, const std::vector<std::uint8_t>& moving,
@@ -54,13 +71,15 @@ public:
 
 private:
     const float* row(std::size_t k) const { return mParams.data() + k * std::size_t(mPerG); }
+    BlockPoints pointsOf(std::size_t b) const;
     std::uint64_t forwardBlock(std::size_t b);
-    void backwardPairs(std::size_t b, const BlockPoints& pts);
+    void keepOutputs(std::size_t b, const float* f, const float* o);
+    void backwardPairs(std::size_t b, const float* kept, const std::uint32_t* keptAt);
     void backwardGaussian(std::size_t k);
     std::size_t partialStride() const { return kPartial + std::size_t(mStride); }
 
-    /// Backward sums kept per (block, Gaussian) pair before the SH ones: mean 3, sigma 6, alpha.
-    static constexpr std::size_t kPartial = 10;
+    /// Backward sums kept per (block, Gaussian) pair before the SH ones (blockBackward()).
+    static constexpr std::size_t kPartial = kPairSums;
 
     const SampleSet& mSamples;
     StageTwoOptions mOptions;
@@ -74,10 +93,10 @@ private:
     std::vector<PreparedGaussian> mKernels;                  // [G]
     std::vector<float> mBoxLo, mBoxHi;                        // [G,3]
     std::vector<CoverageSlabs> mSlabs;                        // [G] coverage slabs (the reach until the next rebuild)
-    std::vector<CoverageSlabs> mNowSlabs;                     // [G] slabs of the Gaussians as they are now (chunk culling)
     std::vector<std::uint8_t> mHolds;                         // [G]
-    std::vector<float> mGF, mGO;      // per padded slot: [P*stride] ([stride][lanes] per block), [P]
-    std::vector<float> mEnergy;       // [S,3]
+    // Per padded slot, [stride][lanes] or [lanes] per block (padding 0): static F and O, targets, dE/dF and dE/dO.
+    std::vector<float> mStaticF, mStaticO, mTargetF, mTargetO, mGF, mGO;
+    std::vector<float> mEnergy;       // [3][lanes] per block: the loss terms per slot
     std::vector<std::uint64_t> mBlockPairs; // [B] counted pairs of the last forward pass
     std::vector<std::uint64_t> mPairMask;   // [block-major coverage entries] counting lanes of the last forward pass
     std::vector<float> mPartials;           // [block-major coverage entries, kPartial + stride] backward sums of each pair
@@ -109,11 +128,15 @@ CpuSolver::CpuSolver(const GaussianCloud& cloud, const SampleSet& samples, const
     mBoxLo.resize(3 * mG);
     mBoxHi.resize(3 * mG);
     mSlabs.resize(mG);
-    mNowSlabs.resize(mG);
     mHolds.resize(mG);
-    mGF.assign(mBlocks.slots() * std::size_t(mStride), 0.0f); // padding slots stay 0: they add nothing
+    const std::size_t stride = std::size_t(mStride);
+    mStaticF = toSlots(mBlocks, stride, [&](std::size_t j) { return &mSetup.fStatic[j * stride]; });
+    mStaticO = toSlots(mBlocks, 1, [&](std::size_t j) { return &mSetup.oStatic[j]; });
+    mTargetF = toSlots(mBlocks, stride, [&](std::size_t j) { return &samples.targetF[mSetup.used[j] * stride]; });
+    mTargetO = toSlots(mBlocks, 1, [&](std::size_t j) { return &samples.targetO[mSetup.used[j]]; });
+    mGF.assign(mBlocks.slots() * stride, 0.0f);
     mGO.assign(mBlocks.slots(), 0.0f);
-    mEnergy.resize(3 * mS);
+    mEnergy.assign(3 * mBlocks.slots(), 0.0f);
     mBlockPairs.resize(mBlocks.count());
     mSetupMs = watch.ms();
 }
@@ -134,7 +157,6 @@ void CpuSolver::prepare()
         const GaussianParams<double> p = unpackParams(row(k));
         const Mat3d& filter = mSetup.filter[mSetup.moving[k]];
         mKernels[k] = PreparedGaussian::from(prepareParams(p, filter, double(mOptions.cutoff)));
-        stageTwoCoverageSlabs(p, filter, 0, 0.0, mOptions, mNowSlabs[k]); // zero steps: the Gaussian as it is
     });
 }
 
@@ -164,66 +186,77 @@ bool CpuSolver::coverageHolds()
     return std::all_of(mHolds.begin(), mHolds.end(), [](std::uint8_t h) { return h != 0; });
 }
 
+BlockPoints CpuSolver::pointsOf(std::size_t b) const
+{
+    const std::size_t s0 = mBlocks.slot[b];
+    return BlockPoints{&mBlocks.px[s0], &mBlocks.py[s0], &mBlocks.pz[s0], mBlocks.lanesOf(b), mBlocks.samplesOf(b),
+                       mBlocks.chunksOf(b)};
+}
+
+/// One block: its F and O (each listed Gaussian's counting lanes), the loss per sample, then the
+/// backward sums of its pairs from the weights the forward kept (still in cache).
 std::uint64_t CpuSolver::forwardBlock(std::size_t b)
 {
-    const std::size_t stride = std::size_t(mStride), j0 = mBlocks.first[b], s0 = mBlocks.slot[b];
-    const BlockPoints pts{&mBlocks.px[s0], &mBlocks.py[s0], &mBlocks.pz[s0], mBlocks.lanesOf(b), mBlocks.samplesOf(b),
-                          &mBlocks.chunkLo[3 * (s0 / kSimdLanes)], &mBlocks.chunkHi[3 * (s0 / kSimdLanes)]};
+    const std::size_t stride = std::size_t(mStride), s0 = mBlocks.slot[b];
+    const BlockPoints pts = pointsOf(b);
     const std::size_t lanes = std::size_t(pts.lanes);
     alignas(32) float f[kMaxShStride * kMaxBlockSamples], o[kMaxBlockSamples], w[kMaxBlockSamples];
-    for (std::size_t t = 0; t < lanes; ++t) {
-        const bool real = t < std::size_t(pts.samples);
-        o[t] = real ? mSetup.oStatic[j0 + t] : 0.0f;
-        for (std::size_t c = 0; c < stride; ++c) f[c * lanes + t] = real ? mSetup.fStatic[(j0 + t) * stride + c] : 0.0f;
-    }
-    std::uint64_t pairs = 0;
+    std::memcpy(f, &mStaticF[s0 * stride], lanes * stride * sizeof(float));
+    std::memcpy(o, &mStaticO[s0], lanes * sizeof(float));
     const auto& offsets = mCoverage.blockOffsets();
     const auto& items = mCoverage.blockItems();
-    for (std::uint64_t e = offsets[b]; e < offsets[b + 1]; ++e) {
-        const std::uint32_t k = items[e];
-        const std::uint64_t mask = blockWeights(mKernels[k], pts, mOptions.cutoff, w, nullptr, nullptr, nullptr,
-                                                ~std::uint64_t(0), &mNowSlabs[k]);
-        mPairMask[e] = mask; // the backward pass evaluates only these lanes' chunks
+    const std::uint64_t e0 = offsets[b], n = offsets[b + 1] - e0;
+    // Per thread, reused: the kept chunks of the block's pairs and where each pair's start.
+    thread_local std::vector<float> kept;
+    thread_local std::vector<std::uint32_t> keptAt;
+    keptAt.resize(n + 1);
+    std::size_t used = 0;
+    std::uint64_t pairs = 0;
+    for (std::uint64_t i = 0; i < n; ++i) {
+        keptAt[i] = std::uint32_t(used);
+        const std::size_t need = used + lanes / kSimdLanes * kKeptChunkFloats;
+        if (kept.size() < need) kept.resize(std::max(need, 2 * kept.size()));
+        const std::uint32_t k = items[e0 + i];
+        int chunks = 0;
+        const std::uint64_t mask = blockWeightsKept(mKernels[k], pts, mOptions.cutoff, w, kept.data() + used, chunks);
+        mPairMask[e0 + i] = mask;
         if (mask == 0) continue;
+        used += std::size_t(chunks) * kKeptChunkFloats;
         pairs += std::uint64_t(__builtin_popcountll(mask));
         blockAccumulate(w, pts.lanes, mask, row(k) + kParamSh, mStride, f, o);
     }
-    for (std::size_t t = 0; t < std::size_t(pts.samples); ++t) {
-        const std::size_t j = j0 + t, sj = mSetup.used[j];
-        float fj[kMaxShStride], gfj[kMaxShStride], terms[3];
-        for (std::size_t c = 0; c < stride; ++c) fj[c] = f[c * lanes + t];
-        sampleLoss<float, float>(fj, mSamples.targetF.data() + sj * stride, o[t], mSamples.targetO[sj], mStride,
-                                 mOptions.lambdaOpacity, mOptions.boundaryWeight, gfj, mGO[s0 + t], terms);
-        for (std::size_t c = 0; c < stride; ++c) mGF[s0 * stride + c * lanes + t] = gfj[c];
-        for (int a = 0; a < 3; ++a) mEnergy[3 * j + std::size_t(a)] = terms[a];
-        if (mFeaturesOut) std::copy(fj, fj + stride, mFeaturesOut->data() + j * stride);
-        if (mOpacityOut) (*mOpacityOut)[j] = o[t];
-    }
-    backwardPairs(b, pts);
+    blockLoss(f, o, &mTargetF[s0 * stride], &mTargetO[s0], pts.lanes, pts.samples, mStride, mOptions.lambdaOpacity,
+              mOptions.boundaryWeight, &mGF[s0 * stride], &mGO[s0], &mEnergy[3 * s0]);
+    if (mFeaturesOut || mOpacityOut) keepOutputs(b, f, o);
+    backwardPairs(b, kept.data(), keptAt.data());
     return pairs;
 }
 
-/// The backward sums of each of the block's counting pairs, while its dE/dF, dE/dO and positions
-/// are in cache (the per-Gaussian gather in backward() then only adds them up).
-void CpuSolver::backwardPairs(std::size_t b, const BlockPoints& pts)
+/// F and O of a block's samples for probes.
+void CpuSolver::keepOutputs(std::size_t b, const float* f, const float* o)
+{
+    const std::size_t stride = std::size_t(mStride), lanes = std::size_t(mBlocks.lanesOf(b));
+    for (std::size_t t = 0; t < std::size_t(mBlocks.samplesOf(b)); ++t) {
+        const std::size_t j = mBlocks.first[b] + t;
+        if (mFeaturesOut)
+            for (std::size_t c = 0; c < stride; ++c) (*mFeaturesOut)[j * stride + c] = f[c * lanes + t];
+        if (mOpacityOut) (*mOpacityOut)[j] = o[t];
+    }
+}
+
+/// The backward sums of each of the block's counting pairs, while its dE/dF and dE/dO are in
+/// cache (the per-Gaussian gather in backward() then only adds them up).
+void CpuSolver::backwardPairs(std::size_t b, const float* kept, const std::uint32_t* keptAt)
 {
     const std::size_t stride = std::size_t(mStride), s0 = mBlocks.slot[b], ps = partialStride();
-    alignas(32) float w[kMaxBlockSamples], ax[kMaxBlockSamples], ay[kMaxBlockSamples], az[kMaxBlockSamples];
     const auto& offsets = mCoverage.blockOffsets();
     const auto& items = mCoverage.blockItems();
     for (std::uint64_t e = offsets[b]; e < offsets[b + 1]; ++e) {
         const std::uint64_t mask = mPairMask[e];
         if (mask == 0) continue;
         const std::uint32_t k = items[e];
-        const PreparedGaussian& kg = mKernels[k];
-        blockWeights(kg, pts, mOptions.cutoff, w, ax, ay, az, chunksOf(mask));
-        BlockPairSums sums;
-        blockBackward(w, ax, ay, az, pts.lanes, mask, &mGF[s0 * stride], &mGO[s0], row(k) + kParamSh, mStride, kg.alpha, sums);
-        float* out = mPartials.data() + e * ps;
-        for (int a = 0; a < 3; ++a) out[a] = float(sums.mean[a]);
-        for (int a = 0; a < 6; ++a) out[3 + a] = float(sums.sigma[a]);
-        out[9] = float(sums.alpha);
-        for (std::size_t c = 0; c < stride; ++c) out[kPartial + c] = float(sums.sh[c]);
+        blockBackward(kept + keptAt[e - offsets[b]], mBlocks.lanesOf(b), mask, &mGF[s0 * stride], &mGO[s0], row(k) + kParamSh,
+                      mStride, mKernels[k].alpha, mPartials.data() + e * ps);
     }
 }
 
@@ -238,10 +271,14 @@ StageTwoEnergy CpuSolver::forward(int iteration, std::uint64_t& pairs)
     // Serial sums in sample order: deterministic for any thread count.
     StageTwoEnergy e;
     e.iteration = iteration;
-    for (std::size_t j = 0; j < mS; ++j) {
-        e.color += mEnergy[3 * j];
-        e.opacity += mEnergy[3 * j + 1];
-        e.boundary += mEnergy[3 * j + 2];
+    for (std::size_t b = 0; b < mBlocks.count(); ++b) {
+        const float* terms = &mEnergy[3 * std::size_t(mBlocks.slot[b])];
+        const std::size_t lanes = std::size_t(mBlocks.lanesOf(b));
+        for (std::size_t t = 0; t < std::size_t(mBlocks.samplesOf(b)); ++t) {
+            e.color += terms[t];
+            e.opacity += terms[lanes + t];
+            e.boundary += terms[2 * lanes + t];
+        }
     }
     e.total = e.color + e.opacity + e.boundary;
     pairs = 0;

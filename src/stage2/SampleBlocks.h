@@ -16,6 +16,9 @@ namespace splatwarp {
 
 /// Largest block: a cell of 4^3 samples (the default) is one block; larger cells are split.
 constexpr int kMaxBlockSamples = 64;
+/// Chunks of kSimdLanes slots in a block at most: one SIMD register holds one value of each.
+constexpr int kChunkSlots = kMaxBlockSamples / kSimdLanes;
+static_assert(kChunkSlots == kSimdLanes, "the chunk tests run on one register");
 
 /// @brief Used samples in padded blocks (structure of arrays).
 struct SampleBlocks {
@@ -23,12 +26,15 @@ struct SampleBlocks {
     std::vector<std::uint32_t> slot;  ///< [B+1] first padded slot; slot[b+1] - slot[b] is a multiple of kSimdLanes
     std::vector<float> px, py, pz;    ///< [P] positions per slot; padding repeats the block's last sample
     std::vector<float> lo, hi;        ///< [B,3] bounds of each block's samples
-    std::vector<float> chunkLo, chunkHi; ///< [P/kSimdLanes, 3] bounds of each chunk of kSimdLanes slots
+    /// [B, 6, kChunkSlots]: per block its chunks' (kSimdLanes slots each) centres x, y, z and half
+    /// sizes x, y, z, each a row of kChunkSlots; unused chunk slots have NaN centres.
+    std::vector<float> chunks;
 
     std::size_t count() const { return first.empty() ? 0 : first.size() - 1; }
     std::size_t slots() const { return px.size(); }
     int samplesOf(std::size_t b) const { return int(first[b + 1] - first[b]); }
     int lanesOf(std::size_t b) const { return int(slot[b + 1] - slot[b]); }
+    const float* chunksOf(std::size_t b) const { return chunks.data() + b * 6 * kChunkSlots; }
 
     /// @brief Blocks of s samples at positions x [s,3] whose cells are cell [s] (runs of equal
     ///        cell in this order, split every kMaxBlockSamples).
@@ -55,7 +61,9 @@ public:
     const std::vector<std::uint32_t>& blockEntryOf() const { return mBlockEntryOf; }
 
 private:
-    std::vector<std::vector<std::uint32_t>> mLists; ///< per Gaussian, reused between rebuilds
+    void flatten(std::size_t nb, std::size_t g);
+
+    std::vector<std::vector<std::uint32_t>> mLists; ///< per block, reused between rebuilds
     std::vector<std::uint64_t> mGaussianOffsets, mBlockOffsets;
     std::vector<std::uint32_t> mGaussianItems, mBlockItems, mBlockEntryOf;
 };

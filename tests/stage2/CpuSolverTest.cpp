@@ -7,6 +7,7 @@
 #include <cstdio>
 #include <random>
 
+#include "stage2/BlockKernels.h"
 #include "stage2/CpuSolver.h"
 #include "stage2/SampleBlocks.h"
 #include "stage2/StageTwoCommon.h"
@@ -186,4 +187,63 @@ TEST(SampleBlocks, BoxMeetsSlabsIsASuperset)
         }
     }
     EXPECT_GT(inside, 100);
+}
+
+TEST(BlockKernels, ChunkTestsNeverSkipACountingLane)
+{
+    // Random Gaussians (round to flat, near the origin and far from it, where p - m rounds most)
+    // against a cell of n^3 samples near them: the block weights must count exactly the lanes
+    // where PreparedGaussian::weight() counts, with the same bits, and keep those chunks.
+    std::mt19937 rng(11);
+    std::uniform_real_distribution<float> u(-1.0f, 1.0f);
+    const float cutoff = 1.0f / 255.0f;
+    std::uint64_t counted = 0, skipped = 0;
+    for (int trial = 0; trial < 600; ++trial) {
+        const double offset = trial % 3 == 0 ? 700.0 : 0.0;
+        const Vec3d mean(offset + u(rng), offset + u(rng), offset + u(rng));
+        const Vec3d scale(0.2 * std::exp(2.0 * u(rng)), 0.2 * std::exp(2.0 * u(rng)),
+                          trial % 4 == 0 ? 1e-7 : 0.2 * std::exp(2.0 * u(rng)));
+        const Quatd q{u(rng), u(rng), u(rng), u(rng)};
+        const PreparedGaussian g = PreparedGaussian::from(
+            prepareGaussian(mean, filteredCovariance(q, scale, Mat3d{}), 0.05 + 0.95 * std::fabs(double(u(rng))), double(cutoff)));
+        const int n = 2 + trial % 3;
+        const float edge = 0.05f + 0.5f * std::fabs(u(rng));
+        const float corner[3] = {float(mean.x) + 1.5f * u(rng), float(mean.y) + 1.5f * u(rng), float(mean.z) + 1.5f * u(rng)};
+        std::vector<float> x;
+        for (int a = 0; a < n; ++a)
+            for (int b = 0; b < n; ++b)
+                for (int c = 0; c < n; ++c)
+                    x.insert(x.end(), {corner[0] + edge * float(a) / float(n), corner[1] + edge * float(b) / float(n),
+                                       corner[2] + edge * float(c) / float(n)});
+        const std::vector<std::int32_t> cell(x.size() / 3, 0);
+        const SampleBlocks blocks = SampleBlocks::build(x.data(), cell.data(), cell.size());
+        ASSERT_EQ(blocks.count(), 1u);
+        const BlockPoints pts{blocks.px.data(), blocks.py.data(), blocks.pz.data(), blocks.lanesOf(0), blocks.samplesOf(0),
+                              blocks.chunksOf(0)};
+        alignas(32) float w[kMaxBlockSamples], w2[kMaxBlockSamples], kept[kMaxBlockSamples / kSimdLanes * kKeptChunkFloats];
+        const std::uint64_t mask = blockWeights(g, pts, cutoff, w);
+        int keptChunks = 0;
+        ASSERT_EQ(blockWeightsKept(g, pts, cutoff, w2, kept, keptChunks), mask) << "trial " << trial;
+        int chunk = 0;
+        for (int t0 = 0; t0 < pts.lanes; t0 += kSimdLanes) {
+            if (((mask >> t0) & 0xffu) == 0) continue;
+            for (int l = 0; l < kSimdLanes; ++l) EXPECT_EQ(kept[chunk * kKeptChunkFloats + l], w[t0 + l]);
+            ++chunk;
+        }
+        EXPECT_EQ(chunk, keptChunks);
+        for (int t = 0; t < pts.samples; ++t) {
+            const Vec3f d(pts.px[t] - g.mean.x, pts.py[t] - g.mean.y, pts.pz[t] - g.mean.z);
+            const float ref = g.weight(d, cutoff);
+            const bool on = (mask >> t) & 1u;
+            ASSERT_EQ(on, ref > 0.0f) << "trial " << trial << " lane " << t;
+            if (on) {
+                EXPECT_EQ(w[t], ref);
+                ++counted;
+            } else {
+                ++skipped;
+            }
+        }
+    }
+    EXPECT_GT(counted, 1000u);
+    EXPECT_GT(skipped, 1000u);
 }
