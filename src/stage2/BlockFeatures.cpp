@@ -41,7 +41,9 @@ FeatureStats evaluateBlockFeatures(const GaussianCloud& cloud, const float* poin
     const std::size_t n = prepared.size();
     std::vector<float> lo(3 * n), hi(3 * n);
     std::vector<CoverageSlabs> slabs(n);
+    std::vector<ChunkBound> bounds(n);
     parallelFor(n, 1024, options.threaded, [&](std::size_t i) {
+        bounds[i] = ChunkBound::of(prepared[i]);
         preparedBox(prepared[i], &lo[3 * i], &hi[3 * i]);
         slabs[i] = preparedSlabs(cloud, i, prepared[i], double(options.filterVariance));
     });
@@ -55,14 +57,12 @@ FeatureStats evaluateBlockFeatures(const GaussianCloud& cloud, const float* poin
         const BlockPoints pts{&blocks.px[s0], &blocks.py[s0], &blocks.pz[s0], blocks.lanesOf(b), blocks.samplesOf(b),
                           blocks.chunksOf(b)};
         const std::size_t lanes = std::size_t(pts.lanes);
-        alignas(32) float f[kMaxShStride * kMaxBlockSamples] = {}, o[kMaxBlockSamples] = {}, w[kMaxBlockSamples];
+        alignas(32) float f[kMaxShStride * kMaxBlockSamples] = {}, o[kMaxBlockSamples] = {};
         for (std::uint64_t e = coverage.blockOffsets()[b]; e < coverage.blockOffsets()[b + 1]; ++e) {
             const std::uint32_t i = coverage.blockItems()[e];
             tested[b] += std::uint64_t(pts.samples);
-            const std::uint64_t mask = blockWeights(prepared[i], pts, options.cutoff, w);
-            if (mask == 0) continue;
+            const std::uint64_t mask = blockFeatures(prepared[i], bounds[i], pts, options.cutoff, cloud.shOf(i), stride, f, o);
             counted[b] += std::uint64_t(__builtin_popcountll(mask));
-            blockAccumulate(w, pts.lanes, mask, cloud.shOf(i), stride, f, o);
         }
         for (std::size_t t = 0; t < std::size_t(pts.samples); ++t) {
             if (opacity) opacity[j0 + t] = o[t];

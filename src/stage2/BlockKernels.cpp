@@ -77,12 +77,11 @@ inline __attribute__((always_inline)) void laneSums(const VecF* acc, int n, floa
     for (; i < n; ++i) out[i] = float(laneSum(acc[i]));
 }
 
-/// One chunk of blockWeights(); Directions also writes A d. Returns the byte mask of the
-/// chunk's counting lanes.
-template <bool Directions>
+/// One chunk of a pair: alpha*G where it counts (0 elsewhere, exactly as weight()), the byte
+/// mask of the counting lanes; with Keep, also A d at kept + L (x, y, z rows of L lanes).
+template <bool Keep>
 inline __attribute__((always_inline)) unsigned weightChunk(const PreparedGaussian& g, const float* px, const float* py,
-                                                           const float* pz, float cutoff, float* w, float* ax, float* ay,
-                                                           float* az)
+                                                           const float* pz, float cutoff, VecF& w, float* kept)
 {
     const VecF dx = loadF(px) - g.mean.x, dy = loadF(py) - g.mean.y, dz = loadF(pz) - g.mean.z;
     const VecF ux = g.invL[0] * dx, uy = g.invL[1] * dx + g.invL[2] * dy, uz = g.invL[3] * dx + g.invL[4] * dy + g.invL[5] * dz;
@@ -91,18 +90,14 @@ inline __attribute__((always_inline)) unsigned weightChunk(const PreparedGaussia
                       (q <= g.radius2);
     bool any = false;
     for (int l = 0; l < L; ++l) any |= near[l] != 0;
-    if (!any) { // the usual case far from the Gaussian: no exponential
-        storeF(w, VecF{});
-        if constexpr (Directions) storeF(ax, VecF{}), storeF(ay, VecF{}), storeF(az, VecF{});
-        return 0;
-    }
+    if (!any) return 0; // the usual case far from the Gaussian: no exponential
     const VecF v = g.alpha * fastExpOf(-0.5f * q);
     const VecI ok = near & (v >= cutoff);
-    storeF(w, select(ok, v, VecF{}));
-    if constexpr (Directions) {
-        storeF(ax, select(ok, g.invL[0] * ux + g.invL[1] * uy + g.invL[3] * uz, VecF{}));
-        storeF(ay, select(ok, g.invL[2] * uy + g.invL[4] * uz, VecF{}));
-        storeF(az, select(ok, g.invL[5] * uz, VecF{}));
+    w = select(ok, v, VecF{});
+    if constexpr (Keep) {
+        storeF(kept + L, select(ok, g.invL[0] * ux + g.invL[1] * uy + g.invL[3] * uz, VecF{}));
+        storeF(kept + 2 * L, select(ok, g.invL[2] * uy + g.invL[4] * uz, VecF{}));
+        storeF(kept + 3 * L, select(ok, g.invL[5] * uz, VecF{}));
     }
     unsigned bits = 0;
     for (int l = 0; l < L; ++l) bits |= unsigned(ok[l] & 1) << l;
@@ -115,31 +110,23 @@ namespace {
 
 /// Relative slack of the chunk tests, far beyond the float rounding of the lanes' p - m, u and q.
 constexpr float kChunkSlack = 1e-4f;
+constexpr float kGrow = 1.0f + kChunkSlack;
 
 /// Bit c set for each chunk c of the block that may hold a lane where g counts: those meeting
-/// its box and its padded ellipsoid |L^-1 (p - m)| <= sqrt(radius2), all chunks of a block
-/// tested at once. For p = centre + e (|e_a| <= half_a), |L^-1 (p - m)| >= |L^-1 (centre - m)|
-/// - sum_a half_a |column a of L^-1|; box and ellipsoid are widened by generous rounding slack.
-inline __attribute__((always_inline)) unsigned liveChunks(const PreparedGaussian& g, const BlockPoints& b)
+/// its box and its padded ellipsoid (ChunkBound), all chunks of a block tested at once.
+inline __attribute__((always_inline)) unsigned liveChunks(const PreparedGaussian& g, const ChunkBound& cb, const BlockPoints& b)
 {
     const unsigned all = b.lanes >= 64 ? 0xffu : (1u << (b.lanes / L)) - 1u;
-    if (!(g.radius2 >= 0.0f)) return 0; // never counts (weight() fails q <= radius2 everywhere)
+    if (!(cb.radius >= 0.0f)) return 0; // never counts (weight() fails q <= radius2 everywhere)
     if (!b.chunks) return all;
     const float* c = b.chunks;
     const float* iv = g.invL;
-    // Column norms of L^-1 (rows 00 | 10 11 | 20 21 22).
-    const float n0 = std::sqrt(iv[0] * iv[0] + iv[1] * iv[1] + iv[3] * iv[3]);
-    const float n1 = std::sqrt(iv[2] * iv[2] + iv[4] * iv[4]), n2 = std::fabs(iv[5]);
-    const float reachFactor = 1.0f + kChunkSlack;
-    const float slack[3] = {kChunkSlack * (std::fabs(g.mean.x) + std::fabs(g.halfExtent.x)),
-                            kChunkSlack * (std::fabs(g.mean.y) + std::fabs(g.halfExtent.y)),
-                            kChunkSlack * (std::fabs(g.mean.z) + std::fabs(g.halfExtent.z))};
-    const VecF ex = loadF(c + 3 * L) * reachFactor + slack[0], ey = loadF(c + 4 * L) * reachFactor + slack[1],
-               ez = loadF(c + 5 * L) * reachFactor + slack[2];
+    const VecF ex = loadF(c + 3 * L) * kGrow + cb.slack[0], ey = loadF(c + 4 * L) * kGrow + cb.slack[1],
+               ez = loadF(c + 5 * L) * kGrow + cb.slack[2];
     const VecF dx = loadF(c) - g.mean.x, dy = loadF(c + L) - g.mean.y, dz = loadF(c + 2 * L) - g.mean.z;
     const VecI box = (absF(dx) <= ex + g.halfExtent.x) & (absF(dy) <= ey + g.halfExtent.y) & (absF(dz) <= ez + g.halfExtent.z);
     const VecF ux = iv[0] * dx, uy = iv[1] * dx + iv[2] * dy, uz = iv[3] * dx + iv[4] * dy + iv[5] * dz;
-    const VecF reach = (ex * n0 + ey * n1 + ez * n2 + std::sqrt(g.radius2)) * reachFactor;
+    const VecF reach = ex * cb.column[0] + ey * cb.column[1] + ez * cb.column[2] + cb.radius;
     const VecI live = box & (ux * ux + uy * uy + uz * uz <= reach * reach);
     unsigned bits = 0;
     for (int l = 0; l < L; ++l) bits |= unsigned(live[l] & 1) << l;
@@ -155,47 +142,67 @@ inline unsigned realLanes(const BlockPoints& b, int t0)
 
 } // namespace
 
-SPLATWARP_SIMD_CLONES std::uint64_t blockWeights(const PreparedGaussian& g, const BlockPoints& b, float cutoff, float* w)
+ChunkBound ChunkBound::of(const PreparedGaussian& g)
 {
-    std::uint64_t mask = 0;
-    for (unsigned live = liveChunks(g, b); live != 0; live &= live - 1) {
-        const int t0 = __builtin_ctz(live) * L;
-        const unsigned bits = weightChunk<false>(g, b.px + t0, b.py + t0, b.pz + t0, cutoff, w + t0, nullptr, nullptr, nullptr);
-        mask |= std::uint64_t(bits & realLanes(b, t0)) << t0; // padding lanes repeat the last sample and may count
-    }
-    return mask;
+    ChunkBound cb;
+    if (!(g.radius2 >= 0.0f)) return cb;
+    const float* iv = g.invL; // rows 00 | 10 11 | 20 21 22
+    cb.column[0] = kGrow * std::sqrt(iv[0] * iv[0] + iv[1] * iv[1] + iv[3] * iv[3]);
+    cb.column[1] = kGrow * std::sqrt(iv[2] * iv[2] + iv[4] * iv[4]);
+    cb.column[2] = kGrow * std::fabs(iv[5]);
+    for (int a = 0; a < 3; ++a) cb.slack[a] = kChunkSlack * (std::fabs(g.mean[a]) + std::fabs(g.halfExtent[a]));
+    cb.radius = kGrow * std::sqrt(g.radius2);
+    return cb;
 }
 
-SPLATWARP_SIMD_CLONES std::uint64_t blockWeightsKept(const PreparedGaussian& g, const BlockPoints& b, float cutoff, float* w,
-                                                     float* kept, int& keptChunks)
+namespace {
+
+/// One pair's forward over a block: the weights of each live chunk, added to F and O where a
+/// real lane counts (the whole chunk, as padding lanes are never read); with Keep the counting
+/// chunks' w and A d go to `kept`.
+template <bool Keep>
+inline __attribute__((always_inline)) std::uint64_t forwardPair(const PreparedGaussian& g, const ChunkBound& cb,
+                                                                const BlockPoints& b, float cutoff, const float* h, int stride,
+                                                                float* f, float* o, float* kept, int& keptChunks)
 {
     std::uint64_t mask = 0;
     keptChunks = 0;
-    for (unsigned live = liveChunks(g, b); live != 0; live &= live - 1) {
+    const int lanes = b.lanes;
+    for (unsigned live = liveChunks(g, cb, b); live != 0; live &= live - 1) {
         const int t0 = __builtin_ctz(live) * L;
         float* k = kept + std::size_t(keptChunks) * kKeptChunkFloats;
-        const unsigned bits = weightChunk<true>(g, b.px + t0, b.py + t0, b.pz + t0, cutoff, w + t0, k + L, k + 2 * L, k + 3 * L) &
-                              realLanes(b, t0);
-        if (bits == 0) continue; // the slot is reused by the next chunk
-        std::memcpy(k, w + t0, L * sizeof(float));
-        ++keptChunks;
+        VecF w = {};
+        // Padding lanes repeat the last sample and may count: they are not in the mask.
+        const unsigned bits = weightChunk<Keep>(g, b.px + t0, b.py + t0, b.pz + t0, cutoff, w, k) & realLanes(b, t0);
+        if (bits == 0) continue; // a kept slot is reused by the next chunk
         mask |= std::uint64_t(bits) << t0;
+        storeF(o + t0, loadF(o + t0) + w);
+        for (int c = 0; c < stride; ++c) {
+            float* fc = f + c * lanes + t0;
+            storeF(fc, loadF(fc) + w * h[c]);
+        }
+        if constexpr (Keep) {
+            storeF(k, w);
+            ++keptChunks;
+        }
     }
     return mask;
 }
 
-SPLATWARP_SIMD_CLONES void blockAccumulate(const float* w, int lanes, std::uint64_t mask, const float* h, int stride, float* f,
-                                           float* o)
+} // namespace
+
+SPLATWARP_SIMD_CLONES std::uint64_t blockFeatures(const PreparedGaussian& g, const ChunkBound& cb, const BlockPoints& b,
+                                                  float cutoff, const float* h, int stride, float* f, float* o)
 {
-    for (int t0 = 0; t0 < lanes; t0 += L) {
-        if (!chunkOn(mask, t0)) continue;
-        const VecF wv = loadF(w + t0);
-        storeF(o + t0, loadF(o + t0) + wv);
-        for (int c = 0; c < stride; ++c) {
-            float* fc = f + c * lanes + t0;
-            storeF(fc, loadF(fc) + wv * h[c]);
-        }
-    }
+    int unused = 0;
+    return forwardPair<false>(g, cb, b, cutoff, h, stride, f, o, nullptr, unused);
+}
+
+SPLATWARP_SIMD_CLONES std::uint64_t blockForward(const PreparedGaussian& g, const ChunkBound& cb, const BlockPoints& b,
+                                                 float cutoff, const float* h, int stride, float* f, float* o, float* kept,
+                                                 int& keptChunks)
+{
+    return forwardPair<true>(g, cb, b, cutoff, h, stride, f, o, kept, keptChunks);
 }
 
 SPLATWARP_SIMD_CLONES void blockBackward(const float* kept, int lanes, std::uint64_t mask, const float* gF, const float* gO,

@@ -25,27 +25,39 @@ struct BlockPoints {
     const float* chunks = nullptr; ///< [6, kSimdLanes] chunk centres and half sizes (SampleBlocks::chunks), or null
 };
 
-/// @brief alpha*G of g at the lanes of every chunk (0 where the pair does not count, exactly as
-///        PreparedGaussian::weight(); lanes of skipped chunks are left alone). With chunk bounds,
-///        chunks that miss the Gaussian's box or its (padded) cutoff ellipsoid are skipped,
-///        all of a block's chunks tested at once; the tests are conservative, so no counting
-///        lane is ever skipped.
-/// @return the mask of the real samples' lanes that count
-std::uint64_t blockWeights(const PreparedGaussian& g, const BlockPoints& b, float cutoff, float* w);
+/// @brief What the chunk tests need of a Gaussian beyond PreparedGaussian, computed once per
+///        Gaussian. A point p = c + e of a chunk (centre c, |e_a| <= half_a) has
+///        |L^-1 (p - m)| >= |L^-1 (c - m)| - sum_a half_a |column a of L^-1|, so a chunk whose
+///        bound exceeds sqrt(radius2) holds no lane where the Gaussian counts. All values are
+///        grown by a relative and an absolute slack far beyond float rounding.
+struct ChunkBound {
+    float column[3] = {0, 0, 0}; ///< |column a of L^-1|, grown
+    float slack[3] = {0, 0, 0};  ///< absolute slack added to a chunk's half size per axis
+    float radius = -1;           ///< sqrt(radius2), grown (< 0: never counts)
 
-/// Floats a counting chunk keeps for the backward pass (blockWeightsKept): w, then A d x, y, z.
+    static ChunkBound of(const PreparedGaussian& g);
+};
+
+/// @brief One Gaussian's contribution to a block: f[c][t] += w[t] h[c], o[t] += w[t] with
+///        w = alpha*G where the pair counts (exactly as PreparedGaussian::weight(), 0
+///        elsewhere). Chunks that miss the Gaussian's box or its padded cutoff ellipsoid
+///        (ChunkBound) are skipped, all of a block's chunks tested at once; the tests are
+///        conservative, so no counting lane is ever skipped. Padding lanes of f and o are
+///        written but meaningless.
+/// @param f  [stride][lanes]; o: [lanes]
+/// @return the mask of the real samples' lanes that count
+std::uint64_t blockFeatures(const PreparedGaussian& g, const ChunkBound& cb, const BlockPoints& b, float cutoff,
+                            const float* h, int stride, float* f, float* o);
+
+/// Floats a counting chunk keeps for the backward pass (blockForward): w, then A d x, y, z.
 constexpr int kKeptChunkFloats = 4 * kSimdLanes;
 
-/// @brief blockWeights() over every chunk that also keeps, for each chunk with a counting lane,
-///        its w and A d (kKeptChunkFloats floats, chunks ascending) at `kept`, so the backward
-///        pass need not evaluate the pair again. Same bits as blockWeights().
+/// @brief blockFeatures() that also keeps, for each chunk with a counting lane, its w and A d
+///        (kKeptChunkFloats floats, chunks ascending) at `kept`, so the backward pass need not
+///        evaluate the pair again.
 /// @param kept  room for lanes/kSimdLanes chunks; keptChunks: out, how many were written
-std::uint64_t blockWeightsKept(const PreparedGaussian& g, const BlockPoints& b, float cutoff, float* w, float* kept,
-                               int& keptChunks);
-
-/// @brief Forward accumulation f[c][t] += w[t] h[c], o[t] += w[t] over the chunks holding `mask`.
-/// @param f  [stride][lanes]; o: [lanes]
-void blockAccumulate(const float* w, int lanes, std::uint64_t mask, const float* h, int stride, float* f, float* o);
+std::uint64_t blockForward(const PreparedGaussian& g, const ChunkBound& cb, const BlockPoints& b, float cutoff, const float* h,
+                           int stride, float* f, float* o, float* kept, int& keptChunks);
 
 /// Backward sums of one (block, Gaussian) pair before its SH ones: dE/dmu 3, dE/dSigma' upper
 /// triangle xx xy xz yy yz zz, dE/dalpha.

@@ -91,6 +91,7 @@ private:
     BlockCoverage mCoverage;
     std::vector<float> mParams, mBest, mGrad, mAdamM, mAdamV; // [G, PER_G]
     std::vector<PreparedGaussian> mKernels;                  // [G]
+    std::vector<ChunkBound> mBounds;                          // [G]
     std::vector<float> mBoxLo, mBoxHi;                        // [G,3]
     std::vector<CoverageSlabs> mSlabs;                        // [G] coverage slabs (the reach until the next rebuild)
     std::vector<std::uint8_t> mHolds;                         // [G]
@@ -125,6 +126,7 @@ CpuSolver::CpuSolver(const GaussianCloud& cloud, const SampleSet& samples, const
     mAdamM.assign(n, 0.0f);
     mAdamV.assign(n, 0.0f);
     mKernels.resize(mG);
+    mBounds.resize(mG);
     mBoxLo.resize(3 * mG);
     mBoxHi.resize(3 * mG);
     mSlabs.resize(mG);
@@ -157,6 +159,7 @@ void CpuSolver::prepare()
         const GaussianParams<double> p = unpackParams(row(k));
         const Mat3d& filter = mSetup.filter[mSetup.moving[k]];
         mKernels[k] = PreparedGaussian::from(prepareParams(p, filter, double(mOptions.cutoff)));
+        mBounds[k] = ChunkBound::of(mKernels[k]);
     });
 }
 
@@ -200,7 +203,7 @@ std::uint64_t CpuSolver::forwardBlock(std::size_t b)
     const std::size_t stride = std::size_t(mStride), s0 = mBlocks.slot[b];
     const BlockPoints pts = pointsOf(b);
     const std::size_t lanes = std::size_t(pts.lanes);
-    alignas(32) float f[kMaxShStride * kMaxBlockSamples], o[kMaxBlockSamples], w[kMaxBlockSamples];
+    alignas(32) float f[kMaxShStride * kMaxBlockSamples], o[kMaxBlockSamples];
     std::memcpy(f, &mStaticF[s0 * stride], lanes * stride * sizeof(float));
     std::memcpy(o, &mStaticO[s0], lanes * sizeof(float));
     const auto& offsets = mCoverage.blockOffsets();
@@ -218,12 +221,11 @@ std::uint64_t CpuSolver::forwardBlock(std::size_t b)
         if (kept.size() < need) kept.resize(std::max(need, 2 * kept.size()));
         const std::uint32_t k = items[e0 + i];
         int chunks = 0;
-        const std::uint64_t mask = blockWeightsKept(mKernels[k], pts, mOptions.cutoff, w, kept.data() + used, chunks);
+        const std::uint64_t mask = blockForward(mKernels[k], mBounds[k], pts, mOptions.cutoff, row(k) + kParamSh, mStride, f, o,
+                                                kept.data() + used, chunks);
         mPairMask[e0 + i] = mask;
-        if (mask == 0) continue;
         used += std::size_t(chunks) * kKeptChunkFloats;
         pairs += std::uint64_t(__builtin_popcountll(mask));
-        blockAccumulate(w, pts.lanes, mask, row(k) + kParamSh, mStride, f, o);
     }
     blockLoss(f, o, &mTargetF[s0 * stride], &mTargetO[s0], pts.lanes, pts.samples, mStride, mOptions.lambdaOpacity,
               mOptions.boundaryWeight, &mGF[s0 * stride], &mGO[s0], &mEnergy[3 * s0]);

@@ -220,14 +220,18 @@ TEST(BlockKernels, ChunkTestsNeverSkipACountingLane)
         ASSERT_EQ(blocks.count(), 1u);
         const BlockPoints pts{blocks.px.data(), blocks.py.data(), blocks.pz.data(), blocks.lanesOf(0), blocks.samplesOf(0),
                               blocks.chunksOf(0)};
-        alignas(32) float w[kMaxBlockSamples], w2[kMaxBlockSamples], kept[kMaxBlockSamples / kSimdLanes * kKeptChunkFloats];
-        const std::uint64_t mask = blockWeights(g, pts, cutoff, w);
+        // One Gaussian with h = 1 from zero: o and each f row hold its weights.
+        const std::vector<float> h(3, 1.0f);
+        alignas(32) float f[3 * kMaxBlockSamples] = {}, o[kMaxBlockSamples] = {}, f2[3 * kMaxBlockSamples] = {},
+                          o2[kMaxBlockSamples] = {}, kept[kMaxBlockSamples / kSimdLanes * kKeptChunkFloats];
+        const ChunkBound cb = ChunkBound::of(g);
+        const std::uint64_t mask = blockFeatures(g, cb, pts, cutoff, h.data(), 3, f, o);
         int keptChunks = 0;
-        ASSERT_EQ(blockWeightsKept(g, pts, cutoff, w2, kept, keptChunks), mask) << "trial " << trial;
+        ASSERT_EQ(blockForward(g, cb, pts, cutoff, h.data(), 3, f2, o2, kept, keptChunks), mask) << "trial " << trial;
         int chunk = 0;
         for (int t0 = 0; t0 < pts.lanes; t0 += kSimdLanes) {
             if (((mask >> t0) & 0xffu) == 0) continue;
-            for (int l = 0; l < kSimdLanes; ++l) EXPECT_EQ(kept[chunk * kKeptChunkFloats + l], w[t0 + l]);
+            for (int l = 0; l < kSimdLanes; ++l) EXPECT_EQ(kept[chunk * kKeptChunkFloats + l], o[t0 + l]);
             ++chunk;
         }
         EXPECT_EQ(chunk, keptChunks);
@@ -236,12 +240,11 @@ TEST(BlockKernels, ChunkTestsNeverSkipACountingLane)
             const float ref = g.weight(d, cutoff);
             const bool on = (mask >> t) & 1u;
             ASSERT_EQ(on, ref > 0.0f) << "trial " << trial << " lane " << t;
-            if (on) {
-                EXPECT_EQ(w[t], ref);
-                ++counted;
-            } else {
-                ++skipped;
-            }
+            EXPECT_EQ(o[t], ref);
+            EXPECT_EQ(o2[t], ref);
+            EXPECT_EQ(f[2 * pts.lanes + t], ref);
+            counted += on ? 1 : 0;
+            skipped += on ? 0 : 1;
         }
     }
     EXPECT_GT(counted, 1000u);
