@@ -1,10 +1,17 @@
 #include <gtest/gtest.h>
 
+#include <chrono>
+#include <chrono>
 #include <filesystem>
 #include <fstream>
 #include <map>
 #include <nlohmann/json.hpp>
+#include <set>
+#include <signal.h>
 #include <sstream>
+#include <sys/wait.h>
+#include <thread>
+#include <unistd.h>
 
 #include "AnimateJob.h"
 #include "deform/AnimSpec.h"
@@ -122,6 +129,105 @@ TEST(AnimateJob, ResumeRedoesOnlyFramesWhoseFilesOrEntriesAreMissing)
     ASSERT_EQ(runCli(msg("-q animate ", fx.model, " --spec ", fx.spec, " -o ", fx.dir.file("out"), " ", kFlags,
                          " --frames 1-1 --boundary-weight 5"), fx.dir.file("changed.log")), 0);
     EXPECT_NE(readBytes(fx.dir.file("changed.log")).find("1 done, 0 resumed"), std::string::npos);
+}
+
+namespace {
+
+/// argv for `splatwarp animate` of fx's model and `spec` into `out` (kFlags split on spaces).
+std::vector<std::string> animateArgs(const Fixture& fx, const std::string& spec, const std::string& out)
+{
+    std::vector<std::string> args = {SPLATWARP_CLI, "animate", fx.model, "--spec", spec, "-o", out};
+    std::istringstream flags(kFlags);
+    for (std::string f; flags >> f;) args.push_back(f);
+    return args;
+}
+
+/// Start the CLI (args[0]) as a child process with stdout and stderr in `log`; returns its pid.
+pid_t spawnCli(const std::vector<std::string>& args, const std::string& log)
+{
+    std::vector<char*> argv;
+    for (const std::string& a : args) argv.push_back(const_cast<char*>(a.c_str()));
+    argv.push_back(nullptr);
+    const pid_t pid = fork();
+    if (pid == 0) {
+        if (!freopen(log.c_str(), "w", stdout) || dup2(fileno(stdout), 2) < 0) _exit(127);
+        execv(argv[0], argv.data());
+        _exit(127);
+    }
+    return pid;
+}
+
+/// Exit code of a child, or -1 when a signal ended it.
+int waitExit(pid_t pid)
+{
+    int status = 0;
+    if (waitpid(pid, &status, 0) != pid) return -2;
+    return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+}
+
+/// Frames with status "done" in a manifest, or {} while it does not exist yet.
+std::set<int> doneFrames(const std::string& manifest)
+{
+    std::set<int> done;
+    std::error_code ec;
+    if (!fs::exists(manifest, ec)) return done;
+    const json m = readJson(manifest); // renamed into place whole: never a partial file
+    for (const json& e : m["entries"])
+        if (e["status"] == "done") done.insert(e["frame"].get<int>());
+    return done;
+}
+
+} // namespace
+
+TEST(AnimateJob, ResumesAfterASigkillWithoutRecomputingFinishedFrames)
+{
+    Fixture fx;
+    std::string six = std::string(kAnim).replace(std::string(kAnim).find("\"frames\":3"), 10, "\"frames\":6");
+    six.replace(six.find("\"frame\":2"), 9, "\"frame\":5");
+    const std::string spec = fx.dir.file("anim6.json");
+    writeText(spec, six);
+    const int frames = 6;
+    // The uninterrupted run every frame is compared with.
+    ASSERT_EQ(waitExit(spawnCli(animateArgs(fx, spec, fx.dir.file("whole")), fx.dir.file("whole.log"))), 0)
+        << readBytes(fx.dir.file("whole.log"));
+
+    // The same run as a child, SIGKILLed as soon as its manifest lists a finished frame (~0.3 s a frame).
+    const std::string out = fx.dir.file("out"), manifest = out + "/manifest.json";
+    const std::vector<std::string> args = animateArgs(fx, spec, out);
+    const pid_t pid = spawnCli(args, fx.dir.file("killed.log"));
+    ASSERT_GT(pid, 0);
+    const auto start = std::chrono::steady_clock::now();
+    while (doneFrames(manifest).empty() && std::chrono::steady_clock::now() - start < std::chrono::seconds(300))
+        std::this_thread::sleep_for(std::chrono::milliseconds(2));
+    kill(pid, SIGKILL);
+    ASSERT_EQ(waitExit(pid), -1) << "the run ended before it was killed:\n" << readBytes(fx.dir.file("killed.log"));
+    const std::set<int> finished = doneFrames(manifest);
+    ASSERT_FALSE(finished.empty());
+    ASSERT_LT(int(finished.size()), frames) << "killed after the last frame";
+    const json killed = readJson(manifest);
+    std::map<int, fs::file_time_type> written;
+    for (int f : finished) written[f] = fs::last_write_time(out + "/" + frameFile("deformed", f));
+
+    // Rerun the same command: the finished frames are skipped, not recomputed.
+    ASSERT_EQ(waitExit(spawnCli(args, fx.dir.file("again.log"))), 0) << readBytes(fx.dir.file("again.log"));
+    const std::string log = readBytes(fx.dir.file("again.log"));
+    EXPECT_NE(log.find(msg(frames - int(finished.size()), " done, ", finished.size(), " resumed, 0 failed")),
+              std::string::npos) << log;
+    const json after = readJson(manifest);
+    ASSERT_EQ(after["entries"].size(), std::size_t(frames));
+    for (int f : finished) {
+        EXPECT_NE(log.find(msg("frame ", f, " (", f + 1, "/", frames, "): files match the manifest, skipped")),
+                  std::string::npos) << log;
+        // Not rewritten: same file time, and its entry (with the compute time "ms") carried over unchanged.
+        EXPECT_EQ(fs::last_write_time(out + "/" + frameFile("deformed", f)), written[f]) << f;
+        for (const json& e : killed["entries"])
+            if (e["frame"] == f) EXPECT_EQ(after["entries"][f], e) << f;
+    }
+    // Every frame, resumed or computed after the kill, has the uninterrupted run's bytes.
+    for (int f = 0; f < frames; ++f) {
+        EXPECT_TRUE(fx.frame("out", f) == fx.frame("whole", f)) << "frame " << f;
+        EXPECT_EQ(after["entries"][f]["status"], "done") << f;
+    }
 }
 
 TEST(AnimateJob, MergeWithAMissingShardListsItsFramesAndFails)
