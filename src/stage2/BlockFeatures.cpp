@@ -58,12 +58,11 @@ FeatureStats evaluateBlockFeatures(const GaussianCloud& cloud, const float* poin
                           blocks.chunksOf(b)};
         const std::size_t lanes = std::size_t(pts.lanes);
         alignas(32) float f[kMaxShStride * kMaxBlockSamples] = {}, o[kMaxBlockSamples] = {};
-        for (std::uint64_t e = coverage.blockOffsets()[b]; e < coverage.blockOffsets()[b + 1]; ++e) {
-            const std::uint32_t i = coverage.blockItems()[e];
-            tested[b] += std::uint64_t(pts.samples);
-            const std::uint64_t mask = blockFeatures(prepared[i], bounds[i], pts, options.cutoff, cloud.shOf(i), stride, f, o);
-            counted[b] += std::uint64_t(__builtin_popcountll(mask));
-        }
+        const std::uint64_t e0 = coverage.blockOffsets()[b];
+        const BlockGaussians gs{coverage.blockItems().data() + e0, std::size_t(coverage.blockOffsets()[b + 1] - e0),
+                                prepared.data(), bounds.data(), cloud.sh.data(), std::size_t(stride)};
+        tested[b] = gs.n * std::uint64_t(pts.samples);
+        counted[b] = blockFeatures(gs, pts, options.cutoff, stride, f, o);
         for (std::size_t t = 0; t < std::size_t(pts.samples); ++t) {
             if (opacity) opacity[j0 + t] = o[t];
             if (features)

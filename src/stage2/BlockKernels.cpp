@@ -12,8 +12,6 @@ namespace {
 constexpr int L = kSimdLanes;
 static_assert(L == 8, "chunk masks are bytes");
 
-bool chunkOn(std::uint64_t mask, int t0) { return ((mask >> t0) & 0xffu) != 0; }
-
 // One chunk of kSimdLanes lanes as GCC vector types: explicit SIMD that compiles to AVX2 in the
 // avx2 clone and to pairs of SSE2 registers in the baseline one, with no reliance on the
 // auto-vectoriser. Each lane does the scalar operations of PreparedGaussian::weight() and
@@ -77,67 +75,121 @@ inline __attribute__((always_inline)) void laneSums(const VecF* acc, int n, floa
     for (; i < n; ++i) out[i] = float(laneSum(acc[i]));
 }
 
-/// One chunk of a pair: alpha*G where it counts (0 elsewhere, exactly as weight()), the byte
-/// mask of the counting lanes; with Keep, also A d at kept + L (x, y, z rows of L lanes).
+/// Bit l set where lane l of m is set (m: 0 or -1 per lane).
+inline __attribute__((always_inline)) unsigned bitsOf(VecI m)
+{
+    typedef std::int32_t VecI4 __attribute__((vector_size(16)));
+    const VecI b = m & VecI{1, 2, 4, 8, 16, 32, 64, 128};
+    VecI4 r = __builtin_shufflevector(b, b, 0, 1, 2, 3) | __builtin_shufflevector(b, b, 4, 5, 6, 7);
+    r |= __builtin_shufflevector(r, r, 2, 3, 0, 1);
+    r |= __builtin_shufflevector(r, r, 1, 0, 3, 2);
+    return unsigned(r[0]);
+}
+
+/// One chunk of a pair: alpha*G where it counts (0 elsewhere, exactly as weight()) in w, and the
+/// lanes that count in ok (0 in every lane when none is near: no exponential); with Keep, also
+/// A d at kept + L (x, y, z rows of L lanes).
 template <bool Keep>
-inline __attribute__((always_inline)) unsigned weightChunk(const PreparedGaussian& g, const float* px, const float* py,
-                                                           const float* pz, float cutoff, VecF& w, float* kept)
+inline __attribute__((always_inline)) bool weightChunk(const PreparedGaussian& g, const float* px, const float* py,
+                                                       const float* pz, float cutoff, VecF& w, VecI& ok, float* kept)
 {
     const VecF dx = loadF(px) - g.mean.x, dy = loadF(py) - g.mean.y, dz = loadF(pz) - g.mean.z;
     const VecF ux = g.invL[0] * dx, uy = g.invL[1] * dx + g.invL[2] * dy, uz = g.invL[3] * dx + g.invL[4] * dy + g.invL[5] * dz;
     const VecF q = ux * ux + uy * uy + uz * uz;
     const VecI near = (absF(dx) <= g.halfExtent.x) & (absF(dy) <= g.halfExtent.y) & (absF(dz) <= g.halfExtent.z) &
                       (q <= g.radius2);
-    bool any = false;
-    for (int l = 0; l < L; ++l) any |= near[l] != 0;
-    if (!any) return 0; // the usual case far from the Gaussian: no exponential
+    if (bitsOf(near) == 0) return false; // the usual case far from the Gaussian: no exponential
     const VecF v = g.alpha * fastExpOf(-0.5f * q);
-    const VecI ok = near & (v >= cutoff);
+    ok = near & (v >= cutoff);
     w = select(ok, v, VecF{});
     if constexpr (Keep) {
         storeF(kept + L, select(ok, g.invL[0] * ux + g.invL[1] * uy + g.invL[3] * uz, VecF{}));
         storeF(kept + 2 * L, select(ok, g.invL[2] * uy + g.invL[4] * uz, VecF{}));
         storeF(kept + 3 * L, select(ok, g.invL[5] * uz, VecF{}));
     }
-    unsigned bits = 0;
-    for (int l = 0; l < L; ++l) bits |= unsigned(ok[l] & 1) << l;
-    return bits;
+    return true;
 }
-
-} // namespace
-
-namespace {
 
 /// Relative slack of the chunk tests, far beyond the float rounding of the lanes' p - m, u and q.
 constexpr float kChunkSlack = 1e-4f;
 constexpr float kGrow = 1.0f + kChunkSlack;
 
+/// A block's chunk bounds in registers (one lane per chunk), loaded once for all its Gaussians.
+struct ChunkRows {
+    VecF cx, cy, cz, hx, hy, hz; ///< centres; half sizes grown by kGrow
+    unsigned all;                ///< bits of the block's chunks
+
+    explicit ChunkRows(const BlockPoints& b)
+    {
+        all = b.lanes >= 64 ? 0xffu : (1u << (b.lanes / L)) - 1u;
+        if (!b.chunks) return;
+        const float* c = b.chunks;
+        cx = loadF(c), cy = loadF(c + L), cz = loadF(c + 2 * L);
+        hx = loadF(c + 3 * L) * kGrow, hy = loadF(c + 4 * L) * kGrow, hz = loadF(c + 5 * L) * kGrow;
+    }
+};
+
 /// Bit c set for each chunk c of the block that may hold a lane where g counts: those meeting
 /// its box and its padded ellipsoid (ChunkBound), all chunks of a block tested at once.
-inline __attribute__((always_inline)) unsigned liveChunks(const PreparedGaussian& g, const ChunkBound& cb, const BlockPoints& b)
+inline __attribute__((always_inline)) unsigned liveChunks(const PreparedGaussian& g, const ChunkBound& cb, const BlockPoints& b,
+                                                          const ChunkRows& rows)
 {
-    const unsigned all = b.lanes >= 64 ? 0xffu : (1u << (b.lanes / L)) - 1u;
     if (!(cb.radius >= 0.0f)) return 0; // never counts (weight() fails q <= radius2 everywhere)
-    if (!b.chunks) return all;
-    const float* c = b.chunks;
+    if (!b.chunks) return rows.all;
     const float* iv = g.invL;
-    const VecF ex = loadF(c + 3 * L) * kGrow + cb.slack[0], ey = loadF(c + 4 * L) * kGrow + cb.slack[1],
-               ez = loadF(c + 5 * L) * kGrow + cb.slack[2];
-    const VecF dx = loadF(c) - g.mean.x, dy = loadF(c + L) - g.mean.y, dz = loadF(c + 2 * L) - g.mean.z;
+    const VecF ex = rows.hx + cb.slack[0], ey = rows.hy + cb.slack[1], ez = rows.hz + cb.slack[2];
+    const VecF dx = rows.cx - g.mean.x, dy = rows.cy - g.mean.y, dz = rows.cz - g.mean.z;
     const VecI box = (absF(dx) <= ex + g.halfExtent.x) & (absF(dy) <= ey + g.halfExtent.y) & (absF(dz) <= ez + g.halfExtent.z);
     const VecF ux = iv[0] * dx, uy = iv[1] * dx + iv[2] * dy, uz = iv[3] * dx + iv[4] * dy + iv[5] * dz;
     const VecF reach = ex * cb.column[0] + ey * cb.column[1] + ez * cb.column[2] + cb.radius;
-    const VecI live = box & (ux * ux + uy * uy + uz * uz <= reach * reach);
-    unsigned bits = 0;
-    for (int l = 0; l < L; ++l) bits |= unsigned(live[l] & 1) << l;
-    return bits & all;
+    return bitsOf(box & (ux * ux + uy * uy + uz * uz <= reach * reach)) & rows.all;
 }
 
-/// Byte mask of the real (not padding) lanes of the chunk at t0.
-inline unsigned realLanes(const BlockPoints& b, int t0)
+/// The real (not padding) lanes of the chunk at t0.
+inline __attribute__((always_inline)) VecI realLanes(const BlockPoints& b, int t0)
 {
-    const int n = b.samples - t0;
-    return n >= L ? 0xffu : (n <= 0 ? 0u : (1u << n) - 1u);
+    return VecI{0, 1, 2, 3, 4, 5, 6, 7} < b.samples - t0;
+}
+
+/// One pair's forward over a block: the weights of each live chunk, added to F and O where a
+/// real lane counts (the whole chunk, as padding lanes are never read); `counted` gains the
+/// counting lanes. With Keep the counting chunks' w and A d go to `kept`.
+/// @return bit c set for each chunk c with a counting lane
+template <bool Keep>
+inline __attribute__((always_inline)) unsigned forwardPair(const PreparedGaussian& g, const ChunkBound& cb, const BlockPoints& b,
+                                                           const ChunkRows& rows, float cutoff, const float* h, int stride,
+                                                           float* f, float* o, float* kept, VecI& counted)
+{
+    unsigned chunks = 0;
+    const int lanes = b.lanes;
+    for (unsigned live = liveChunks(g, cb, b, rows); live != 0; live &= live - 1) {
+        const int c = __builtin_ctz(live), t0 = c * L;
+        VecF w = {};
+        VecI ok = {};
+        if (!weightChunk<Keep>(g, b.px + t0, b.py + t0, b.pz + t0, cutoff, w, ok, kept)) continue;
+        // Padding lanes repeat the last sample and may count: they are not counted.
+        const VecI real = ok & realLanes(b, t0);
+        if (bitsOf(real) == 0) continue; // a kept slot is reused by the next chunk
+        counted -= real;
+        chunks |= 1u << c;
+        storeF(o + t0, loadF(o + t0) + w);
+        for (int k = 0; k < stride; ++k) {
+            float* fk = f + k * lanes + t0;
+            storeF(fk, loadF(fk) + w * h[k]);
+        }
+        if constexpr (Keep) {
+            storeF(kept, w);
+            kept += kKeptChunkFloats;
+        }
+    }
+    return chunks;
+}
+
+inline __attribute__((always_inline)) std::uint64_t laneTotal(VecI v)
+{
+    std::uint64_t s = 0;
+    for (int l = 0; l < L; ++l) s += std::uint64_t(std::uint32_t(v[l]));
+    return s;
 }
 
 } // namespace
@@ -155,65 +207,47 @@ ChunkBound ChunkBound::of(const PreparedGaussian& g)
     return cb;
 }
 
+SPLATWARP_SIMD_CLONES std::uint64_t blockFeatures(const BlockGaussians& gs, const BlockPoints& b, float cutoff, int stride,
+                                                  float* f, float* o)
+{
+    const ChunkRows rows(b);
+    VecI counted = {};
+    for (std::size_t i = 0; i < gs.n; ++i) {
+        const std::uint32_t k = gs.items[i];
+        forwardPair<false>(gs.kernels[k], gs.bounds[k], b, rows, cutoff, gs.sh + k * gs.shPitch, stride, f, o, nullptr, counted);
+    }
+    return laneTotal(counted);
+}
+
+SPLATWARP_SIMD_CLONES std::uint64_t blockForward(const BlockGaussians& gs, const BlockPoints& b, float cutoff, int stride,
+                                                 float* f, float* o, std::uint8_t* chunks, float* kept, std::uint32_t* keptAt)
+{
+    const ChunkRows rows(b);
+    VecI counted = {};
+    std::uint32_t used = 0;
+    for (std::size_t i = 0; i < gs.n; ++i) {
+        const std::uint32_t k = gs.items[i];
+        keptAt[i] = used;
+        const unsigned c = forwardPair<true>(gs.kernels[k], gs.bounds[k], b, rows, cutoff, gs.sh + k * gs.shPitch, stride, f, o,
+                                             kept + used, counted);
+        chunks[i] = std::uint8_t(c);
+        used += std::uint32_t(__builtin_popcount(c)) * kKeptChunkFloats;
+    }
+    return laneTotal(counted);
+}
+
 namespace {
 
-/// One pair's forward over a block: the weights of each live chunk, added to F and O where a
-/// real lane counts (the whole chunk, as padding lanes are never read); with Keep the counting
-/// chunks' w and A d go to `kept`.
-template <bool Keep>
-inline __attribute__((always_inline)) std::uint64_t forwardPair(const PreparedGaussian& g, const ChunkBound& cb,
-                                                                const BlockPoints& b, float cutoff, const float* h, int stride,
-                                                                float* f, float* o, float* kept, int& keptChunks)
-{
-    std::uint64_t mask = 0;
-    keptChunks = 0;
-    const int lanes = b.lanes;
-    for (unsigned live = liveChunks(g, cb, b); live != 0; live &= live - 1) {
-        const int t0 = __builtin_ctz(live) * L;
-        float* k = kept + std::size_t(keptChunks) * kKeptChunkFloats;
-        VecF w = {};
-        // Padding lanes repeat the last sample and may count: they are not in the mask.
-        const unsigned bits = weightChunk<Keep>(g, b.px + t0, b.py + t0, b.pz + t0, cutoff, w, k) & realLanes(b, t0);
-        if (bits == 0) continue; // a kept slot is reused by the next chunk
-        mask |= std::uint64_t(bits) << t0;
-        storeF(o + t0, loadF(o + t0) + w);
-        for (int c = 0; c < stride; ++c) {
-            float* fc = f + c * lanes + t0;
-            storeF(fc, loadF(fc) + w * h[c]);
-        }
-        if constexpr (Keep) {
-            storeF(k, w);
-            ++keptChunks;
-        }
-    }
-    return mask;
-}
-
-} // namespace
-
-SPLATWARP_SIMD_CLONES std::uint64_t blockFeatures(const PreparedGaussian& g, const ChunkBound& cb, const BlockPoints& b,
-                                                  float cutoff, const float* h, int stride, float* f, float* o)
-{
-    int unused = 0;
-    return forwardPair<false>(g, cb, b, cutoff, h, stride, f, o, nullptr, unused);
-}
-
-SPLATWARP_SIMD_CLONES std::uint64_t blockForward(const PreparedGaussian& g, const ChunkBound& cb, const BlockPoints& b,
-                                                 float cutoff, const float* h, int stride, float* f, float* o, float* kept,
-                                                 int& keptChunks)
-{
-    return forwardPair<true>(g, cb, b, cutoff, h, stride, f, o, kept, keptChunks);
-}
-
-SPLATWARP_SIMD_CLONES void blockBackward(const float* kept, int lanes, std::uint64_t mask, const float* gF, const float* gO,
-                                         const float* h, int stride, float alpha, float* out)
+/// The backward sums of one pair from its kept chunks (see blockBackward()).
+inline __attribute__((always_inline)) void backwardPair(const float* kept, unsigned chunks, int lanes, const float* gF,
+                                                        const float* gO, const float* h, int stride, float alpha, float* out)
 {
     // Accumulators: dE/dmu 3, dE/dSigma' 6, sum of dE/dw w (dE/dalpha times alpha), then dE/dH.
     VecF acc[kPairSums + kMaxShStride];
     for (int c = 0; c < kPairSums + stride; ++c) acc[c] = VecF{};
     VecF* sh = acc + kPairSums;
-    for (int t0 = 0; t0 < lanes; t0 += L) {
-        if (!chunkOn(mask, t0)) continue;
+    for (; chunks != 0; chunks &= chunks - 1) {
+        const int t0 = __builtin_ctz(chunks) * L;
         VecF gw = loadF(gO + t0);
         for (int c = 0; c < stride; ++c) gw = gw + loadF(gF + c * lanes + t0) * h[c];
         const VecF wl = loadF(kept), x = loadF(kept + L), y = loadF(kept + 2 * L), z = loadF(kept + 3 * L);
@@ -235,6 +269,21 @@ SPLATWARP_SIMD_CLONES void blockBackward(const float* kept, int lanes, std::uint
     laneSums(acc, 9, out);
     out[9] = float(laneSum(acc[9]) / double(alpha));
     laneSums(sh, stride, out + kPairSums);
+}
+
+} // namespace
+
+SPLATWARP_SIMD_CLONES void blockBackward(const BlockGaussians& gs, int lanes, const std::uint8_t* chunks, const float* kept,
+                                         const std::uint32_t* keptAt, const float* gF, const float* gO, int stride,
+                                         float* partials)
+{
+    const std::size_t pitch = std::size_t(kPairSums + stride);
+    for (std::size_t i = 0; i < gs.n; ++i) {
+        if (chunks[i] == 0) continue;
+        const std::uint32_t k = gs.items[i];
+        backwardPair(kept + keptAt[i], chunks[i], lanes, gF, gO, gs.sh + k * gs.shPitch, stride, gs.kernels[k].alpha,
+                     partials + i * pitch);
+    }
 }
 
 namespace {

@@ -7,6 +7,7 @@
 ///        A 64-bit lane mask says which lanes count; chunks whose lanes all fail the cheap tests
 ///        (box, Mahalanobis radius) skip the exponential, and the forward pass keeps the weights
 ///        of the chunks that count for the backward pass.
+#include <cstddef>
 #include <cstdint>
 
 #include "core/Simd.h"
@@ -38,38 +39,48 @@ struct ChunkBound {
     static ChunkBound of(const PreparedGaussian& g);
 };
 
-/// @brief One Gaussian's contribution to a block: f[c][t] += w[t] h[c], o[t] += w[t] with
-///        w = alpha*G where the pair counts (exactly as PreparedGaussian::weight(), 0
-///        elsewhere). Chunks that miss the Gaussian's box or its padded cutoff ellipsoid
-///        (ChunkBound) are skipped, all of a block's chunks tested at once; the tests are
-///        conservative, so no counting lane is ever skipped. Padding lanes of f and o are
-///        written but meaningless.
+/// @brief The Gaussians listed for one block (ascending) and where their data is.
+struct BlockGaussians {
+    const std::uint32_t* items = nullptr; ///< [n] Gaussian indices
+    std::size_t n = 0;
+    const PreparedGaussian* kernels = nullptr; ///< indexed by Gaussian
+    const ChunkBound* bounds = nullptr;        ///< indexed by Gaussian
+    const float* sh = nullptr;                 ///< SH coefficients of Gaussian k at sh + k * shPitch
+    std::size_t shPitch = 0;
+};
+
+/// @brief Every listed Gaussian's contribution to a block, in list order: f[c][t] += w[t] h[c],
+///        o[t] += w[t] with w = alpha*G where the pair counts (exactly as
+///        PreparedGaussian::weight(), 0 elsewhere). Chunks that miss a Gaussian's box or its
+///        padded cutoff ellipsoid (ChunkBound) are skipped, all of a block's chunks tested at
+///        once; the tests are conservative, so no counting lane is ever skipped. Padding lanes
+///        of f and o are written but meaningless.
 /// @param f  [stride][lanes]; o: [lanes]
-/// @return the mask of the real samples' lanes that count
-std::uint64_t blockFeatures(const PreparedGaussian& g, const ChunkBound& cb, const BlockPoints& b, float cutoff,
-                            const float* h, int stride, float* f, float* o);
+/// @return the counting (real lane, Gaussian) pairs
+std::uint64_t blockFeatures(const BlockGaussians& gs, const BlockPoints& b, float cutoff, int stride, float* f, float* o);
 
 /// Floats a counting chunk keeps for the backward pass (blockForward): w, then A d x, y, z.
 constexpr int kKeptChunkFloats = 4 * kSimdLanes;
 
-/// @brief blockFeatures() that also keeps, for each chunk with a counting lane, its w and A d
-///        (kKeptChunkFloats floats, chunks ascending) at `kept`, so the backward pass need not
-///        evaluate the pair again.
-/// @param kept  room for lanes/kSimdLanes chunks; keptChunks: out, how many were written
-std::uint64_t blockForward(const PreparedGaussian& g, const ChunkBound& cb, const BlockPoints& b, float cutoff, const float* h,
-                           int stride, float* f, float* o, float* kept, int& keptChunks);
+/// @brief blockFeatures() that also keeps, for each pair, which chunks count (bit c: chunk c)
+///        and their w and A d (kKeptChunkFloats floats each, chunks ascending), so the
+///        backward pass need not evaluate the pair again.
+/// @param chunks  out [n]; kept: room for n * lanes/kSimdLanes chunks; keptAt: out [n], where
+///                each pair's kept chunks start
+std::uint64_t blockForward(const BlockGaussians& gs, const BlockPoints& b, float cutoff, int stride, float* f, float* o,
+                           std::uint8_t* chunks, float* kept, std::uint32_t* keptAt);
 
 /// Backward sums of one (block, Gaussian) pair before its SH ones: dE/dmu 3, dE/dSigma' upper
 /// triangle xx xy xz yy yz zz, dE/dalpha.
 constexpr int kPairSums = 10;
 
-/// @brief The backward sums of one block's pairs of a Gaussian (pairBackward() per pair, per-lane
-///        float partial sums, lanes reduced in double in a fixed order) from the chunks
-///        blockWeightsKept() kept (those holding `mask`).
-/// @param gF: [stride][lanes] dE/dF; gO: [lanes] dE/dO (0 in padding)
-/// @param out [kPairSums + stride]: dE/dmu, dE/dSigma' (upper triangle), dE/dalpha, dE/dH
-void blockBackward(const float* kept, int lanes, std::uint64_t mask, const float* gF, const float* gO, const float* h,
-                   int stride, float alpha, float* out);
+/// @brief The backward sums of each counting pair of a block (pairBackward() per pair, per-lane
+///        float partial sums, lanes reduced in double in a fixed order) from what blockForward()
+///        kept. Pairs with no counting chunk are left alone.
+/// @param gF  [stride][lanes] dE/dF; gO: [lanes] dE/dO (0 in padding)
+/// @param partials  out [n, kPairSums + stride]: dE/dmu, dE/dSigma' (upper triangle), dE/dalpha, dE/dH
+void blockBackward(const BlockGaussians& gs, int lanes, const std::uint8_t* chunks, const float* kept,
+                   const std::uint32_t* keptAt, const float* gF, const float* gO, int stride, float* partials);
 
 /// @brief sampleLoss() on every lane of a block (the same operations per lane, so the same bits).
 ///        Lanes at or past `samples` get zero gradients and terms.

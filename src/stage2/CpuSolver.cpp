@@ -74,7 +74,6 @@ private:
     BlockPoints pointsOf(std::size_t b) const;
     std::uint64_t forwardBlock(std::size_t b);
     void keepOutputs(std::size_t b, const float* f, const float* o);
-    void backwardPairs(std::size_t b, const float* kept, const std::uint32_t* keptAt);
     void backwardGaussian(std::size_t k);
     std::size_t partialStride() const { return kPartial + std::size_t(mStride); }
 
@@ -99,7 +98,7 @@ private:
     std::vector<float> mStaticF, mStaticO, mTargetF, mTargetO, mGF, mGO;
     std::vector<float> mEnergy;       // [3][lanes] per block: the loss terms per slot
     std::vector<std::uint64_t> mBlockPairs; // [B] counted pairs of the last forward pass
-    std::vector<std::uint64_t> mPairMask;   // [block-major coverage entries] counting lanes of the last forward pass
+    std::vector<std::uint8_t> mPairChunks;  // [block-major coverage entries] counting chunks of the last forward pass
     std::vector<float> mPartials;           // [block-major coverage entries, kPartial + stride] backward sums of each pair
     std::vector<float>*mFeaturesOut = nullptr, *mOpacityOut = nullptr;
     StageTwoPhaseTimes mTimes;
@@ -206,31 +205,22 @@ std::uint64_t CpuSolver::forwardBlock(std::size_t b)
     alignas(32) float f[kMaxShStride * kMaxBlockSamples], o[kMaxBlockSamples];
     std::memcpy(f, &mStaticF[s0 * stride], lanes * stride * sizeof(float));
     std::memcpy(o, &mStaticO[s0], lanes * sizeof(float));
-    const auto& offsets = mCoverage.blockOffsets();
-    const auto& items = mCoverage.blockItems();
-    const std::uint64_t e0 = offsets[b], n = offsets[b + 1] - e0;
+    const std::uint64_t e0 = mCoverage.blockOffsets()[b];
+    const BlockGaussians gs{mCoverage.blockItems().data() + e0, std::size_t(mCoverage.blockOffsets()[b + 1] - e0),
+                            mKernels.data(), mBounds.data(), mParams.data() + kParamSh, std::size_t(mPerG)};
     // Per thread, reused: the kept chunks of the block's pairs and where each pair's start.
     thread_local std::vector<float> kept;
     thread_local std::vector<std::uint32_t> keptAt;
-    keptAt.resize(n + 1);
-    std::size_t used = 0;
-    std::uint64_t pairs = 0;
-    for (std::uint64_t i = 0; i < n; ++i) {
-        keptAt[i] = std::uint32_t(used);
-        const std::size_t need = used + lanes / kSimdLanes * kKeptChunkFloats;
-        if (kept.size() < need) kept.resize(std::max(need, 2 * kept.size()));
-        const std::uint32_t k = items[e0 + i];
-        int chunks = 0;
-        const std::uint64_t mask = blockForward(mKernels[k], mBounds[k], pts, mOptions.cutoff, row(k) + kParamSh, mStride, f, o,
-                                                kept.data() + used, chunks);
-        mPairMask[e0 + i] = mask;
-        used += std::size_t(chunks) * kKeptChunkFloats;
-        pairs += std::uint64_t(__builtin_popcountll(mask));
-    }
+    const std::size_t room = gs.n * (lanes / kSimdLanes) * kKeptChunkFloats;
+    if (kept.size() < room) kept.resize(room);
+    if (keptAt.size() < gs.n) keptAt.resize(gs.n);
+    const std::uint64_t pairs =
+        blockForward(gs, pts, mOptions.cutoff, mStride, f, o, &mPairChunks[e0], kept.data(), keptAt.data());
     blockLoss(f, o, &mTargetF[s0 * stride], &mTargetO[s0], pts.lanes, pts.samples, mStride, mOptions.lambdaOpacity,
               mOptions.boundaryWeight, &mGF[s0 * stride], &mGO[s0], &mEnergy[3 * s0]);
     if (mFeaturesOut || mOpacityOut) keepOutputs(b, f, o);
-    backwardPairs(b, kept.data(), keptAt.data());
+    blockBackward(gs, pts.lanes, &mPairChunks[e0], kept.data(), keptAt.data(), &mGF[s0 * stride], &mGO[s0], mStride,
+                  &mPartials[e0 * partialStride()]);
     return pairs;
 }
 
@@ -246,28 +236,12 @@ void CpuSolver::keepOutputs(std::size_t b, const float* f, const float* o)
     }
 }
 
-/// The backward sums of each of the block's counting pairs, while its dE/dF and dE/dO are in
-/// cache (the per-Gaussian gather in backward() then only adds them up).
-void CpuSolver::backwardPairs(std::size_t b, const float* kept, const std::uint32_t* keptAt)
-{
-    const std::size_t stride = std::size_t(mStride), s0 = mBlocks.slot[b], ps = partialStride();
-    const auto& offsets = mCoverage.blockOffsets();
-    const auto& items = mCoverage.blockItems();
-    for (std::uint64_t e = offsets[b]; e < offsets[b + 1]; ++e) {
-        const std::uint64_t mask = mPairMask[e];
-        if (mask == 0) continue;
-        const std::uint32_t k = items[e];
-        blockBackward(kept + keptAt[e - offsets[b]], mBlocks.lanesOf(b), mask, &mGF[s0 * stride], &mGO[s0], row(k) + kParamSh,
-                      mStride, mKernels[k].alpha, mPartials.data() + e * ps);
-    }
-}
-
 StageTwoEnergy CpuSolver::forward(int iteration, std::uint64_t& pairs)
 {
     PhaseClock clock(mTimes.forward);
     if (mFeaturesOut) mFeaturesOut->assign(mS * std::size_t(mStride), 0.0f);
     if (mOpacityOut) mOpacityOut->assign(mS, 0.0f);
-    mPairMask.resize(mCoverage.pairCount());
+    mPairChunks.resize(mCoverage.pairCount());
     mPartials.resize(mCoverage.pairCount() * partialStride());
     parallelFor(mBlocks.count(), 4, mOptions.threaded, [&](std::size_t b) { mBlockPairs[b] = forwardBlock(b); });
     // Serial sums in sample order: deterministic for any thread count.
@@ -296,7 +270,7 @@ void CpuSolver::backwardGaussian(std::size_t k)
     const auto& entryOf = mCoverage.blockEntryOf();
     for (std::uint64_t e = offsets[k]; e < offsets[k + 1]; ++e) { // blocks ascending: a fixed order
         const std::uint32_t be = entryOf[e];
-        if (mPairMask[be] == 0) continue;
+        if (mPairChunks[be] == 0) continue;
         const float* in = mPartials.data() + std::size_t(be) * ps;
         for (std::size_t c = 0; c < ps; ++c) sums[c] += double(in[c]);
     }

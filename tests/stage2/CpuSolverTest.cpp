@@ -225,15 +225,24 @@ TEST(BlockKernels, ChunkTestsNeverSkipACountingLane)
         alignas(32) float f[3 * kMaxBlockSamples] = {}, o[kMaxBlockSamples] = {}, f2[3 * kMaxBlockSamples] = {},
                           o2[kMaxBlockSamples] = {}, kept[kMaxBlockSamples / kSimdLanes * kKeptChunkFloats];
         const ChunkBound cb = ChunkBound::of(g);
-        const std::uint64_t mask = blockFeatures(g, cb, pts, cutoff, h.data(), 3, f, o);
-        int keptChunks = 0;
-        ASSERT_EQ(blockForward(g, cb, pts, cutoff, h.data(), 3, f2, o2, kept, keptChunks), mask) << "trial " << trial;
-        int chunk = 0;
+        const std::uint32_t item = 0;
+        const BlockGaussians gs{&item, 1, &g, &cb, h.data(), 0};
+        const std::uint64_t pairs = blockFeatures(gs, pts, cutoff, 3, f, o);
+        std::uint8_t chunks = 0;
+        std::uint32_t keptAt = 7;
+        ASSERT_EQ(blockForward(gs, pts, cutoff, 3, f2, o2, &chunks, kept, &keptAt), pairs) << "trial " << trial;
+        EXPECT_EQ(keptAt, 0u);
+        int chunk = 0, keptChunks = __builtin_popcount(chunks);
+        std::uint64_t mask = 0;
         for (int t0 = 0; t0 < pts.lanes; t0 += kSimdLanes) {
-            if (((mask >> t0) & 0xffu) == 0) continue;
-            for (int l = 0; l < kSimdLanes; ++l) EXPECT_EQ(kept[chunk * kKeptChunkFloats + l], o[t0 + l]);
+            if (((chunks >> (t0 / kSimdLanes)) & 1u) == 0) continue;
+            for (int l = 0; l < kSimdLanes; ++l) {
+                EXPECT_EQ(kept[chunk * kKeptChunkFloats + l], o[t0 + l]);
+                if (t0 + l < pts.samples && o[t0 + l] > 0.0f) mask |= std::uint64_t(1) << (t0 + l);
+            }
             ++chunk;
         }
+        EXPECT_EQ(std::uint64_t(__builtin_popcountll(mask)), pairs);
         EXPECT_EQ(chunk, keptChunks);
         for (int t = 0; t < pts.samples; ++t) {
             const Vec3f d(pts.px[t] - g.mean.x, pts.py[t] - g.mean.y, pts.pz[t] - g.mean.z);
