@@ -286,6 +286,26 @@ SPLATWARP_SIMD_CLONES void blockBackward(const BlockGaussians& gs, int lanes, co
     }
 }
 
+SPLATWARP_SIMD_CLONES void gatherPartials(const float* partials, std::size_t pitch, const std::uint32_t* entries,
+                                          std::size_t n, const std::uint8_t* chunks, double* sums)
+{
+    const std::size_t wide = pitch / 4 * 4;
+    for (std::size_t i = 0; i < n; ++i) {
+        const std::uint32_t e = entries[i];
+        if (chunks[e] == 0) continue;
+        const float* in = partials + std::size_t(e) * pitch;
+        for (std::size_t c = 0; c < wide; c += 4) {
+            VecF4 v;
+            std::memcpy(&v, in + c, sizeof v);
+            VecD4 d;
+            std::memcpy(&d, sums + c, sizeof d);
+            d += __builtin_convertvector(v, VecD4);
+            std::memcpy(sums + c, &d, sizeof d);
+        }
+        for (std::size_t c = wide; c < pitch; ++c) sums[c] += double(in[c]);
+    }
+}
+
 namespace {
 
 inline __attribute__((always_inline)) VecF signOf(VecF v)

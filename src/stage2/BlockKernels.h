@@ -82,6 +82,11 @@ constexpr int kPairSums = 10;
 void blockBackward(const BlockGaussians& gs, int lanes, const std::uint8_t* chunks, const float* kept,
                    const std::uint32_t* keptAt, const float* gF, const float* gO, int stride, float* partials);
 
+/// @brief sums[c] += partials[e * pitch + c] in double for each entry e of `entries` in order
+///        whose chunks[e] is not 0 (one Gaussian's pairs gathered in a fixed order).
+void gatherPartials(const float* partials, std::size_t pitch, const std::uint32_t* entries, std::size_t n,
+                    const std::uint8_t* chunks, double* sums);
+
 /// @brief sampleLoss() on every lane of a block (the same operations per lane, so the same bits).
 ///        Lanes at or past `samples` get zero gradients and terms.
 /// @param f, tF  [stride][lanes] current and target F; o, tO: [lanes]

@@ -96,6 +96,7 @@ private:
     std::vector<std::uint8_t> mHolds;                         // [G]
     // Per padded slot, [stride][lanes] or [lanes] per block (padding 0): static F and O, targets, dE/dF and dE/dO.
     std::vector<float> mStaticF, mStaticO, mTargetF, mTargetO, mGF, mGO;
+    std::vector<std::uint8_t> mStaticBlock; // [B] whether any static F or O of the block is not zero
     std::vector<float> mEnergy;       // [3][lanes] per block: the loss terms per slot
     std::vector<std::uint64_t> mBlockPairs; // [B] counted pairs of the last forward pass
     std::vector<std::uint8_t> mPairChunks;  // [block-major coverage entries] counting chunks of the last forward pass
@@ -133,6 +134,13 @@ CpuSolver::CpuSolver(const GaussianCloud& cloud, const SampleSet& samples, const
     const std::size_t stride = std::size_t(mStride);
     mStaticF = toSlots(mBlocks, stride, [&](std::size_t j) { return &mSetup.fStatic[j * stride]; });
     mStaticO = toSlots(mBlocks, 1, [&](std::size_t j) { return &mSetup.oStatic[j]; });
+    mStaticBlock.assign(mBlocks.count(), 0);
+    for (std::size_t b = 0; b < mBlocks.count(); ++b) {
+        const std::size_t s0 = mBlocks.slot[b], s1 = mBlocks.slot[b + 1];
+        const auto nonZero = [](float v) { return v != 0.0f; };
+        mStaticBlock[b] = std::any_of(&mStaticO[s0], &mStaticO[0] + s1, nonZero) ||
+                          std::any_of(&mStaticF[s0 * stride], &mStaticF[0] + s1 * stride, nonZero);
+    }
     mTargetF = toSlots(mBlocks, stride, [&](std::size_t j) { return &samples.targetF[mSetup.used[j] * stride]; });
     mTargetO = toSlots(mBlocks, 1, [&](std::size_t j) { return &samples.targetO[mSetup.used[j]]; });
     mGF.assign(mBlocks.slots() * stride, 0.0f);
@@ -203,8 +211,13 @@ std::uint64_t CpuSolver::forwardBlock(std::size_t b)
     const BlockPoints pts = pointsOf(b);
     const std::size_t lanes = std::size_t(pts.lanes);
     alignas(32) float f[kMaxShStride * kMaxBlockSamples], o[kMaxBlockSamples];
-    std::memcpy(f, &mStaticF[s0 * stride], lanes * stride * sizeof(float));
-    std::memcpy(o, &mStaticO[s0], lanes * sizeof(float));
+    if (mStaticBlock[b]) {
+        std::memcpy(f, &mStaticF[s0 * stride], lanes * stride * sizeof(float));
+        std::memcpy(o, &mStaticO[s0], lanes * sizeof(float));
+    } else { // most blocks: no static Gaussian reaches them, nothing to read
+        std::memset(f, 0, lanes * stride * sizeof(float));
+        std::memset(o, 0, lanes * sizeof(float));
+    }
     const std::uint64_t e0 = mCoverage.blockOffsets()[b];
     const BlockGaussians gs{mCoverage.blockItems().data() + e0, std::size_t(mCoverage.blockOffsets()[b + 1] - e0),
                             mKernels.data(), mBounds.data(), mParams.data() + kParamSh, std::size_t(mPerG)};
@@ -267,13 +280,9 @@ void CpuSolver::backwardGaussian(std::size_t k)
     const std::size_t stride = std::size_t(mStride), ps = partialStride();
     double sums[kPartial + kMaxShStride] = {};
     const auto& offsets = mCoverage.gaussianOffsets();
-    const auto& entryOf = mCoverage.blockEntryOf();
-    for (std::uint64_t e = offsets[k]; e < offsets[k + 1]; ++e) { // blocks ascending: a fixed order
-        const std::uint32_t be = entryOf[e];
-        if (mPairChunks[be] == 0) continue;
-        const float* in = mPartials.data() + std::size_t(be) * ps;
-        for (std::size_t c = 0; c < ps; ++c) sums[c] += double(in[c]);
-    }
+    // Its pairs' sums in block order (the entries ascend): a fixed order for any thread count.
+    gatherPartials(mPartials.data(), ps, mCoverage.blockEntryOf().data() + offsets[k], std::size_t(offsets[k + 1] - offsets[k]),
+                   mPairChunks.data(), sums);
     GaussianAccum<double> acc;
     acc.mean = Vec3d(sums[0], sums[1], sums[2]);
     const int upper[3][3] = {{0, 1, 2}, {1, 3, 4}, {2, 4, 5}};
