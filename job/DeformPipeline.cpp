@@ -30,7 +30,7 @@ nlohmann::json stageTwoJson(const StageTwoReport& r, const SampleGrid& grid, con
     nlohmann::json energies = nlohmann::json::array();
     for (const StageTwoEnergy& e : r.energies)
         energies.push_back({{"iteration", e.iteration}, {"total", e.total}, {"color", e.color}, {"opacity", e.opacity},
-                            {"boundary", e.boundary}});
+                            {"boundary", e.boundary}, {"rejected", e.rejected}});
     std::uint64_t pairs = 0;
     for (std::uint64_t p : r.pairsPerIteration) pairs += p;
     const double pairsPerIteration = r.pairsPerIteration.empty() ? 0.0 : double(pairs) / r.pairsPerIteration.size();
@@ -45,13 +45,16 @@ nlohmann::json stageTwoJson(const StageTwoReport& r, const SampleGrid& grid, con
             {"coverageRebuilds", r.coverageRebuilds},
             {"bestIteration", r.bestIteration},
             {"bestEnergy", r.bestEnergy},
+            {"rejectedSteps", r.rejectedSteps},
+            {"stoppedAt", r.stoppedAt},
             {"device", r.device},
             {"gpuPeakBytes", r.gpuPeakBytes},
             {"sceneExtent", r.sceneExtent},
             {"parameters",
              {{"iterations", o.iterations}, {"lambdaOpacity", o.lambdaOpacity}, {"boundaryWeight", o.boundaryWeight},
               {"lowPassFilter", o.lowPassFilter}, {"lambdaLpf", o.lambdaLpf}, {"rebuildEvery", o.rebuildEvery},
-              {"cutoff", o.cutoff}, {"keepBest", o.keepBest}}},
+              {"cutoff", o.cutoff}, {"rejectSteps", o.rejectSteps}, {"stallStop", o.stallStop},
+              {"keepBest", o.keepBest}}},
             {"timingsMs",
              {{"setup", r.msSetup}, {"coverage", r.msCoverage}, {"forward", r.msForward}, {"backward", r.msBackward},
               {"update", r.msUpdate}, {"total", r.msTotal}}}};

@@ -318,14 +318,16 @@ __global__ void backwardKernel(std::size_t g, const std::uint32_t* offsets /* [G
     packGradient(paramBackward(unpackParams(params + k * perG), acc), out);
 }
 
-/// Adam on every packed parameter: AdamStep::update, the CPU's arithmetic (this file is compiled
-/// with -fmad=false, so no multiply-add is contracted where the CPU has none).
-__global__ void adamKernel(std::size_t n, int perG, float* params /* [G,PER_G] */, const float* grad /* [G,PER_G] */,
-                           float* m /* [G,PER_G] */, float* v /* [G,PER_G] */, AdamStep adam, StepRates lr)
+/// Adam on each moving Gaussian's packed row: adamStepRow, the CPU's arithmetic (this file is
+/// compiled with -fmad=false, so no multiply-add is contracted where the CPU has none).
+__global__ void adamKernel(std::size_t g, int perG, float* params /* [G,PER_G] */, const float* grad /* [G,PER_G] */,
+                           float* m /* [G,PER_G] */, float* v /* [G,PER_G] */, const double* filter /* [G,9] */,
+                           AdamStep adam, StepRates lr, float maxMeanStep)
 {
-    const std::size_t i = globalIndex();
-    if (i >= n) return;
-    adam.update(params[i], m[i], v[i], grad[i], lr.of(int(i % std::size_t(perG))));
+    const std::size_t k = globalIndex();
+    if (k >= g) return;
+    const std::size_t i = k * std::size_t(perG);
+    adamStepRow(adam, lr, loadFilter(filter + 9 * k), maxMeanStep, perG, params + i, m + i, v + i, grad + i);
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -438,18 +440,28 @@ public:
         mTimer.end();
     }
 
-    void step(int iteration) override
+    void step(const StageTwoStep& s) override
     {
         mTimer.begin(PhaseTimer::Update);
-        const StepRates lr{stageTwoPositionRate(mOptions, iteration, mSetup.sceneExtent), mOptions.lrRotation,
-                           mOptions.lrLogScale, mOptions.lrOpacity, mOptions.lrSh};
-        launch("adamKernel", adamKernel, mParams.size(), stream(), mParams.size(), mPerG, mParams.data(),
-               (const float*)mGrad.data(), mAdamM.data(), mAdamV.data(), AdamStep::at(mOptions, iteration + 1), lr);
+        const StepRates lr = StepRates::forStep(mOptions, s, mSetup.sceneExtent);
+        launch("adamKernel", adamKernel, mG, stream(), mG, mPerG, mParams.data(), (const float*)mGrad.data(),
+               mAdamM.data(), mAdamV.data(), (const double*)mFilter.data(), AdamStep::at(mOptions, s.adamStep), lr,
+               mOptions.maxMeanStep);
         mTimer.end();
     }
 
-    void saveBest() override { copyParams(mBestParams, mParams); }
-    void restoreBest() override { copyParams(mParams, mBestParams); }
+    void saveIterate() override
+    {
+        copyBuffer(mKeptParams, mParams);
+        copyBuffer(mKeptM, mAdamM);
+        copyBuffer(mKeptV, mAdamV);
+    }
+    void restoreIterate() override
+    {
+        copyBuffer(mParams, mKeptParams);
+        copyBuffer(mAdamM, mKeptM);
+        copyBuffer(mAdamV, mKeptV);
+    }
 
     void writeTo(GaussianCloud& cloud) const override
     {
@@ -487,7 +499,7 @@ public:
 private:
     void upload(const GaussianCloud& cloud, const SampleSet& samples);
     void coverage(int iteration);
-    void copyParams(DeviceBuffer<float>& to, const DeviceBuffer<float>& from)
+    void copyBuffer(DeviceBuffer<float>& to, const DeviceBuffer<float>& from)
     {
         to.resize(from.size());
         if (from.size() > 0)
@@ -537,7 +549,8 @@ private:
         mTargetF{"target features"}, mTargetO{"target opacity"}, mParams{"Gaussian parameters"},
         mGrad{"parameter gradients"}, mAdamM{"Adam first moments"}, mAdamV{"Adam second moments"},
         mGF{"feature gradients"}, mGO{"opacity gradients"}, mEnergy{"per-sample energies"},
-        mBoxLo{"coverage boxes"}, mBoxHi{"coverage boxes"}, mBestParams{"best-iterate parameters"};
+        mBoxLo{"coverage boxes"}, mBoxHi{"coverage boxes"}, mKeptParams{"kept-iterate parameters"},
+        mKeptM{"kept-iterate Adam moments"}, mKeptV{"kept-iterate Adam moments"};
     DeviceBuffer<CoverageSlabs> mSlabs{"coverage slabs"};
     DeviceBuffer<double> mFilter{"low-pass filters"};
     DeviceBuffer<PreparedGaussian> mKernels{"prepared Gaussians"};

@@ -103,7 +103,8 @@ const CommandRegistrar reg(1020, [](CLI::App& app) {
         const double it = std::max(1, args->options.iterations);
         std::printf("stage2 (%s): %zu Gaussians SH%d, %zu samples (built in %.0f ms), %d iterations\n",
                     r.device.c_str(), rest.size(), rest.shDegree, r.samplesUsed, msSamples, args->options.iterations);
-        std::printf("  energy %.6g -> %.6g\n", r.energies.front().total, r.energies.back().total);
+        std::printf("  energy %.6g -> %.6g (held iterate %d, %d steps rejected)\n", r.energies.front().total,
+                    r.bestEnergy, r.bestIteration, r.rejectedSteps);
         std::printf("  per iteration: %.1f ms total; coverage %.1f, forward %.1f, backward %.1f, update %.1f ms; "
                     "setup %.1f ms once\n",
                     (r.msTotal - r.msSetup) / it, r.msCoverage / it, r.msForward / it, r.msBackward / it,

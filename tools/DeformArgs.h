@@ -38,6 +38,10 @@ inline void addDeformOptions(CLI::App* sub, DeformArgs& args)
                     "lambda2: extra weight of |O* - O| where the target is empty (keeps Gaussians out of empty space)")
         ->capture_default_str()
         ->check(nonNegative());
+    sub->add_option("--max-mean-step", job.stage2.maxMeanStep,
+                    "Longest Stage II step of a Gaussian's centre, in its own standard deviations (0: unbounded)")
+        ->capture_default_str()
+        ->check(nonNegative());
     sub->add_flag("--no-lpf", args.noLpf, "Turn off the adaptive anisotropic low-pass filter");
     sub->add_option("--rebuild-every", job.stage2.rebuildEvery, "Rebuild the Gaussian-sample coverage every K iterations")
         ->capture_default_str()

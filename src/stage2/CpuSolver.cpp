@@ -55,9 +55,19 @@ public:
     std::uint64_t coveragePairs() const override { return mCoverage.pairCount(); }
     StageTwoEnergy forward(int iteration, std::uint64_t& pairs) override;
     void backward() override;
-    void step(int iteration) override;
-    void saveBest() override { mBest = mParams; }
-    void restoreBest() override { mParams = mBest; }
+    void step(const StageTwoStep& s) override;
+    void saveIterate() override
+    {
+        mKeptParams = mParams;
+        mKeptM = mAdamM;
+        mKeptV = mAdamV;
+    }
+    void restoreIterate() override
+    {
+        mParams = mKeptParams;
+        mAdamM = mKeptM;
+        mAdamV = mKeptV;
+    }
     void writeTo(GaussianCloud& cloud) const override;
     StageTwoPhaseTimes times() const override { return mTimes; }
 
@@ -88,7 +98,8 @@ private:
     double mSetupMs = 0;
     SampleBlocks mBlocks;
     BlockCoverage mCoverage;
-    std::vector<float> mParams, mBest, mGrad, mAdamM, mAdamV; // [G, PER_G]
+    std::vector<float> mParams, mGrad, mAdamM, mAdamV;      // [G, PER_G]
+    std::vector<float> mKeptParams, mKeptM, mKeptV;       // saveIterate()
     std::vector<PreparedGaussian> mKernels;                  // [G]
     std::vector<ChunkBound> mBounds;                          // [G]
     std::vector<float> mBoxLo, mBoxHi;                        // [G,3]
@@ -300,18 +311,15 @@ void CpuSolver::backward()
     parallelFor(mG, 8, mOptions.threaded, [&](std::size_t k) { backwardGaussian(k); });
 }
 
-void CpuSolver::step(int iteration)
+void CpuSolver::step(const StageTwoStep& s)
 {
     PhaseClock clock(mTimes.update);
-    const AdamStep adam = AdamStep::at(mOptions, iteration + 1);
-    const StepRates rates{stageTwoPositionRate(mOptions, iteration, mSetup.sceneExtent), mOptions.lrRotation,
-                          mOptions.lrLogScale, mOptions.lrOpacity, mOptions.lrSh};
+    const AdamStep adam = AdamStep::at(mOptions, s.adamStep);
+    const StepRates rates = StepRates::forStep(mOptions, s, mSetup.sceneExtent);
     parallelFor(mG, 1024, mOptions.threaded, [&](std::size_t k) {
-        const std::size_t base = k * std::size_t(mPerG);
-        for (int c = 0; c < mPerG; ++c) {
-            const std::size_t i = base + std::size_t(c);
-            adam.update(mParams[i], mAdamM[i], mAdamV[i], mGrad[i], rates.of(c));
-        }
+        const std::size_t i = k * std::size_t(mPerG);
+        adamStepRow(adam, rates, mSetup.filter[mSetup.moving[k]], mOptions.maxMeanStep, mPerG, &mParams[i], &mAdamM[i],
+                    &mAdamV[i], &mGrad[i]);
     });
 }
 

@@ -20,14 +20,17 @@ namespace splatwarp {
 struct StageTwoEnergy {
     int iteration = 0;
     double total = 0, color = 0, opacity = 0, boundary = 0;
+    bool rejected = false; ///< the step to this iterate was undone (StageTwoOptions::rejectSteps)
 };
 
 /// @brief What a Stage II run did.
 struct StageTwoReport {
     std::string device = "cpu"; ///< which device ran: "cpu" or "cuda"
     std::vector<StageTwoEnergy> energies;
-    int bestIteration = 0;   ///< the iterate returned (the last one when keepBest is off)
+    int bestIteration = 0;   ///< the iterate returned (the last accepted one; with neither rejectSteps nor keepBest the last)
     double bestEnergy = 0;   ///< its training energy
+    int rejectedSteps = 0;   ///< steps undone by step rejection
+    int stoppedAt = -1;      ///< iteration at which the run stopped early (StageTwoOptions::stallStop); -1: it ran to the end
     std::size_t movingGaussians = 0;
     std::size_t samplesUsed = 0;    ///< samples in cells not skipped
     std::size_t samplesSkipped = 0;

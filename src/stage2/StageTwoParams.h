@@ -9,6 +9,7 @@
 #include "core/GaussianCloud.h"
 #include "core/HostDevice.h"
 #include "stage2/PairGradients.h"
+#include "stage2/StageTwoCommon.h"
 #include "stage2/StageTwoOptions.h"
 
 namespace splatwarp {
@@ -43,6 +44,15 @@ SPLATWARP_HOST_DEVICE void packGradient(const GaussianParamGrad<T>& g, float* ou
     out[kParamLogit] = float(g.logit);
 }
 
+/// @brief One step of the loop: the schedule's iteration (0-based; sets the position rate),
+///        Adam's step count t (1-based: accepted steps so far plus one) and a factor on every
+///        learning rate (step rejection halves it, StageTwoOptions::rejectSteps).
+struct StageTwoStep {
+    int iteration = 0;
+    int adamStep = 1;
+    float rateScale = 1.0f;
+};
+
 /// @brief Learning rates of one step; the position rate changes per iteration.
 struct StepRates {
     float position, rotation, logScale, opacity, sh;
@@ -53,6 +63,14 @@ struct StepRates {
         return c < kParamRotation ? position
                                   : (c < kParamLogScale ? rotation
                                                         : (c < kParamLogit ? logScale : (c == kParamLogit ? opacity : sh)));
+    }
+    /// @brief The rates of a step: the options' (position rate from its schedule, scaled by the
+    ///        scene extent), times the step's rate factor.
+    static StepRates forStep(const StageTwoOptions& o, const StageTwoStep& s, float sceneExtent)
+    {
+        const float f = s.rateScale;
+        return {f * stageTwoPositionRate(o, s.iteration, sceneExtent), f * o.lrRotation, f * o.lrLogScale,
+                f * o.lrOpacity, f * o.lrSh};
     }
 };
 
@@ -65,15 +83,41 @@ struct AdamStep {
     {
         return {o.beta1, o.beta2, o.epsilon, 1.0 - std::pow(double(o.beta1), t), 1.0 - std::pow(double(o.beta2), t)};
     }
-    /// @brief One Adam update of a parameter with gradient g (float moments, double step).
-    SPLATWARP_HOST_DEVICE void update(float& param, float& m, float& v, float g, float rate) const
+    /// @brief Update the moments of a parameter with gradient g and return its step (float
+    ///        moments, double step; the parameter moves by minus the step).
+    SPLATWARP_HOST_DEVICE double delta(float& m, float& v, float g, float rate) const
     {
         m = beta1 * m + (1.0f - beta1) * g;
         v = beta2 * v + (1.0f - beta2) * g * g;
         const double mHat = double(m) / corr1, vHat = double(v) / corr2;
-        param -= float(double(rate) * mHat / (std::sqrt(vHat) + double(epsilon)));
+        return double(rate) * mHat / (std::sqrt(vHat) + double(epsilon));
+    }
+    /// @brief One Adam update of a parameter with gradient g.
+    SPLATWARP_HOST_DEVICE void update(float& param, float& m, float& v, float g, float rate) const
+    {
+        param -= float(delta(m, v, g, rate));
     }
 };
+
+/// @brief One Adam step of a packed row. The mean's step is shortened to a Mahalanobis length of
+///        at most maxMeanStep in the Gaussian's filtered covariance (0: no bound): Adam moves every
+///        coordinate by about its rate whatever the gradient's size, and one scene-wide position
+///        rate is several times the thickness of a flat Gaussian (StageTwoOptions::maxMeanStep).
+SPLATWARP_HOST_DEVICE void adamStepRow(const AdamStep& adam, const StepRates& rates, const Mat3d& filter,
+                                       float maxMeanStep, int perG, float* p, float* m, float* v, const float* g)
+{
+    Vec3d d;
+    for (int a = 0; a < 3; ++a) d[a] = adam.delta(m[a], v[a], g[a], rates.position);
+    if (maxMeanStep > 0) {
+        const GaussianParams<double> q = unpackParams(p);
+        const Vec3d sc(std::exp(q.logScale.x), std::exp(q.logScale.y), std::exp(q.logScale.z));
+        const double len2 = dot(d, filteredCovariance(q.rotation, sc, filter).inverse() * d);
+        const double cap = double(maxMeanStep);
+        if (len2 > cap * cap) d *= cap / std::sqrt(len2);
+    }
+    for (int a = 0; a < 3; ++a) p[kParamMean + a] -= float(d[a]);
+    for (int c = kParamRotation; c < perG; ++c) adam.update(p[c], m[c], v[c], g[c], rates.of(c));
+}
 
 /// @brief Copy Gaussian i of a cloud into a packed row.
 inline void packGaussian(const GaussianCloud& c, std::size_t i, float* p)

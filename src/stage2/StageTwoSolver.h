@@ -8,6 +8,7 @@
 
 #include "core/GaussianCloud.h"
 #include "stage2/StageTwo.h"
+#include "stage2/StageTwoParams.h"
 
 namespace splatwarp {
 
@@ -36,11 +37,12 @@ public:
     virtual StageTwoEnergy forward(int iteration, std::uint64_t& pairs) = 0;
     /// @brief Backward pass into the packed parameter gradients.
     virtual void backward() = 0;
-    /// @brief One Adam step (iteration is 0-based).
-    virtual void step(int iteration) = 0;
-    /// @brief Keep a copy of the current parameters / put that copy back.
-    virtual void saveBest() = 0;
-    virtual void restoreBest() = 0;
+    /// @brief One Adam step from the current parameters with the gradient of the last backward().
+    virtual void step(const StageTwoStep& s) = 0;
+    /// @brief Keep a copy of the current parameters and Adam moments / put that copy back (the
+    ///        gradient is left alone, so a step can be taken again from the kept iterate).
+    virtual void saveIterate() = 0;
+    virtual void restoreIterate() = 0;
     /// @brief Write the current parameters into the moving Gaussians of a cloud.
     virtual void writeTo(GaussianCloud& cloud) const = 0;
     /// @brief Time spent per phase so far.

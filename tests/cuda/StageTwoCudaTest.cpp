@@ -259,6 +259,7 @@ TEST(StageTwoCuda, OneAdamStepMatchesCpu)
     Problem p = makeProblem(1, 40, true);
     p.options.iterations = 1;
     p.options.keepBest = false; // else either side may return iteration 0 and the step goes untested
+    p.options.rejectSteps = false;
     GaussianCloud a = p.start, b = p.start;
     optimiseStageTwo(a, p.samples, p.moving, p.cells, p.options);
     const StageTwoReport r = cuda::optimiseStageTwoCuda(b, p.samples, p.moving, p.cells, p.options);

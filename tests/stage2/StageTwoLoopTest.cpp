@@ -32,25 +32,40 @@ public:
         return e;
     }
     void backward() override {}
-    void step(int) override { ++mState; }
-    void saveBest() override { mBest = mState; }
-    void restoreBest() override { mState = mBest; }
+    void step(const StageTwoStep& st) override
+    {
+        steps.push_back(st);
+        mState = ++mNext; // every step reaches a new scripted energy, also one taken again
+    }
+    void saveIterate() override { mKept = mState; }
+    void restoreIterate() override { mState = mKept; }
     void writeTo(GaussianCloud& cloud) const override { cloud.opacities.assign(1, float(mState)); }
     StageTwoPhaseTimes times() const override { return {}; }
 
     std::vector<int> rebuilds;
+    std::vector<StageTwoStep> steps;
     bool holds = true;
 
 private:
     std::vector<double> mEnergies;
-    int mState = 0, mBest = -1;
+    int mState = 0, mNext = 0, mKept = -1;
 };
 
+/// The loop without step rejection (keepBest only), as before it existed.
 StageTwoOptions options(int iterations, int rebuildEvery = 3)
 {
     StageTwoOptions o;
     o.iterations = iterations;
     o.rebuildEvery = rebuildEvery;
+    o.rejectSteps = false;
+    return o;
+}
+
+StageTwoOptions rejecting(int iterations, int stallStop = 6)
+{
+    StageTwoOptions o = options(iterations);
+    o.rejectSteps = true;
+    o.stallStop = stallStop;
     return o;
 }
 
@@ -99,4 +114,58 @@ TEST(StageTwoLoop, DivergenceStopsWithTheBestIterate)
     plain.keepBest = false;
     ScriptedSolver t({5, 4, nan, nan, nan});
     EXPECT_THROW(runStageTwoLoop(t, cloud, plain), Error);
+}
+
+TEST(StageTwoLoop, RejectedStepsAreTakenAgainAtHalfTheRates)
+{
+    // State k has energy E[k]; steps lead to states 1, 2, 3, ... in turn. 5 -> 4 accepted,
+    // 6 rejected (back to state 1, rates x0.5), 3 accepted (rates back to 1), 2 accepted.
+    ScriptedSolver s({5, 4, 6, 3, 2});
+    GaussianCloud cloud;
+    const StageTwoReport r = runStageTwoLoop(s, cloud, rejecting(4));
+    ASSERT_EQ(s.steps.size(), 4u);
+    EXPECT_EQ(s.steps[1].rateScale, 1.0f); // from state 1
+    EXPECT_EQ(s.steps[2].rateScale, 0.5f); // state 2 rejected: again from state 1
+    EXPECT_EQ(s.steps[2].adamStep, s.steps[1].adamStep); // the same Adam step, taken again
+    EXPECT_EQ(s.steps[3].rateScale, 1.0f);
+    EXPECT_EQ(s.steps[3].adamStep, s.steps[2].adamStep + 1);
+    EXPECT_EQ(r.rejectedSteps, 1);
+    EXPECT_EQ(r.bestEnergy, 2.0);
+    EXPECT_EQ(cloud.opacities, std::vector<float>{4.0f});
+    ASSERT_FALSE(r.energies.empty());
+    for (const StageTwoEnergy& e : r.energies) EXPECT_TRUE(e.rejected == (e.total > 5.0)) << e.iteration;
+}
+
+TEST(StageTwoLoop, EndsOnTheAcceptedIterateWhenTheLastStepClimbs)
+{
+    ScriptedSolver s({5, 4, 7});
+    GaussianCloud cloud;
+    const StageTwoReport r = runStageTwoLoop(s, cloud, rejecting(2));
+    EXPECT_EQ(r.bestIteration, 1);
+    EXPECT_EQ(cloud.opacities, std::vector<float>{1.0f});
+}
+
+TEST(StageTwoLoop, StopsAfterStallStopRejectionsInARow)
+{
+    // A rigid spec: Stage I is exact, every step climbs.
+    ScriptedSolver s({1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12});
+    GaussianCloud cloud;
+    const StageTwoReport r = runStageTwoLoop(s, cloud, rejecting(10, 3));
+    EXPECT_EQ(r.stoppedAt, 3);
+    EXPECT_EQ(r.rejectedSteps, 3);
+    EXPECT_EQ(r.bestIteration, 0);
+    EXPECT_EQ(cloud.opacities, std::vector<float>{0.0f});
+    ASSERT_EQ(s.steps.size(), 3u);
+    EXPECT_EQ(s.steps[2].rateScale, 0.25f);
+}
+
+TEST(StageTwoLoop, NonFiniteEnergyIsARejectedStep)
+{
+    const double nan = std::numeric_limits<double>::quiet_NaN();
+    ScriptedSolver s({5, nan, 4, 3});
+    GaussianCloud cloud;
+    const StageTwoReport r = runStageTwoLoop(s, cloud, rejecting(3));
+    EXPECT_EQ(r.rejectedSteps, 1);
+    EXPECT_EQ(r.bestEnergy, 3.0);
+    EXPECT_EQ(cloud.opacities, std::vector<float>{3.0f});
 }
