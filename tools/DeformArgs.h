@@ -38,6 +38,11 @@ inline void addDeformOptions(CLI::App* sub, DeformArgs& args)
                     "lambda2: extra weight of |O* - O| where the target is empty (keeps Gaussians out of empty space)")
         ->capture_default_str()
         ->check(nonNegative());
+    sub->add_option("--stall-tolerance", job.stage2.stallTolerance,
+                    "Stop Stage II early when its energy fell by less than this fraction over the last 10 iterations "
+                    "(0: run every iteration; a step that raises the energy is always undone, and 6 such in a row end the run)")
+        ->capture_default_str()
+        ->check(inRange(0.0, 1.0));
     sub->add_option("--max-mean-step", job.stage2.maxMeanStep,
                     "Longest Stage II step of a Gaussian's centre, in its own standard deviations (0: unbounded)")
         ->capture_default_str()

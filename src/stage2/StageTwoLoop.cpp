@@ -3,6 +3,7 @@
 #include <cmath>
 #include <limits>
 #include <memory>
+#include <vector>
 
 #include "core/Error.h"
 #include "core/Progress.h"
@@ -12,8 +13,8 @@ namespace {
 
 /// Which iterate the run holds (StageTwoOptions::rejectSteps, keepBest). With step rejection:
 /// the last accepted one, whose energy never rises; a step to a higher (or non-finite) energy is
-/// undone and taken again at half the rates, which grow back by kRegrowth per accepted step. Without: the lowest-energy iterate when keepBest,
-/// else the last.
+/// undone and taken again at half the rates, which grow back by kRegrowth per accepted step.
+/// Without: the lowest-energy iterate when keepBest, else the last.
 class IterateKeeper {
 public:
     /// Rate factor after an accepted step (capped at 1). Measured on the demo, 30 iterations:
@@ -27,17 +28,23 @@ public:
     /// the accepted iterate, with its gradient, ready to step again).
     bool judge(int iteration, double energy, StageTwoReport& report)
     {
-        if (mOptions.rejectSteps) return judgeWithRejection(iteration, energy, report);
-        ++mAccepted;
-        if (mOptions.keepBest && !(energy < report.bestEnergy)) return true;
-        record(iteration, energy, report);
-        if (mOptions.keepBest && iteration < mOptions.iterations) save();
-        return true;
+        const bool accepted = mOptions.rejectSteps ? judgeWithRejection(iteration, energy, report)
+                                                   : judgeWithoutRejection(iteration, energy, report);
+        mHeld.push_back(mOptions.rejectSteps ? report.bestEnergy : energy);
+        return accepted;
     }
     /// The next step from the iterate held.
     StageTwoStep nextStep(int iteration) const { return {iteration, mAccepted, mRateScale}; }
-    /// Steps rejected in a row reached StageTwoOptions::stallStop.
-    bool stalled() const { return mOptions.stallStop > 0 && mRejectedInARow >= mOptions.stallStop; }
+    /// Why the run should stop now (StageTwoOptions::stallStop, stallTolerance); null: go on.
+    const char* stalled() const
+    {
+        if (mOptions.stallStop > 0 && mRejectedInARow >= mOptions.stallStop) return "steps rejected in a row";
+        const std::size_t w = std::size_t(std::max(mOptions.stallWindow, 1)), n = mHeld.size();
+        if (mOptions.stallTolerance > 0 && n > w &&
+            !(mHeld[n - 1 - w] - mHeld[n - 1] >= double(mOptions.stallTolerance) * mHeld[n - 1 - w]))
+            return "the energy stalled";
+        return nullptr;
+    }
     /// Put the kept iterate back when the run ends on another (keepBest without rejection).
     void finish(int lastIteration, const StageTwoReport& report)
     {
@@ -63,6 +70,14 @@ private:
         save();
         return true;
     }
+    bool judgeWithoutRejection(int iteration, double energy, StageTwoReport& report)
+    {
+        ++mAccepted;
+        if (mOptions.keepBest && !(energy < report.bestEnergy)) return true;
+        record(iteration, energy, report);
+        if (mOptions.keepBest && iteration < mOptions.iterations) save();
+        return true;
+    }
     void record(int iteration, double energy, StageTwoReport& report) const
     {
         report.bestEnergy = energy;
@@ -76,6 +91,7 @@ private:
 
     StageTwoSolver& mSolver;
     const StageTwoOptions& mOptions;
+    std::vector<double> mHeld; ///< energy of the iterate held after each iteration
     bool mSaved = false;
     int mAccepted = 0, mRejectedInARow = 0;
     float mRateScale = 1.0f;
@@ -151,8 +167,8 @@ StageTwoReport runStageTwoLoop(StageTwoSolver& solver, GaussianCloud& cloud, con
             logEnergy(solver, e, pairs);
         }
         if (it == o.iterations) break; // final energy only
-        if (keeper.stalled()) {
-            progress(msg("Stage II: ", o.stallStop, " steps rejected in a row; stopping at iteration ", it));
+        if (const char* why = keeper.stalled()) {
+            progress(msg("Stage II: stopping at iteration ", it, " (", why, ")"));
             report.stoppedAt = it;
             last = it;
             break;

@@ -49,6 +49,10 @@ struct StageTwoOptions {
     /// schedule's): rigid specs, where Stage I is already exact, and converged runs end early.
     /// 0: never stop early.
     int stallStop = 6;
+    /// Also stop when the held energy fell by less than this fraction over the last stallWindow
+    /// iterations (0: off; `--iterations auto` turns it on with a high iteration cap).
+    float stallTolerance = 0.0f;
+    int stallWindow = 10;
     /// Without step rejection: return the iterate with the lowest training energy instead of the
     /// last one (with it, the held iterate is always the lowest).
     bool keepBest = true;

@@ -33,6 +33,17 @@ DeformJobOptions smallJob(const TempDir& dir, const std::string& spec, int itera
     return o;
 }
 
+/// The energies of the iterates a Stage II run held (rejected steps aside) never rise.
+void expectNoClimb(const nlohmann::json& stage2)
+{
+    double held = stage2["energies"].at(0)["total"].get<double>();
+    for (const auto& e : stage2["energies"]) {
+        if (e["rejected"].get<bool>()) continue;
+        EXPECT_LE(e["total"].get<double>(), held) << "iteration " << e["iteration"];
+        held = e["total"].get<double>();
+    }
+}
+
 double err(const nlohmann::json& r, const char* stage, const char* what) { return r[stage]["field_error"][what].get<double>(); }
 
 /// What `splatwarp ARGS` (with --json) prints, parsed.
@@ -64,6 +75,7 @@ TEST(DeformPipeline, StageTwoLowersTheFieldErrorOnTheStripesBend)
     auto lattice = [&](const char* stage, const char* what) { return r[stage]["lattice_error"][what].get<double>(); };
     EXPECT_LT(lattice("stage2", "opacity"), 0.8 * lattice("stage1", "opacity"));
     EXPECT_LT(lattice("stage2", "color"), 0.8 * lattice("stage1", "color"));
+    expectNoClimb(r["stage2"]);
     EXPECT_GT(r["stage2"]["samples"].get<double>(), 0.0);
     EXPECT_GT(r["stage2"]["pairsPerIteration"].get<double>(), 0.0);
     // The report on disk is the one returned.
@@ -75,6 +87,11 @@ TEST(DeformPipeline, RigidSpecStageTwoDoesNotRaiseTheError)
 {
     TempDir dir;
     const nlohmann::json r = runDeformJob(smallJob(dir, "rigid.json", 20));
+    // Stage I is exact, so every Stage II step climbs: each is rejected, and the run stops early
+    // (after stallStop rejections) holding iteration 0.
+    expectNoClimb(r["stage2"]);
+    EXPECT_EQ(r["stage2"]["bestIteration"].get<int>(), 0);
+    EXPECT_EQ(r["stage2"]["stoppedAt"].get<int>(), StageTwoOptions{}.stallStop);
     // Stage I is exact for a rigid motion up to float rounding and the ED solver's tolerance
     // (judge measured 2.7e-6; 5.6e-7 at the training lattice, whose filter hides more).
     EXPECT_LT(err(r, "stage1", "opacity"), 1e-5);

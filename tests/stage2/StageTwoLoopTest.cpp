@@ -127,7 +127,7 @@ TEST(StageTwoLoop, RejectedStepsAreTakenAgainAtHalfTheRates)
     EXPECT_EQ(s.steps[1].rateScale, 1.0f); // from state 1
     EXPECT_EQ(s.steps[2].rateScale, 0.5f); // state 2 rejected: again from state 1
     EXPECT_EQ(s.steps[2].adamStep, s.steps[1].adamStep); // the same Adam step, taken again
-    EXPECT_EQ(s.steps[3].rateScale, 1.0f);
+    EXPECT_EQ(s.steps[3].rateScale, 0.5f * 1.25f); // grows back by a quarter
     EXPECT_EQ(s.steps[3].adamStep, s.steps[2].adamStep + 1);
     EXPECT_EQ(r.rejectedSteps, 1);
     EXPECT_EQ(r.bestEnergy, 2.0);
@@ -168,4 +168,22 @@ TEST(StageTwoLoop, NonFiniteEnergyIsARejectedStep)
     EXPECT_EQ(r.rejectedSteps, 1);
     EXPECT_EQ(r.bestEnergy, 3.0);
     EXPECT_EQ(cloud.opacities, std::vector<float>{3.0f});
+}
+
+TEST(StageTwoLoop, StopsWhenTheEnergyStalls)
+{
+    // Falls by 10% per step, then by ~0.1%: with a 1% tolerance over 2 iterations the run stops
+    // at the first iteration less than 1% below the one 2 before (81 -> 80.8 at iteration 4).
+    ScriptedSolver s({100, 90, 81, 80.9, 80.8, 80.7, 80.6, 80.5});
+    StageTwoOptions o = rejecting(7);
+    o.stallTolerance = 0.01f;
+    o.stallWindow = 2;
+    GaussianCloud cloud;
+    const StageTwoReport r = runStageTwoLoop(s, cloud, o);
+    EXPECT_EQ(r.stoppedAt, 4);
+    EXPECT_EQ(r.bestEnergy, 80.8);
+    EXPECT_EQ(cloud.opacities, std::vector<float>{4.0f});
+    StageTwoOptions off = rejecting(7);
+    ScriptedSolver t({100, 90, 81, 80.9, 80.8, 80.7, 80.6, 80.5});
+    EXPECT_EQ(runStageTwoLoop(t, cloud, off).stoppedAt, -1);
 }
