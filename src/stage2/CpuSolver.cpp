@@ -108,7 +108,7 @@ private:
     // Per padded slot, [stride][lanes] or [lanes] per block (padding 0): static F and O, targets, dE/dF and dE/dO.
     std::vector<float> mStaticF, mStaticO, mTargetF, mTargetO, mGF, mGO;
     std::vector<std::uint8_t> mStaticBlock; // [B] whether any static F or O of the block is not zero
-    std::vector<float> mEnergy;       // [3][lanes] per block: the loss terms per slot
+    std::vector<double> mBlockEnergy; // [B,3] each block's loss terms summed in sample order
     std::vector<std::uint64_t> mBlockPairs; // [B] counted pairs of the last forward pass
     std::vector<std::uint8_t> mPairChunks;  // [block-major coverage entries] counting chunks of the last forward pass
     std::vector<float> mPartials;           // [block-major coverage entries, kPartial + stride] backward sums of each pair
@@ -156,7 +156,7 @@ CpuSolver::CpuSolver(const GaussianCloud& cloud, const SampleSet& samples, const
     mTargetO = toSlots(mBlocks, 1, [&](std::size_t j) { return &samples.targetO[mSetup.used[j]]; });
     mGF.assign(mBlocks.slots() * stride, 0.0f);
     mGO.assign(mBlocks.slots(), 0.0f);
-    mEnergy.assign(3 * mBlocks.slots(), 0.0f);
+    mBlockEnergy.assign(3 * mBlocks.count(), 0.0);
     mBlockPairs.resize(mBlocks.count());
     mSetupMs = watch.ms();
 }
@@ -221,7 +221,7 @@ std::uint64_t CpuSolver::forwardBlock(std::size_t b)
     const std::size_t stride = std::size_t(mStride), s0 = mBlocks.slot[b];
     const BlockPoints pts = pointsOf(b);
     const std::size_t lanes = std::size_t(pts.lanes);
-    alignas(32) float f[kMaxShStride * kMaxBlockSamples], o[kMaxBlockSamples];
+    alignas(32) float f[kMaxShStride * kMaxBlockSamples], o[kMaxBlockSamples], terms[3 * kMaxBlockSamples];
     if (mStaticBlock[b]) {
         std::memcpy(f, &mStaticF[s0 * stride], lanes * stride * sizeof(float));
         std::memcpy(o, &mStaticO[s0], lanes * sizeof(float));
@@ -241,7 +241,12 @@ std::uint64_t CpuSolver::forwardBlock(std::size_t b)
     const std::uint64_t pairs =
         blockForward(gs, pts, mOptions.cutoff, mStride, f, o, &mPairChunks[e0], kept.data(), keptAt.data());
     blockLoss(f, o, &mTargetF[s0 * stride], &mTargetO[s0], pts.lanes, pts.samples, mStride, mOptions.lambdaOpacity,
-              mOptions.boundaryWeight, &mGF[s0 * stride], &mGO[s0], &mEnergy[3 * s0]);
+              mOptions.boundaryWeight, &mGF[s0 * stride], &mGO[s0], terms);
+    for (int a = 0; a < 3; ++a) {
+        double sum = 0;
+        for (std::size_t t = 0; t < std::size_t(pts.samples); ++t) sum += double(terms[std::size_t(a) * lanes + t]);
+        mBlockEnergy[3 * b + std::size_t(a)] = sum;
+    }
     if (mFeaturesOut || mOpacityOut) keepOutputs(b, f, o);
     blockBackward(gs, pts.lanes, &mPairChunks[e0], kept.data(), keptAt.data(), &mGF[s0 * stride], &mGO[s0], mStride,
                   &mPartials[e0 * partialStride()]);
@@ -268,17 +273,12 @@ StageTwoEnergy CpuSolver::forward(int iteration, std::uint64_t& pairs)
     mPairChunks.resize(mCoverage.pairCount());
     mPartials.resize(mCoverage.pairCount() * partialStride());
     parallelFor(mBlocks.count(), 4, mOptions.threaded, [&](std::size_t b) { mBlockPairs[b] = forwardBlock(b); });
-    // Serial sums in sample order: deterministic for any thread count.
     StageTwoEnergy e;
     e.iteration = iteration;
-    for (std::size_t b = 0; b < mBlocks.count(); ++b) {
-        const float* terms = &mEnergy[3 * std::size_t(mBlocks.slot[b])];
-        const std::size_t lanes = std::size_t(mBlocks.lanesOf(b));
-        for (std::size_t t = 0; t < std::size_t(mBlocks.samplesOf(b)); ++t) {
-            e.color += terms[t];
-            e.opacity += terms[lanes + t];
-            e.boundary += terms[2 * lanes + t];
-        }
+    for (std::size_t b = 0; b < mBlocks.count(); ++b) { // blocks in order: deterministic for any thread count
+        e.color += mBlockEnergy[3 * b];
+        e.opacity += mBlockEnergy[3 * b + 1];
+        e.boundary += mBlockEnergy[3 * b + 2];
     }
     e.total = e.color + e.opacity + e.boundary;
     pairs = 0;
