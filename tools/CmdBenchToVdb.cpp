@@ -1,7 +1,9 @@
 /// `splatwarp bench to-vdb [IN]`: sample grid build + rest targets + .vdb export throughput.
+#include <algorithm>
 #include <cstdio>
 #include <filesystem>
 #include <sys/resource.h>
+#include <tbb/global_control.h>
 #include <tbb/info.h>
 #include <tbb/task_arena.h>
 
@@ -52,7 +54,9 @@ const CommandRegistrar reg(1040, [](CLI::App& app) {
         args->grid.device = parseDevice(args->device);
         const GaussianCloud source = args->input.empty() ? makeSample("stripes") : readModel(args->input, args->dropInvalid);
         const std::string label = args->input.empty() ? std::string("stripes") : args->input;
-        const int threads = tbb::this_task_arena::max_concurrency();
+        // The threads that run (--threads limits them through a global control, not the arena).
+        const int threads = int(std::min<std::size_t>(std::size_t(tbb::this_task_arena::max_concurrency()),
+                                                      tbb::global_control::active_value(tbb::global_control::max_allowed_parallelism)));
         const std::string tmp = (std::filesystem::temp_directory_path() / "splatwarp-bench-to-vdb.vdb").string();
         for (const int degree : args->degrees) {
             const GaussianCloud cloud = withShDegree(source, degree);
