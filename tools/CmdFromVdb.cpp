@@ -70,6 +70,13 @@ void addFitOptions(CLI::App* sub, FromVdbArgs& a)
                     "Rebuild the coverage every this many iterations (its boxes grow with the learning rates times this)")
         ->capture_default_str()
         ->check(inRange(1, 1000));
+    sub->add_option("--max-mean-step", s2.maxMeanStep,
+                    "Longest step of a Gaussian's centre, in its own standard deviations (0: unbounded)")
+        ->capture_default_str()
+        ->check(nonNegative());
+    sub->add_option("--reject-steps", s2.rejectSteps,
+                    "Undo a step that raises the training energy and retry at half the rates (true/false)")
+        ->capture_default_str();
     sub->add_option("--density-scale", a.job.densityScale,
                     "Extinction per unit of fitted opacity (default 0: a quarter of the grid's maximum)")
         ->capture_default_str();
