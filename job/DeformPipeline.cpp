@@ -4,6 +4,7 @@
 #include <sstream>
 
 #include "deform/SampleWarp.h"
+#include "Judge.h"
 #include "VdbExport.h"
 #include "core/AtomicFile.h"
 #include "core/Error.h"
@@ -130,10 +131,31 @@ struct FrameErrors {
     }
 };
 
+/// A rigid spec (every graph node held, one rigid motion): Stage I moves every Gaussian by that
+/// motion, and the filter of a rotated cell is the rotated filter, so the warped field is exactly
+/// the Stage I model's and Stage II has nothing to fit (run anyway, it only adds noise: at best
+/// its first steps are all rejected). Returns the Stage I model with both stages judged.
+GaussianCloud skipStageTwo(DeformRest& rest, const Deformation& deformation, const StageOneResult& stage1,
+                           const DeformJobOptions& o, nlohmann::json& report)
+{
+    progress("Stage II: skipped (a rigid spec: the Stage I model is the fitted one)");
+    report["stage2"] = {{"skipped", "rigid spec"}, {"movingGaussians", 0}, {"device", "none"}};
+    report["timingsMs"]["stage2"] = 0.0;
+    Stopwatch clock;
+    const FrameErrors errors(rest, deformation, o);
+    if (errors.judge) {
+        errors.record(stage1.deformed, "Stage I", report["stage1"]);
+        errors.record(stage1.deformed, "Stage II", report["stage2"]);
+        report["timingsMs"]["evaluate"] = rest.heldOutMs + clock.ms();
+    }
+    return stage1.deformed;
+}
+
 /// Stage II on a warped copy of the rest samples, with the held-out errors; returns the fitted model.
 GaussianCloud stageTwo(DeformRest& rest, const Deformation& deformation, const StageOneResult& stage1,
                        const DeformJobOptions& o, nlohmann::json& report)
 {
+    if (rigidMotionOf(deformation)) return skipStageTwo(rest, deformation, stage1, o, report);
     Stopwatch clock;
     SampleSet samples = rest.grid->samples(); // the rest samples stay untouched for the next frame
     const char* warpDevice = warpSamplesOn(o.device, samples, deformation, o.grid.threaded);

@@ -294,6 +294,7 @@ TEST(StageTwoCuda, HundredIterationsMatchCpu)
     SPLATWARP_REQUIRE_GPU();
     Problem p = makeProblem(1, 50, true);
     p.options.iterations = 100;
+    p.options.rejectSteps = false; // the plain trajectory (rejection: StepRejectionFollowsTheCpu)
     GaussianCloud a = p.start, b = p.start;
     std::vector<int> seenCpu, seenGpu;
     const StageTwoReport rc = optimiseStageTwo(a, p.samples, p.moving, p.cells, p.options,
@@ -321,6 +322,30 @@ TEST(StageTwoCuda, HundredIterationsMatchCpu)
     EXPECT_LT(rg.energies.back().total, 0.8 * rg.energies.front().total);
     for (std::size_t i = 0; i < p.moving.size(); ++i)
         if (!p.moving[i]) EXPECT_EQ(b.shOf(i)[0], p.start.shOf(i)[0]) << "static Gaussian " << i;
+}
+
+// Step rejection runs in the shared loop over each solver's saveIterate/restoreIterate and
+// adamStepRow: the GPU's held energies never rise, it rejects about as often as the CPU (a step
+// within rounding of the held energy may go either way) and ends near the CPU's energy.
+TEST(StageTwoCuda, StepRejectionFollowsTheCpu)
+{
+    SPLATWARP_REQUIRE_GPU();
+    Problem p = makeProblem(1, 55, true);
+    p.options.iterations = 40;
+    p.options.lrPositionStart *= 30.0f; // large steps, so some are likely to climb and be rejected
+    GaussianCloud a = p.start, b = p.start;
+    const StageTwoReport rc = optimiseStageTwo(a, p.samples, p.moving, p.cells, p.options);
+    const StageTwoReport rg = cuda::optimiseStageTwoCuda(b, p.samples, p.moving, p.cells, p.options);
+    std::printf("  step rejection: cpu %d rejected, energy %.6g; cuda %d rejected, energy %.6g\n", rc.rejectedSteps,
+                rc.bestEnergy, rg.rejectedSteps, rg.bestEnergy);
+    EXPECT_NEAR(double(rg.rejectedSteps), double(rc.rejectedSteps), 2.0);
+    EXPECT_NEAR(rg.bestEnergy, rc.bestEnergy, 0.05 * rc.bestEnergy);
+    double held = rg.energies.front().total;
+    for (const StageTwoEnergy& e : rg.energies)
+        if (!e.rejected) {
+            EXPECT_LE(e.total, held) << "iteration " << e.iteration;
+            held = e.total;
+        }
 }
 
 // Nothing moving: no pairs, no steps, the cloud and the energy unchanged (empty launches skipped).

@@ -7,6 +7,8 @@
 #include <cstdio>
 #include <cstdlib>
 #include <filesystem>
+#include <fstream>
+#include <iterator>
 #include <string>
 #include <unistd.h>
 
@@ -19,6 +21,13 @@ inline std::string dataPath(const std::string& rel)
 {
     const std::filesystem::path p = std::filesystem::path(SPLATWARP_DATA_DIR) / rel;
     return std::filesystem::exists(p) ? p.string() : std::string();
+}
+
+/// @brief The bytes of a file ("" when it cannot be read).
+inline std::string fileBytes(const std::string& path)
+{
+    std::ifstream in(path, std::ios::binary);
+    return std::string(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
 }
 
 /// Skip the current test with a message when a shared data file is missing.
