@@ -1,0 +1,49 @@
+#!/usr/bin/env bash
+# Stage II fidelity study (issue 16): deform each model with each spec at the defaults (CPU),
+# then judge both outputs with `splatwarp eval` run separately, and print one Markdown row per
+# run: Stage I and Stage II judged errors (opacity, colour, inside, outside), the Stage II / Stage I
+# ratio, Gaussians, Stage II time, steps rejected, and whether eval printed the report's numbers.
+#   bash scripts/fidelity-study.sh OUTDIR [MODEL...]   (SPECS="bend twist" to choose specs)
+# Models default to the shared real models; extra deform flags go in DEFORM_FLAGS.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+out=${1:?usage: fidelity-study.sh OUTDIR [MODEL...]}
+shift
+data=../shared/data/splats
+models=("$@")
+[ ${#models[@]} -gt 0 ] || models=("$data/train-1000.ply" "$data/lastchance.splat" "$data/donut.ply" \
+                                   "$data/playbot-31k-sh2.ply" "$data/guitar.compressed.ply")
+specs=(${SPECS:-bend twist stretch squash rigid})
+bin=build/tools/splatwarp
+mkdir -p "$out"
+echo "| model | spec | Gaussians | Stage I opacity / colour (inside, outside) | Stage II opacity / colour (inside, outside) | ratio opacity / colour | Stage II s | rejected | eval = report |"
+echo "|---|---|---|---|---|---|---|---|---|"
+for m in "${models[@]}"; do
+  for s in "${specs[@]}"; do
+    name="$(basename "${m%.*}")-$s"
+    dir="$out/$name"
+    # shellcheck disable=SC2086
+    "$bin" -q deform "$m" --spec "samples/specs/$s.json" -o "$dir" --device cpu ${DEFORM_FLAGS:-} > "$dir.log" 2>&1 ||
+      { echo "| $name | failed: see $dir.log |"; continue; }
+    for st in baseline deformed; do
+      "$bin" -q eval --rest "$m" --spec "samples/specs/$s.json" --deformed "$dir/$st.ply" --json > "$dir/eval-$st.json"
+    done
+    python3 - "$dir" "$(basename "$m")" "$s" <<'PY'
+import json, sys
+d, model, spec = sys.argv[1:4]
+r = json.load(open(f"{d}/report.json"))
+e1, e2 = (json.load(open(f"{d}/eval-{s}.json")) for s in ("baseline", "deformed"))
+f1, f2 = r["stage1"]["field_error"], r["stage2"]["field_error"]
+same = "yes" if (e1 == f1 and e2 == f2) else "NO"
+def cell(f):
+    return (f"{f['opacity']:.4g} / {f['color']:.4g} ({f['inside']['opacity']:.4g}, "
+            f"{f['outside']['opacity']:.3g})")
+ratio = lambda k: f2[k] / f1[k] if f1[k] > 0 else float("nan")
+s2 = r["stage2"]
+moving = "Stage II skipped (rigid)" if "skipped" in s2 else f"{s2['movingGaussians']} moving"
+print(f"| {model} | {spec} | {moving} | {cell(f1)} | {cell(f2)} | "
+      f"{ratio('opacity'):.3f} / {ratio('color'):.3f} | {r['timingsMs']['stage2'] / 1000:.1f} | "
+      f"{s2.get('rejectedSteps', '-')} | {same} |")
+PY
+  done
+done
