@@ -66,6 +66,13 @@ json loadJobs(const std::string& path, std::string& text)
     return root["jobs"];
 }
 
+/// A temporary of core/AtomicFile (".sw<pid>-<n>.tmp") that a killed run left behind: not an output.
+bool isStaleTemporary(const fs::path& p)
+{
+    const std::string name = p.filename().string();
+    return name.rfind(".sw", 0) == 0 && p.extension() == ".tmp";
+}
+
 /// Files under a job's output (a folder or one file), relative to DIR, sorted.
 json outputFiles(const fs::path& dir, const std::string& output)
 {
@@ -74,7 +81,7 @@ json outputFiles(const fs::path& dir, const std::string& output)
     if (fs::is_regular_file(out)) files.push_back(output);
     else if (fs::is_directory(out))
         for (const fs::directory_entry& e : fs::recursive_directory_iterator(out))
-            if (e.is_regular_file()) files.push_back(fs::relative(e.path(), dir).string());
+            if (e.is_regular_file() && !isStaleTemporary(e.path())) files.push_back(fs::relative(e.path(), dir).string());
     std::sort(files.begin(), files.end());
     return files;
 }

@@ -272,10 +272,14 @@ TEST(Batch, RunsEveryJobRecordsFailuresAndResumes)
       {"kind":"to-vdb","input":"no-such.ply","output":"bad.vdb"},
       {"kind":"to-vdb","input":")", fx.model, R"(","output":"in.vdb","args":["--cells","12"]}]})"));
     const std::string run = msg("-q batch ", fx.dir.file("jobs.json"), " -o ", fx.dir.file("b"));
+    // A temporary that a killed earlier run left in a job's folder is not one of its outputs.
+    fs::create_directories(fx.dir.file("b/bend"));
+    writeText(fx.dir.file("b/bend/.sw12345-0.tmp"), "half a file");
     EXPECT_EQ(runCli(run, fx.dir.file("1.log")), 1); // one job failed, the others went on
     const json m = readJson(fx.dir.file("b/manifest.json"));
     ASSERT_EQ(m["entries"].size(), 3u);
     EXPECT_EQ(m["entries"][0]["status"], "done");
+    EXPECT_EQ(m["entries"][0]["files"].dump().find(".tmp"), std::string::npos) << m["entries"][0]["files"].dump();
     EXPECT_EQ(m["entries"][1]["status"], "failed");
     EXPECT_NE(m["entries"][1]["message"].get<std::string>().find("no-such.ply"), std::string::npos);
     EXPECT_EQ(m["entries"][2]["files"][0]["path"], "in.vdb");
