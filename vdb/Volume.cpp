@@ -193,6 +193,8 @@ Volume readVolume(const std::string& path, const VolumeReadOptions& o)
         info.notes.push_back("level set converted to a fog volume (interior 1, linear across the narrow band)");
     }
     density.tree().voxelizeActiveTiles();
+    // A level set's conversion can leave nothing (a band with no inside); nothing to fit then.
+    if (density.activeVoxelCount() == 0) throw InputError(msg(where, " has no active voxels after the conversion to fog"));
     info.voxelSize = xf.voxelSize()[0];
     info.activeVoxels = density.activeVoxelCount();
     const auto range = openvdb::tools::minMax(density.tree());
@@ -375,7 +377,11 @@ namespace {
 template <typename GridT, typename V>
 typename GridT::Ptr denseToGrid(const DenseGrid& d, const V& convert)
 {
-    auto g = GridT::create();
+    // A level set's background is its band's half width (OpenVDB's convention; sdfToFogVolume reads it).
+    float band = 0.0f;
+    if (d.levelSet)
+        for (float v : d.values) band = std::max(band, std::fabs(v));
+    auto g = d.levelSet ? GridT::create(convert(band)) : GridT::create();
     g->setName(d.name);
     g->setTransform(openvdb::math::Transform::createLinearTransform(d.voxelSize));
     g->setGridClass(d.levelSet ? openvdb::GRID_LEVEL_SET : openvdb::GRID_FOG_VOLUME);

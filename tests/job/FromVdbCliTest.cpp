@@ -1,5 +1,7 @@
 #include <gtest/gtest.h>
 
+#include <algorithm>
+#include <cmath>
 #include <filesystem>
 #include <fstream>
 #include <limits>
@@ -72,10 +74,48 @@ TEST(FromVdbCli, BadInputsExitOneAndWriteNothing)
     writeDenseGrids(dir.file("huge.vdb"), {huge});
     expectRefused(dir, dir.file("huge.vdb"), "'density'");
 
+    DenseGrid negative = smallFog();
+    negative.values[5] = -0.5f;
+    writeDenseGrids(dir.file("negative.vdb"), {negative});
+    expectRefused(dir, dir.file("negative.vdb"), "'density' has negative values");
+
     writeDenseGrids(dir.file("two.vdb"), {smallFog("a"), smallFog("b")});
     expectRefused(dir, dir.file("two.vdb"), "a (float), b (float)");
     expectRefused(dir, dir.file("two.vdb"), "'c'", "--grid c");
     EXPECT_EQ(runCli("from-vdb " + dir.file("two.vdb")), 2); // no -o: usage error
+}
+
+// A level set (negative inside) becomes fog: interior 1, a note in the report, nothing refused.
+TEST(FromVdbCli, LevelSetIsConvertedToFogWithANote)
+{
+    DenseGrid sdf;
+    sdf.voxelSize = 0.1;
+    sdf.levelSet = true;
+    for (int a = 0; a < 3; ++a) {
+        sdf.origin[a] = -6;
+        sdf.dims[a] = 13;
+    }
+    for (int k = -6; k <= 6; ++k)
+        for (int j = -6; j <= 6; ++j)
+            for (int i = -6; i <= 6; ++i) {
+                const float d = 0.1f * (std::sqrt(float(i * i + j * j + k * k)) - 4.0f); // sphere of radius 4 voxels
+                sdf.values.push_back(d < 0.3f ? std::max(d, -0.3f) : 0.0f); // inside negative, outside band of 3 voxels
+            }
+    TempDir dir;
+    DenseGrid bandOnly = sdf; // positive values only: no inside, so the fog is empty
+    for (float& v : bandOnly.values) v = std::max(v, 0.0f);
+    writeDenseGrids(dir.file("band.vdb"), {bandOnly});
+    expectRefused(dir, dir.file("band.vdb"), "'density' has no active voxels after the conversion");
+    writeDenseGrids(dir.file("ls.vdb"), {sdf});
+    const std::string log = dir.file("log.txt");
+    ASSERT_EQ(runCli("from-vdb " + dir.file("ls.vdb") + " -o " + dir.file("ls.ply") + " --no-fit --eval-points 2000", log), 0)
+        << slurp(log);
+    const nlohmann::json r = nlohmann::json::parse(slurp(dir.file("ls.report.json")));
+    EXPECT_TRUE(r["input"]["level_set"].get<bool>());
+    EXPECT_GE(r["input"]["min"].get<double>(), 0.0);
+    EXPECT_NEAR(r["input"]["max"].get<double>(), 1.0, 1e-6);
+    EXPECT_NE(r["input"]["notes"].dump().find("level set converted"), std::string::npos) << r["input"]["notes"].dump();
+    EXPECT_GT(r["gaussians"]["final"].get<int>(), 0);
 }
 
 TEST(FromVdbCli, WritesModelReportAndPicture)
