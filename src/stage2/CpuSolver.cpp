@@ -239,7 +239,7 @@ std::uint64_t CpuSolver::forwardBlock(std::size_t b)
     if (kept.size() < room) kept.resize(room);
     if (keptAt.size() < gs.n) keptAt.resize(gs.n);
     const std::uint64_t pairs =
-        blockForward(gs, pts, mOptions.cutoff, mStride, f, o, &mPairChunks[e0], kept.data(), keptAt.data());
+        blockForward(gs, pts, mOptions.cutoff, mStride, f, o, mPairChunks.data() + e0, kept.data(), keptAt.data());
     blockLoss(f, o, &mTargetF[s0 * stride], &mTargetO[s0], pts.lanes, pts.samples, mStride, mOptions.lambdaOpacity,
               mOptions.boundaryWeight, &mGF[s0 * stride], &mGO[s0], terms);
     for (int a = 0; a < 3; ++a) {
@@ -248,8 +248,8 @@ std::uint64_t CpuSolver::forwardBlock(std::size_t b)
         mBlockEnergy[3 * b + std::size_t(a)] = sum;
     }
     if (mFeaturesOut || mOpacityOut) keepOutputs(b, f, o);
-    blockBackward(gs, pts.lanes, &mPairChunks[e0], kept.data(), keptAt.data(), &mGF[s0 * stride], &mGO[s0], mStride,
-                  &mPartials[e0 * partialStride()]);
+    blockBackward(gs, pts.lanes, mPairChunks.data() + e0, kept.data(), keptAt.data(), &mGF[s0 * stride], &mGO[s0], mStride,
+                  mPartials.data() + e0 * partialStride());
     return pairs;
 }
 
