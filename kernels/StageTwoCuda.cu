@@ -1,6 +1,6 @@
 // Stage II on the GPU (see StageTwoCuda.h). Mirrors stage2/StageTwo.cpp step by step; the
 // per-element maths is the shared host/device code (PairGradients.h, PreparedGaussian.h,
-// StageTwoCommon.h). Notation: S used samples, G moving Gaussians, P coverage pairs,
+// StageTwoSetup.h, Coverage.h). Notation: S used samples, G moving Gaussians, P coverage pairs,
 // E bin entries, STRIDE = 3 (degree+1)^2 SH floats, PER_G = 11 + STRIDE packed parameters.
 #include <math_constants.h>
 #include "StageTwoCuda.h"
@@ -17,7 +17,8 @@
 #include "DeviceBuffer.h"
 #include "core/Progress.h"
 #include "stage2/PairGradients.h"
-#include "stage2/StageTwoCommon.h"
+#include "stage2/Coverage.h"
+#include "stage2/StageTwoSetup.h"
 #include "stage2/StageTwoLoop.h"
 #include "stage2/StageTwoParams.h"
 

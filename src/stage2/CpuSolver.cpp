@@ -8,7 +8,8 @@
 #include "core/Progress.h"
 #include "stage2/BlockKernels.h"
 #include "stage2/SampleBlocks.h"
-#include "stage2/StageTwoCommon.h"
+#include "stage2/Coverage.h"
+#include "stage2/StageTwoSetup.h"
 #include "stage2/StageTwoParams.h"
 
 namespace splatwarp {

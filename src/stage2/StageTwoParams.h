@@ -3,16 +3,26 @@
 /// @brief The one packed parameter layout of Stage II (CPU and CUDA solvers): per moving
 ///        Gaussian mean 3, raw rotation quaternion 4, log-scale 3, logit opacity 1, then the SH
 ///        coefficients (stride floats), and the Adam update on it. Host/device.
+#include <algorithm>
 #include <cmath>
 #include <cstddef>
 
 #include "core/GaussianCloud.h"
 #include "core/HostDevice.h"
 #include "stage2/PairGradients.h"
-#include "stage2/StageTwoCommon.h"
 #include "stage2/StageTwoOptions.h"
 
 namespace splatwarp {
+
+/// @brief Position learning rate at an iteration: exponential from lrPositionStart to
+///        lrPositionEnd over the run, times the scene extent.
+inline float stageTwoPositionRate(const StageTwoOptions& o, int iteration, float sceneExtent)
+{
+    const double tFrac = o.iterations > 1 ? double(iteration) / double(o.iterations - 1) : 0.0;
+    return float(double(o.lrPositionStart) *
+                 std::pow(double(o.lrPositionEnd) / double(o.lrPositionStart), std::min(tFrac, 1.0)) *
+                 double(sceneExtent));
+}
 
 /// Offsets of the parameter groups in a packed row.
 constexpr int kParamMean = 0, kParamRotation = 3, kParamLogScale = 7, kParamLogit = 10, kParamSh = 11;

@@ -24,7 +24,8 @@
 #include "StageTwoCuda.h"
 #include "core/Device.h"
 #include "SampleCoverage.h"
-#include "stage2/StageTwoCommon.h"
+#include "stage2/Coverage.h"
+#include "stage2/StageTwoSetup.h"
 #include "stage2/StageTwoDevice.h"
 #include "stage2/StageTwoTestProblem.h"
 

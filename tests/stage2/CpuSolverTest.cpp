@@ -10,7 +10,8 @@
 #include "stage2/BlockKernels.h"
 #include "stage2/CpuSolver.h"
 #include "stage2/SampleBlocks.h"
-#include "stage2/StageTwoCommon.h"
+#include "stage2/Coverage.h"
+#include "stage2/StageTwoSetup.h"
 #include "stage2/StageTwoParams.h"
 #include "stage2/StageTwoTestProblem.h"
 

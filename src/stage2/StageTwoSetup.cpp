@@ -1,4 +1,4 @@
-#include "stage2/StageTwoCommon.h"
+#include "stage2/StageTwoSetup.h"
 
 #include <algorithm>
 #include <cmath>
@@ -42,17 +42,11 @@ void validateStageTwo(const GaussianCloud& cloud, const SampleSet& s, const std:
         throw InputError("Stage II: iterations must be >= 0, rebuildEvery >= 1, cutoff > 0, lambdaLpf >= 0");
 }
 
-StageTwoSetup setupStageTwo(const GaussianCloud& cloud, const SampleSet& samples,
-                            const std::vector<std::uint8_t>& moving, const std::vector<std::int32_t>& gaussianCell,
-                            const StageTwoOptions& options)
-{
-    validateStageTwo(cloud, samples, moving, gaussianCell, options);
-    StageTwoSetup st;
-    const bool threaded = options.threaded;
-    const int stride = cloud.shStride();
-    const float cutoff = options.cutoff;
+namespace {
 
-    // Samples used: those whose cell is not skipped.
+/// The samples whose cell is not skipped, their warped positions and the largest edge of their box.
+void selectUsedSamples(const SampleSet& samples, StageTwoSetup& st)
+{
     for (std::size_t j = 0; j < samples.sampleCount(); ++j)
         if (!samples.cellSkip[std::size_t(samples.sampleCell[j])]) st.used.push_back(std::uint32_t(j));
     const std::size_t s = st.used.size();
@@ -60,49 +54,64 @@ StageTwoSetup setupStageTwo(const GaussianCloud& cloud, const SampleSet& samples
     for (std::size_t k = 0; k < s; ++k)
         for (int a = 0; a < 3; ++a)
             st.x[3 * k + std::size_t(a)] = samples.warpedPositions[3 * st.used[k] + std::size_t(a)];
-    if (s > 0) {
-        Vec3f lo(st.x[0], st.x[1], st.x[2]), hi = lo;
-        for (std::size_t k = 0; k < s; ++k)
-            for (int a = 0; a < 3; ++a) {
-                lo[a] = std::min(lo[a], st.x[3 * k + std::size_t(a)]);
-                hi[a] = std::max(hi[a], st.x[3 * k + std::size_t(a)]);
-            }
-        st.sceneExtent = std::max({hi.x - lo.x, hi.y - lo.y, hi.z - lo.z});
-    }
+    if (s == 0) return;
+    Vec3f lo(st.x[0], st.x[1], st.x[2]), hi = lo;
+    for (std::size_t k = 0; k < s; ++k)
+        for (int a = 0; a < 3; ++a) {
+            lo[a] = std::min(lo[a], st.x[3 * k + std::size_t(a)]);
+            hi[a] = std::max(hi[a], st.x[3 * k + std::size_t(a)]);
+        }
+    st.sceneExtent = std::max({hi.x - lo.x, hi.y - lo.y, hi.z - lo.z});
+}
 
-    // Per-Gaussian filters (fixed: F_k of the rest cell does not change during Stage II).
-    const std::size_t n = cloud.size();
-    st.filter.assign(n, Mat3d());
+/// Per-Gaussian low-pass filters (fixed: F_k of the rest cell does not change during Stage II).
+std::vector<Mat3d> lowPassFilters(const SampleSet& samples, const std::vector<std::int32_t>& gaussianCell,
+                                  const StageTwoOptions& options)
+{
+    std::vector<Mat3d> filter(gaussianCell.size(), Mat3d());
     if (options.lowPassFilter)
-        parallelFor(n, 1024, threaded, [&](std::size_t i) {
+        parallelFor(filter.size(), 1024, options.threaded, [&](std::size_t i) {
             if (gaussianCell[i] >= 0)
-                st.filter[i] = lowPassFilter(samples.cellGradient.data() + 9 * std::size_t(gaussianCell[i]),
-                                             double(options.lambdaLpf), double(samples.spacing));
+                filter[i] = lowPassFilter(samples.cellGradient.data() + 9 * std::size_t(gaussianCell[i]),
+                                          double(options.lambdaLpf), double(samples.spacing));
         });
-    for (std::size_t i = 0; i < n; ++i)
-        if (moving[i]) st.moving.push_back(std::uint32_t(i));
+    return filter;
+}
 
-    // The static Gaussians' contribution never changes: evaluate it once.
+/// The static Gaussians' contribution to F and O at the used samples (it never changes: evaluated once).
+void evaluateStaticContribution(const GaussianCloud& cloud, const std::vector<std::uint8_t>& moving,
+                                const StageTwoOptions& options, StageTwoSetup& st)
+{
+    const std::size_t s = st.used.size(), n = cloud.size();
+    const int stride = cloud.shStride();
     st.fStatic.assign(s * std::size_t(stride), 0.0f);
     st.oStatic.assign(s, 0.0f);
     std::vector<PreparedGaussian> prepared(n);
-    parallelFor(n, 1024, threaded, [&](std::size_t i) {
+    parallelFor(n, 1024, options.threaded, [&](std::size_t i) {
         if (moving[i]) return; // left out of the bins (empty box)
-        prepared[i] = PreparedGaussian::from(prepareParams(gaussianParamsOf(cloud, i), st.filter[i], double(cutoff)));
+        prepared[i] =
+            PreparedGaussian::from(prepareParams(gaussianParamsOf(cloud, i), st.filter[i], double(options.cutoff)));
     });
     GaussianBins bins;
-    binPreparedGaussians(prepared, 0.0f, threaded, bins);
-    evaluatePreparedFeatures(prepared, cloud.sh.data(), stride, bins, st.x.data(), s, cutoff, threaded,
+    binPreparedGaussians(prepared, 0.0f, options.threaded, bins);
+    evaluatePreparedFeatures(prepared, cloud.sh.data(), stride, bins, st.x.data(), s, options.cutoff, options.threaded,
                              st.fStatic.data(), st.oStatic.data());
-    return st;
 }
 
-float stageTwoPositionRate(const StageTwoOptions& o, int iteration, float sceneExtent)
+} // namespace
+
+StageTwoSetup setupStageTwo(const GaussianCloud& cloud, const SampleSet& samples,
+                            const std::vector<std::uint8_t>& moving, const std::vector<std::int32_t>& gaussianCell,
+                            const StageTwoOptions& options)
 {
-    const double tFrac = o.iterations > 1 ? double(iteration) / double(o.iterations - 1) : 0.0;
-    return float(double(o.lrPositionStart) *
-                 std::pow(double(o.lrPositionEnd) / double(o.lrPositionStart), std::min(tFrac, 1.0)) *
-                 double(sceneExtent));
+    validateStageTwo(cloud, samples, moving, gaussianCell, options);
+    StageTwoSetup st;
+    selectUsedSamples(samples, st);
+    st.filter = lowPassFilters(samples, gaussianCell, options);
+    for (std::size_t i = 0; i < cloud.size(); ++i)
+        if (moving[i]) st.moving.push_back(std::uint32_t(i));
+    evaluateStaticContribution(cloud, moving, options, st);
+    return st;
 }
 
 } // namespace splatwarp
