@@ -11,12 +11,11 @@
 #include <openvdb/tools/Interpolation.h>
 #include <openvdb/tools/LevelSetUtil.h>
 #include <openvdb/tools/Morphology.h>
-#include <tbb/blocked_range.h>
-#include <tbb/parallel_for.h>
 
 #include "VdbLibrary.h"
 #include "core/AtomicFile.h"
 #include "core/Error.h"
+#include "core/ParallelFor.h"
 #include "sh/SphericalHarmonics.h"
 
 namespace splatwarp {
@@ -249,7 +248,7 @@ void Volume::sample(const float* points, std::size_t m, float* density, float* f
 {
     const Impl& v = *mImpl;
     const int stride = featureStride();
-    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, m, 1024), [&](const tbb::blocked_range<std::size_t>& r) {
+    parallelForRange(m, 1024, /*threaded=*/true, [&](std::size_t begin, std::size_t end) {
         using FloatSampler = openvdb::tools::GridSampler<openvdb::FloatGrid::ConstAccessor, openvdb::tools::BoxSampler>;
         using VecSampler = openvdb::tools::GridSampler<openvdb::Vec3SGrid::ConstAccessor, openvdb::tools::BoxSampler>;
         // The samplers hold references to the accessors: keep them alive (and unmoved) here.
@@ -260,7 +259,7 @@ void Volume::sample(const float* points, std::size_t m, float* density, float* f
         for (const auto& g : v.features) fa.push_back(g->getConstAccessor());
         std::vector<VecSampler> fs;
         for (std::size_t k = 0; k < fa.size(); ++k) fs.emplace_back(fa[k], v.features[k]->transform());
-        for (std::size_t j = r.begin(); j != r.end(); ++j) {
+        for (std::size_t j = begin; j != end; ++j) {
             const openvdb::Vec3d p(points[3 * j], points[3 * j + 1], points[3 * j + 2]);
             const float o = ds.wsSample(p);
             density[j] = o;

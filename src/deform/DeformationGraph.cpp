@@ -6,10 +6,10 @@
 #include <nanoflann.hpp>
 #include <random>
 #include <tbb/blocked_range.h>
-#include <tbb/parallel_for.h>
 #include <tbb/parallel_reduce.h>
 
 #include "core/Error.h"
+#include "core/ParallelFor.h"
 #include "deform/SkinWeightKernel.h"
 
 namespace splatwarp {
@@ -146,25 +146,20 @@ SkinWeights DeformationGraph::skinWeights(const float* points, std::size_t count
     w.nodes.resize(count * k);
     w.weights.resize(count * k);
     const std::size_t query = std::min(k + 1, j);
-    auto body = [&](const tbb::blocked_range<std::size_t>& r) {
+    parallelForRange(count, 1024, threaded, [&](std::size_t begin, std::size_t end) {
         // Scratch per range (not per point): neighbour indices, squared distances, weights.
         std::vector<std::int32_t> idx(query);
         std::vector<double> d2(query), wt(k);
         std::int32_t* ip = idx.data();
         double* dp = d2.data();
         double* wp = wt.data();
-        for (std::size_t p = r.begin(); p != r.end(); ++p) {
+        for (std::size_t p = begin; p != end; ++p) {
             const double q[3] = {points[3 * p], points[3 * p + 1], points[3 * p + 2]};
             mIndex->nearest(q, query, ip, dp);
             skinWeightsFromDistances(dp, query, k, wp, &w.weights[p * k]);
             for (std::size_t i = 0; i < k; ++i) w.nodes[p * k + i] = ip[i];
         }
-    };
-    const tbb::blocked_range<std::size_t> range(0, count, 1024);
-    if (threaded)
-        tbb::parallel_for(range, body);
-    else
-        body(tbb::blocked_range<std::size_t>(0, count));
+    });
     return w;
 }
 

@@ -3,11 +3,10 @@
 #include <Eigen/Dense>
 #include <algorithm>
 #include <cmath>
-#include <tbb/blocked_range.h>
-#include <tbb/parallel_for.h>
 #include <unordered_map>
 
 #include "core/Error.h"
+#include "core/ParallelFor.h"
 #include "core/Progress.h"
 #include "deform/BlockCholesky.h"
 
@@ -242,13 +241,7 @@ private:
     template <typename F>
     void forEachFree(const F& fn) const
     {
-        const std::size_t f = mP.freeNodes.size();
-        if (mP.options.threaded)
-            tbb::parallel_for(tbb::blocked_range<std::size_t>(0, f, 16), [&](const tbb::blocked_range<std::size_t>& r) {
-                for (std::size_t fi = r.begin(); fi != r.end(); ++fi) fn(fi);
-            });
-        else
-            for (std::size_t fi = 0; fi < f; ++fi) fn(fi);
+        parallelFor(mP.freeNodes.size(), 16, mP.options.threaded, fn);
     }
 
     /// H_AA, g_A and H_At of free node fi from E_rot and its out-edges.

@@ -1,10 +1,9 @@
 #include "deform/SampleWarp.h"
 
 #include <algorithm>
-#include <tbb/blocked_range.h>
-#include <tbb/parallel_for.h>
 
 #include "core/Error.h"
+#include "core/ParallelFor.h"
 #include "deform/WarpPoints.h"
 #include "deform/WarpKernel.h"
 
@@ -16,16 +15,6 @@ namespace {
 constexpr std::size_t kWarpBatch = std::size_t(1) << 16;
 /// Samples (or cells) per parallel task.
 constexpr std::size_t kGrain = 512;
-
-template <typename Body>
-void forRange(std::size_t b, std::size_t e, bool threaded, const Body& body)
-{
-    if (threaded)
-        tbb::parallel_for(tbb::blocked_range<std::size_t>(b, e, kGrain),
-                          [&](const tbb::blocked_range<std::size_t>& r) { body(r.begin(), r.end()); });
-    else
-        body(b, e);
-}
 
 } // namespace
 
@@ -52,9 +41,8 @@ void warpSamples(SampleSet& samples, const DeformationGraph& graph, const NodeTr
         warpPoints(graph, transforms, &samples.restPositions[3 * b0], b1 - b0, &samples.warpedPositions[3 * b0],
                    rotate ? rotations.data() : nullptr, threaded);
         if (!rotate) continue;
-        forRange(b0, b1, threaded, [&](std::size_t b, std::size_t e) {
-            for (std::size_t s = b; s < e; ++s)
-                rotateSampleFeatures(tables, &rotations[9 * (s - b0)], samples.shDegree, &samples.targetF[s * stride]);
+        parallelFor(b1 - b0, kGrain, threaded, [&](std::size_t i) {
+            rotateSampleFeatures(tables, &rotations[9 * i], samples.shDegree, &samples.targetF[(b0 + i) * stride]);
         });
     }
     computeCellGradients(samples, threaded);
@@ -73,9 +61,8 @@ void computeCellGradients(SampleSet& samples, bool threaded)
     if (n < 2 || samples.warpedPositions.size() != 3 * cells * perCell)
         throw InputError("computeCellGradients: needs >= 2 samples per axis and warped positions for every cell");
     samples.cellGradient.resize(9 * cells);
-    forRange(0, cells, threaded, [&](std::size_t b, std::size_t e) {
-        for (std::size_t c = b; c < e; ++c)
-            cellGradient(samples.restPositions.data(), samples.warpedPositions.data(), n, c, &samples.cellGradient[9 * c]);
+    parallelFor(cells, kGrain, threaded, [&](std::size_t c) {
+        cellGradient(samples.restPositions.data(), samples.warpedPositions.data(), n, c, &samples.cellGradient[9 * c]);
     });
 }
 

@@ -2,10 +2,9 @@
 
 #include <algorithm>
 #include <cmath>
-#include <tbb/blocked_range.h>
-#include <tbb/parallel_for.h>
 
 #include "core/Error.h"
+#include "core/ParallelFor.h"
 #include "core/Progress.h"
 #include "deform/StageOneKernel.h"
 
@@ -50,22 +49,16 @@ StageOneRig prepareStageOne(const GaussianCloud& rest, const DeformationGraph& g
     if (!(rig.extent > 0.0)) rig.extent = 1.0;
     rig.points.resize(n * kPoints * 3);
     const StageOneParams params = stageOneParams(o, rig.extent);
-    auto body = [&](const tbb::blocked_range<std::size_t>& range) {
-        for (std::size_t i = range.begin(); i != range.end(); ++i) {
-            const StageOneRestFrame f = stageOneRestFrame(rest.means.data(), rest.rotations.data(),
-                                                          rest.logScales.data(), i, params);
-            float* p = rig.points.data() + i * kPoints * 3;
-            for (int a = 0; a < 3; ++a) p[a] = rest.means[3 * i + std::size_t(a)];
-            for (int e = 0; e < 6; ++e) {
-                const Vec3d q = stageOneEndpoint(f, e, o.endpointSigmas);
-                for (int a = 0; a < 3; ++a) p[3 * (e + 1) + a] = float(q[a]);
-            }
+    parallelFor(n, 1024, o.threaded, [&](std::size_t i) {
+        const StageOneRestFrame f =
+            stageOneRestFrame(rest.means.data(), rest.rotations.data(), rest.logScales.data(), i, params);
+        float* p = rig.points.data() + i * kPoints * 3;
+        for (int a = 0; a < 3; ++a) p[a] = rest.means[3 * i + std::size_t(a)];
+        for (int e = 0; e < 6; ++e) {
+            const Vec3d q = stageOneEndpoint(f, e, o.endpointSigmas);
+            for (int a = 0; a < 3; ++a) p[3 * (e + 1) + a] = float(q[a]);
         }
-    };
-    if (o.threaded)
-        tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n, 1024), body);
-    else
-        body(tbb::blocked_range<std::size_t>(0, n));
+    });
     rig.weights = graph.skinWeights(rig.points.data(), n * kPoints, o.threaded);
     return rig;
 }
@@ -99,13 +92,7 @@ StageOneResult applyStageOne(const GaussianCloud& rest, const StageOneRig& rig, 
     out.sh = res.deformed.sh.data();
     out.moving = res.moving.data();
     const StageOneParams params = stageOneParams(o, rig.extent);
-    auto body = [&](const tbb::blocked_range<std::size_t>& range) {
-        for (std::size_t i = range.begin(); i != range.end(); ++i) stageOneUpdate(in, params, i, out);
-    };
-    if (o.threaded)
-        tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n, 256), body);
-    else
-        body(tbb::blocked_range<std::size_t>(0, n));
+    parallelFor(n, 256, o.threaded, [&](std::size_t i) { stageOneUpdate(in, params, i, out); });
     res.movingCount = std::size_t(std::count(res.moving.begin(), res.moving.end(), std::uint8_t(1)));
     res.timings.updateMs = clock.ms();
     return res;

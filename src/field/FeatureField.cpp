@@ -1,12 +1,11 @@
 #include "field/FeatureField.h"
 
-#include <tbb/blocked_range.h>
 #include <tbb/enumerable_thread_specific.h>
-#include <tbb/parallel_for.h>
 
 #include <algorithm>
 
 #include "core/Error.h"
+#include "core/ParallelFor.h"
 #include "field/CellTargetKernels.h"
 
 namespace splatwarp {
@@ -23,11 +22,8 @@ std::vector<PreparedGaussian> prepareCloud(const GaussianCloud& cloud, double fi
 {
     cloud.checkConsistent();
     std::vector<PreparedGaussian> out(cloud.size());
-    auto op = [&](const tbb::blocked_range<std::size_t>& r) {
-        for (std::size_t i = r.begin(); i != r.end(); ++i) out[i] = prepareGaussian(cloud, i, filterVariance, cutoff);
-    };
-    const tbb::blocked_range<std::size_t> all(0, cloud.size(), 1024);
-    threaded ? tbb::parallel_for(all, op) : op(all);
+    parallelFor(cloud.size(), 1024, threaded,
+                [&](std::size_t i) { out[i] = prepareGaussian(cloud, i, filterVariance, cutoff); });
     return out;
 }
 
@@ -46,9 +42,9 @@ void evaluatePreparedFeatures(const std::vector<PreparedGaussian>& gaussians, co
                               bool threaded, float* features, float* opacity, FeatureStats* stats)
 {
     tbb::enumerable_thread_specific<Counters> counters;
-    auto op = [&](const tbb::blocked_range<std::size_t>& r) {
+    parallelForRange(m, 256, threaded, [&](std::size_t begin, std::size_t end) {
         Counters& c = counters.local();
-        for (std::size_t p = r.begin(); p != r.end(); ++p) {
+        for (std::size_t p = begin; p != end; ++p) {
             const Vec3f x(points[3 * p], points[3 * p + 1], points[3 * p + 2]);
             float* f = features ? features + p * std::size_t(shStride) : nullptr;
             float o = 0.0f;
@@ -58,9 +54,7 @@ void evaluatePreparedFeatures(const std::vector<PreparedGaussian>& gaussians, co
             c.contributing += accumulateFeatures(x, cand, count, gaussians.data(), sh, shStride, cutoff, f, o);
             if (opacity) opacity[p] = o;
         }
-    };
-    const tbb::blocked_range<std::size_t> all(0, m, 256);
-    threaded ? tbb::parallel_for(all, op) : op(all);
+    });
     if (stats) {
         for (const Counters& c : counters) {
             stats->pairsTested += c.tested;

@@ -1,7 +1,5 @@
 #include "field/GaussianBins.h"
 
-#include <tbb/blocked_range.h>
-#include <tbb/parallel_for.h>
 #include <tbb/parallel_sort.h>
 
 #include <algorithm>
@@ -9,6 +7,7 @@
 #include <utility>
 
 #include "core/Error.h"
+#include "core/ParallelFor.h"
 
 namespace splatwarp {
 namespace {
@@ -58,32 +57,25 @@ void GaussianBins::build(const float* lo, const float* hi, std::size_t n, float 
             b[k] = cellCoord(hi[3 * i + k], inv);
         }
     };
-    auto countOp = [&](const tbb::blocked_range<std::size_t>& r) {
-        for (std::size_t i = r.begin(); i != r.end(); ++i) {
-            if (emptyBox(lo + 3 * i, hi + 3 * i)) continue;
-            std::int64_t a[3], b[3];
-            cellRange(i, a, b);
-            start[i + 1] = std::uint64_t((b[0] - a[0] + 1) * (b[1] - a[1] + 1) * (b[2] - a[2] + 1));
-        }
-    };
-    const tbb::blocked_range<std::size_t> all(0, n, 1024);
-    threaded ? tbb::parallel_for(all, countOp) : countOp(all);
+    parallelFor(n, 1024, threaded, [&](std::size_t i) {
+        if (emptyBox(lo + 3 * i, hi + 3 * i)) return;
+        std::int64_t a[3], b[3];
+        cellRange(i, a, b);
+        start[i + 1] = std::uint64_t((b[0] - a[0] + 1) * (b[1] - a[1] + 1) * (b[2] - a[2] + 1));
+    });
     for (std::size_t i = 0; i < n; ++i) start[i + 1] += start[i];
     if (start[n] > 0xffffffffull) throw InputError(msg("Gaussian bins would hold ", start[n], " entries; cell size too small"));
 
     std::vector<std::pair<std::uint64_t, std::uint32_t>> entries(start[n]);
-    auto fillOp = [&](const tbb::blocked_range<std::size_t>& r) {
-        for (std::size_t i = r.begin(); i != r.end(); ++i) {
-            if (start[i + 1] == start[i]) continue;
-            std::int64_t a[3], b[3];
-            cellRange(i, a, b);
-            std::size_t e = start[i];
-            for (std::int64_t x = a[0]; x <= b[0]; ++x)
-                for (std::int64_t y = a[1]; y <= b[1]; ++y)
-                    for (std::int64_t z = a[2]; z <= b[2]; ++z) entries[e++] = {packKey(x, y, z), std::uint32_t(i)};
-        }
-    };
-    threaded ? tbb::parallel_for(all, fillOp) : fillOp(all);
+    parallelFor(n, 1024, threaded, [&](std::size_t i) {
+        if (start[i + 1] == start[i]) return;
+        std::int64_t a[3], b[3];
+        cellRange(i, a, b);
+        std::size_t e = start[i];
+        for (std::int64_t x = a[0]; x <= b[0]; ++x)
+            for (std::int64_t y = a[1]; y <= b[1]; ++y)
+                for (std::int64_t z = a[2]; z <= b[2]; ++z) entries[e++] = {packKey(x, y, z), std::uint32_t(i)};
+    });
     // (key, index) pairs are unique, so the sorted order is the same serial or parallel.
     if (threaded)
         tbb::parallel_sort(entries.begin(), entries.end());

@@ -5,11 +5,10 @@
 #include <cmath>
 #include <cstdint>
 #include <cstring>
-#include <tbb/blocked_range.h>
-#include <tbb/parallel_for.h>
 #include <vector>
 
 #include "core/Error.h"
+#include "core/ParallelFor.h"
 #include "field/GaussianKernel.h"
 
 namespace splatwarp {
@@ -28,16 +27,6 @@ struct ScreenSplat {
     PixelBox range; ///< 3-sigma pixel range (assigns tiles); empty when the splat covers no pixel
     PixelBox reach; ///< pixels where alpha can reach the cutoff
 };
-
-template <typename Body>
-void forRange(std::size_t n, bool threaded, std::size_t grain, const Body& body)
-{
-    if (threaded)
-        tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n, grain),
-                          [&](const tbb::blocked_range<std::size_t>& r) { body(r.begin(), r.end()); });
-    else
-        body(std::size_t(0), n);
-}
 
 /// Project Gaussians [begin, end): screen footprint, colour and pixel range.
 struct ProjectOp {
@@ -131,7 +120,7 @@ Image renderGaussians(const GaussianCloud& cloud, const Camera& camera, const Re
     const bool threaded = options.threaded;
 
     std::vector<ScreenSplat> splats(n);
-    forRange(n, threaded, 1024, ProjectOp{cloud, view, splats});
+    parallelForRange(n, 1024, threaded, ProjectOp{cloud, view, splats});
 
     // Bucket the splats by tile (counting pass, prefix sum, fill), then sort every tile's bucket.
     const int tilesX = (view.width + kSplatTileSize - 1) / kSplatTileSize;
@@ -144,9 +133,8 @@ Image renderGaussians(const GaussianCloud& cloud, const Camera& camera, const Re
             for (int tx = r.x0 / kSplatTileSize; tx <= r.x1 / kSplatTileSize; ++tx) f(std::size_t(ty) * tilesX + tx);
     };
     std::vector<std::atomic<std::size_t>> cursor(tiles);
-    forRange(n, threaded, 1024, [&](std::size_t begin, std::size_t end) {
-        for (std::size_t i = begin; i < end; ++i)
-            forEachTile(splats[i], [&](std::size_t t) { cursor[t].fetch_add(1, std::memory_order_relaxed); });
+    parallelFor(n, 1024, threaded, [&](std::size_t i) {
+        forEachTile(splats[i], [&](std::size_t t) { cursor[t].fetch_add(1, std::memory_order_relaxed); });
     });
     std::vector<std::size_t> tileStart(tiles + 1, 0);
     for (std::size_t t = 0; t < tiles; ++t) {
@@ -154,21 +142,18 @@ Image renderGaussians(const GaussianCloud& cloud, const Camera& camera, const Re
         cursor[t].store(tileStart[t], std::memory_order_relaxed);
     }
     std::vector<TileKey> keys(tileStart[tiles]);
-    forRange(n, threaded, 1024, [&](std::size_t begin, std::size_t end) {
-        for (std::size_t i = begin; i < end; ++i) {
-            std::uint32_t depthBits;
-            std::memcpy(&depthBits, &splats[i].p.depth, sizeof(depthBits));
-            const TileKey key = (TileKey(depthBits) << 32) | TileKey(i);
-            forEachTile(splats[i], [&](std::size_t t) { keys[cursor[t].fetch_add(1, std::memory_order_relaxed)] = key; });
-        }
+    parallelFor(n, 1024, threaded, [&](std::size_t i) {
+        std::uint32_t depthBits;
+        std::memcpy(&depthBits, &splats[i].p.depth, sizeof(depthBits));
+        const TileKey key = (TileKey(depthBits) << 32) | TileKey(i);
+        forEachTile(splats[i], [&](std::size_t t) { keys[cursor[t].fetch_add(1, std::memory_order_relaxed)] = key; });
     });
-    forRange(tiles, threaded, 4, [&](std::size_t begin, std::size_t end) {
-        for (std::size_t t = begin; t < end; ++t)
-            std::sort(keys.begin() + std::ptrdiff_t(tileStart[t]), keys.begin() + std::ptrdiff_t(tileStart[t + 1]));
+    parallelFor(tiles, 4, threaded, [&](std::size_t t) {
+        std::sort(keys.begin() + std::ptrdiff_t(tileStart[t]), keys.begin() + std::ptrdiff_t(tileStart[t + 1]));
     });
 
     Image image(view.width, view.height, 4);
-    forRange(tiles, threaded, 1, CompositeOp{splats, keys, tileStart, tilesX, options.background, image});
+    parallelForRange(tiles, 1, threaded, CompositeOp{splats, keys, tileStart, tilesX, options.background, image});
     return image;
 }
 

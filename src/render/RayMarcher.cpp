@@ -2,11 +2,10 @@
 
 #include <algorithm>
 #include <cmath>
-#include <tbb/blocked_range.h>
-#include <tbb/parallel_for.h>
 #include <vector>
 
 #include "core/Error.h"
+#include "core/ParallelFor.h"
 
 namespace splatwarp {
 
@@ -70,16 +69,11 @@ Image rayMarch(const VolumeLookup& lookup, const Vec3d& lo, const Vec3d& hi, con
     if (camera.width <= 0 || camera.height <= 0 || !(camera.fx > 0) || !(camera.fy > 0))
         throw InputError("ray marcher: camera needs a positive size and focal length");
     Image image(camera.width, camera.height, 4);
-    auto rows = [&](const tbb::blocked_range<int>& r) {
-        std::vector<float> buf;
-        for (int y = r.begin(); y != r.end(); ++y)
+    parallelForRange(std::size_t(camera.height), 4, o.threaded, [&](std::size_t begin, std::size_t end) {
+        std::vector<float> buf; // ray sample scratch, shared by the rows of one range
+        for (int y = int(begin); y != int(end); ++y)
             for (int x = 0; x < camera.width; ++x) marchPixel(lookup, camera, lo, hi, o, x, y, buf, &image.at(x, y, 0));
-    };
-    const tbb::blocked_range<int> all(0, camera.height, 4);
-    if (o.threaded)
-        tbb::parallel_for(all, rows);
-    else
-        rows(all);
+    });
     return image;
 }
 
