@@ -91,6 +91,61 @@ private:
     int mLine;
 };
 
+/// Parse the records of ASCII element `e` into `values` (row-major); elements with list
+/// properties are only skipped.
+void readAsciiElement(const std::string& path, const PlyElement& e, std::size_t bodyBytes, AsciiTokens& tokens,
+                      std::vector<double>& values)
+{
+    const std::size_t np = e.properties.size();
+    if (np == 0) return; // no values to read, whatever the count says
+    // Every value takes at least 2 bytes ("0 "): refuse impossible counts before allocating.
+    if (e.count > bodyBytes / (2 * np))
+        throw InputError(msg(path, ": element '", e.name, "' declares ", e.count, " records of ", np,
+                             " values, more than the ", bodyBytes, "-byte ASCII body can hold"));
+    const bool keep = !e.hasLists();
+    if (keep) values.reserve(e.count * np);
+    for (std::size_t row = 0; row < e.count; ++row) {
+        for (const PlyProperty& p : e.properties) {
+            if (!p.isList) {
+                const double x = tokens.number(e, row);
+                if (keep) values.push_back(x);
+                continue;
+            }
+            const double n = tokens.number(e, row);
+            if (!(n >= 0) || n != std::floor(n) || n > double(bodyBytes))
+                throw InputError(msg(path, ": line ", tokens.line(), ", ", recordName(e, row), ": bad list length ", n,
+                                     " for property '", p.name, "'"));
+            for (std::size_t k = 0; k < std::size_t(n); ++k) tokens.number(e, row);
+        }
+    }
+}
+
+/// Walk the variable-size records of binary element `e` (one with lists, e.g. faces) from `pos`;
+/// returns the position after them.
+std::size_t skipBinaryListElement(const std::string& path, const std::string& data, std::size_t pos,
+                                  const PlyElement& e, bool swap)
+{
+    for (std::size_t row = 0; row < e.count; ++row) {
+        for (const PlyProperty& p : e.properties) {
+            const std::size_t cs = plyTypeSize(p.isList ? p.countType : p.type);
+            if (data.size() - pos < cs)
+                throw InputError(msg(path, ": truncated in ", recordName(e, row), " (property '", p.name, "')"));
+            if (!p.isList) {
+                pos += cs;
+                continue;
+            }
+            const double n = loadScalar(data.data() + pos, p.countType, swap);
+            pos += cs;
+            const std::size_t itemBytes = plyTypeSize(p.type);
+            if (!(n >= 0) || std::size_t(n) > (data.size() - pos) / itemBytes)
+                throw InputError(msg(path, ": truncated or bad list length ", n, " in ", recordName(e, row),
+                                     " (property '", p.name, "')"));
+            pos += std::size_t(n) * itemBytes;
+        }
+    }
+    return pos;
+}
+
 } // namespace
 
 double PlyElementValues::get(std::size_t row, int prop) const
@@ -103,90 +158,52 @@ double PlyElementValues::get(std::size_t row, int prop) const
 PlyBody::PlyBody(const std::string& path, const std::string& data, const PlyHeader& header) : mPath(path)
 {
     mElements.resize(header.elements.size());
-    if (header.format == PlyFormat::Ascii) {
-        // The header has one line per '\n' before bodyOffset.
-        const int bodyLine = int(std::count(data.begin(), data.begin() + std::ptrdiff_t(header.bodyOffset), '\n')) + 1;
-        AsciiTokens tokens(path, data, header.bodyOffset, bodyLine);
-        const std::size_t bodyBytes = data.size() - header.bodyOffset;
-        for (std::size_t ei = 0; ei < header.elements.size(); ++ei) {
-            const PlyElement& e = header.elements[ei];
-            PlyElementValues& v = mElements[ei];
-            v.mElement = &e;
-            const std::size_t np = e.properties.size();
-            if (np == 0) continue; // no values to read, whatever the count says
-            // Every value takes at least 2 bytes ("0 "): refuse impossible counts before allocating.
-            if (np > 0 && e.count > bodyBytes / (2 * np))
-                throw InputError(msg(path, ": element '", e.name, "' declares ", e.count, " records of ", np,
-                                     " values, more than the ", bodyBytes, "-byte ASCII body can hold"));
-            const bool keep = !e.hasLists(); // elements with lists are only skipped
-            if (keep) v.mAscii.reserve(e.count * np);
-            for (std::size_t row = 0; row < e.count; ++row) {
-                for (const PlyProperty& p : e.properties) {
-                    if (!p.isList) {
-                        const double x = tokens.number(e, row);
-                        if (keep) v.mAscii.push_back(x);
-                        continue;
-                    }
-                    const double n = tokens.number(e, row);
-                    if (!(n >= 0) || n != std::floor(n) || n > double(bodyBytes))
-                        throw InputError(msg(path, ": line ", tokens.line(), ", ", recordName(e, row),
-                                             ": bad list length ", n, " for property '", p.name, "'"));
-                    for (std::size_t k = 0; k < std::size_t(n); ++k) tokens.number(e, row);
-                }
-            }
-        }
-        if (!tokens.atEnd())
-            throw InputError(msg(path, ": line ", tokens.line(),
-                                 ": data after the last element (header counts smaller than the body)"));
-        return;
-    }
+    for (std::size_t ei = 0; ei < header.elements.size(); ++ei) mElements[ei].mElement = &header.elements[ei];
+    if (header.format == PlyFormat::Ascii)
+        readAscii(data, header);
+    else
+        readBinary(data, header);
+}
 
+void PlyBody::readAscii(const std::string& data, const PlyHeader& header)
+{
+    // The header has one line per '\n' before bodyOffset.
+    const int bodyLine = int(std::count(data.begin(), data.begin() + std::ptrdiff_t(header.bodyOffset), '\n')) + 1;
+    AsciiTokens tokens(mPath, data, header.bodyOffset, bodyLine);
+    const std::size_t bodyBytes = data.size() - header.bodyOffset;
+    for (PlyElementValues& v : mElements) readAsciiElement(mPath, *v.mElement, bodyBytes, tokens, v.mAscii);
+    if (!tokens.atEnd())
+        throw InputError(msg(mPath, ": line ", tokens.line(),
+                             ": data after the last element (header counts smaller than the body)"));
+}
+
+void PlyBody::readBinary(const std::string& data, const PlyHeader& header)
+{
     const bool swap = header.format == PlyFormat::BinaryBigEndian;
     std::size_t pos = header.bodyOffset;
-    for (std::size_t ei = 0; ei < header.elements.size(); ++ei) {
-        const PlyElement& e = header.elements[ei];
-        PlyElementValues& v = mElements[ei];
-        v.mElement = &e;
-        const std::size_t left = data.size() - pos;
-        if (!e.hasLists()) {
-            const std::size_t stride = e.recordBytes();
-            if (stride > 0 && e.count > left / stride)
-                throw InputError(msg(path, ": truncated: element '", e.name, "' declares ", e.count, " records of ",
-                                     stride, " bytes but only ", left, " bytes are left in the file (record ",
-                                     left / stride, " is incomplete or missing)"));
-            v.mBase = data.data() + pos;
-            v.mStride = stride;
-            std::size_t off = 0;
-            for (const PlyProperty& p : e.properties) {
-                v.mOffsets.push_back(off);
-                off += plyTypeSize(p.type);
-            }
-            v.mSwap = swap;
-            pos += stride * e.count;
+    for (PlyElementValues& v : mElements) {
+        const PlyElement& e = *v.mElement;
+        if (e.hasLists()) {
+            pos = skipBinaryListElement(mPath, data, pos, e, swap);
             continue;
         }
-        // Elements with lists (e.g. faces) have variable-size records: walk them to skip.
-        for (std::size_t row = 0; row < e.count; ++row) {
-            for (const PlyProperty& p : e.properties) {
-                const std::size_t cs = plyTypeSize(p.isList ? p.countType : p.type);
-                if (data.size() - pos < cs)
-                    throw InputError(msg(path, ": truncated in ", recordName(e, row), " (property '", p.name, "')"));
-                if (!p.isList) {
-                    pos += cs;
-                    continue;
-                }
-                const double n = loadScalar(data.data() + pos, p.countType, swap);
-                pos += cs;
-                const std::size_t itemBytes = plyTypeSize(p.type);
-                if (!(n >= 0) || std::size_t(n) > (data.size() - pos) / itemBytes)
-                    throw InputError(msg(path, ": truncated or bad list length ", n, " in ", recordName(e, row),
-                                         " (property '", p.name, "')"));
-                pos += std::size_t(n) * itemBytes;
-            }
+        const std::size_t stride = e.recordBytes(), left = data.size() - pos;
+        if (stride > 0 && e.count > left / stride)
+            throw InputError(msg(mPath, ": truncated: element '", e.name, "' declares ", e.count, " records of ",
+                                 stride, " bytes but only ", left, " bytes are left in the file (record ",
+                                 left / stride, " is incomplete or missing)"));
+        v.mBase = data.data() + pos;
+        v.mStride = stride;
+        std::size_t off = 0;
+        for (const PlyProperty& p : e.properties) {
+            v.mOffsets.push_back(off);
+            off += plyTypeSize(p.type);
         }
+        v.mSwap = swap;
+        pos += stride * e.count;
     }
     if (pos != data.size())
-        throw InputError(msg(path, ": ", data.size() - pos,
+        throw InputError(msg(mPath, ": ", data.size() - pos,
                              " bytes after the last element (header counts or types do not match the body)"));
 }
 

@@ -44,6 +44,9 @@ public:
     const PlyElementValues& element(const std::string& name) const;
 
 private:
+    void readAscii(const std::string& data, const PlyHeader& header);
+    void readBinary(const std::string& data, const PlyHeader& header);
+
     std::string mPath;
     std::vector<PlyElementValues> mElements;
 };
