@@ -376,14 +376,6 @@ EdConstraints EdConstraints::none(std::size_t n)
     return c;
 }
 
-EdEnergies edEnergies(const DeformationGraph& graph, const EdConstraints& constraints, const EdOptions& options,
-                      const NodeTransforms& transforms)
-{
-    const Problem p(graph, constraints, options);
-    State s = toState(p, &transforms);
-    return energies(p, s);
-}
-
 NodeTransforms solveEd(const DeformationGraph& graph, const EdConstraints& constraints, const EdOptions& options,
                        EdReport* report, const NodeTransforms* warmStart)
 {

@@ -47,10 +47,6 @@ struct EdReport {
     double ms = 0;             ///< wall time
 };
 
-/// @brief Energies of given transforms.
-EdEnergies edEnergies(const DeformationGraph& graph, const EdConstraints& constraints, const EdOptions& options,
-                      const NodeTransforms& transforms);
-
 /// @brief Solve from the rest pose (or from warmStart, e.g. the previous solution of an edit).
 ///        The result depends only on the constraints, not on the path: solving twice equals once.
 /// @throws InputError when the constraint arrays do not match the graph.

@@ -36,12 +36,6 @@ inline const NanoCellGrid* nanoCellGrid(const CellIndexGrid& grid)
     return grid.empty() ? nullptr : asNanoCellGrid(grid.data());
 }
 
-/// @brief Cell index at integer cell coordinates (-1: not active), as SampleGrid::cellIndex().
-SPLATWARP_HOST_DEVICE std::int32_t lookupCell(const NanoCellGrid& grid, int i, int j, int k)
-{
-    return grid.tree().getValue(nanovdb::Coord(i, j, k));
-}
-
 /// @brief Inclusive integer cell range of a prepared Gaussian's pruning box (floor(x / h) of its
 ///        corners, in double as vdb/SampleGrid's topology). False for a Gaussian that never
 ///        contributes (it emits no pairs).

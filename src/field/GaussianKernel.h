@@ -46,13 +46,4 @@ SPLATWARP_HOST_DEVICE Vec3<T> ellipsoidHalfExtent(const Mat3<T>& cov, T radius)
     return {radius * std::sqrt(cov.m[0][0]), radius * std::sqrt(cov.m[1][1]), radius * std::sqrt(cov.m[2][2])};
 }
 
-/// @brief exp(-1/2 d^T inv d) for a symmetric inverse covariance.
-template <typename T>
-SPLATWARP_HOST_DEVICE T gaussianFalloff(const Mat3<T>& inv, const Vec3<T>& d)
-{
-    const T q = inv.m[0][0] * d.x * d.x + inv.m[1][1] * d.y * d.y + inv.m[2][2] * d.z * d.z +
-                T(2) * (inv.m[0][1] * d.x * d.y + inv.m[0][2] * d.x * d.z + inv.m[1][2] * d.y * d.z);
-    return std::exp(T(-0.5) * q);
-}
-
 } // namespace splatwarp

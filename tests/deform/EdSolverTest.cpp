@@ -5,6 +5,7 @@
 
 #include "deform/Deformation.h"
 #include "deform/EdSolver.h"
+#include "deform/EdEnergyReference.h"
 #include "samples/SampleModels.h"
 
 using namespace splatwarp;
@@ -54,7 +55,7 @@ TEST(EdSolver, EnergiesZeroAtRest)
         c.target[j] = g.nodes()[j];
     }
     c.fixed[1] = 1;
-    const EdEnergies e = edEnergies(g, c, EdOptions{}, NodeTransforms::identity(g.nodeCount()));
+    const EdEnergies e = test::referenceEdEnergies(g, c, EdOptions{}, NodeTransforms::identity(g.nodeCount()));
     EXPECT_EQ(e.rot, 0.0);
     EXPECT_EQ(e.reg, 0.0);
     EXPECT_EQ(e.con, 0.0);
@@ -83,10 +84,18 @@ TEST(EdSolver, BendSatisfiesHandlesAndIsALocalMinimum)
             for (int a = 0; a < 3; ++a)
                 for (int b = 0; b < 3; ++b) EXPECT_EQ(d.transforms.A[j][a][b], a == b ? 1.0 : 0.0);
         }
+    // The reference energies are the solver's objective: equal at the start (rest) and at the end.
+    const EdEnergies atRest = test::referenceEdEnergies(d.graph, d.handles.constraints, EdOptions{},
+                                                        NodeTransforms::identity(d.graph.nodeCount()));
+    const EdEnergies atEnd = test::referenceEdEnergies(d.graph, d.handles.constraints, EdOptions{}, d.transforms);
+    EXPECT_NEAR(atRest.total(), r.solver.initial.total(), 1e-12 * r.solver.initial.total());
+    EXPECT_NEAR(atEnd.rot, r.solver.final.rot, 1e-9 * r.solver.final.total());
+    EXPECT_NEAR(atEnd.reg, r.solver.final.reg, 1e-9 * r.solver.final.total());
+    EXPECT_NEAR(atEnd.con, r.solver.final.con, 1e-9 * r.solver.final.total());
     // Gauss-Newton converged: random small perturbations of free nodes do not lower the energy.
     std::mt19937 rng(3);
     std::normal_distribution<double> nd(0.0, 1e-4);
-    const double e0 = edEnergies(d.graph, d.handles.constraints, EdOptions{}, d.transforms).total();
+    const double e0 = test::referenceEdEnergies(d.graph, d.handles.constraints, EdOptions{}, d.transforms).total();
     for (int trial = 0; trial < 20; ++trial) {
         NodeTransforms p = d.transforms;
         for (std::size_t j = 0; j < p.size(); ++j) {
@@ -96,7 +105,7 @@ TEST(EdSolver, BendSatisfiesHandlesAndIsALocalMinimum)
                 for (int b = 0; b < 3; ++b) p.A[j][a][b] += nd(rng);
             }
         }
-        EXPECT_GE(edEnergies(d.graph, d.handles.constraints, EdOptions{}, p).total(), e0 * (1.0 - 1e-9));
+        EXPECT_GE(test::referenceEdEnergies(d.graph, d.handles.constraints, EdOptions{}, p).total(), e0 * (1.0 - 1e-9));
     }
 }
 

@@ -47,7 +47,7 @@ inline double referenceWeight(const GaussianCloud& g, std::size_t i, const Vec3d
     const Mat3d cov = gaussianCovariance(q, s) + Mat3d::identity() * v;
     const Vec3d d = x - Vec3d(g.mean(i));
     const double alpha = 1.0 / (1.0 + std::exp(-double(g.opacities[i])));
-    return alpha * gaussianFalloff(cov.inverse(), d);
+    return alpha * std::exp(-0.5 * dot(d, cov.inverse() * d));
 }
 
 /// @brief Naive all-pairs features in double. Also counts pairs with w >= cutoff*(1+band)

@@ -18,6 +18,12 @@ using namespace splatwarp;
 
 namespace {
 
+/// Cell index at integer cell coordinates in the NanoVDB grid (-1: not active).
+std::int32_t lookupCell(const NanoCellGrid& grid, int i, int j, int k)
+{
+    return grid.tree().getValue(nanovdb::Coord(i, j, k));
+}
+
 /// Every active cell and its 26 neighbours: NanoVDB lookup == SampleGrid::cellIndex (-1 outside).
 void expectSameLookups(const SampleGrid& grid)
 {
