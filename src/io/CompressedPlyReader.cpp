@@ -64,6 +64,89 @@ std::vector<int> columns(const std::string& path, const PlyElement& e, const std
     return col;
 }
 
+/// Column indices of the chunk and vertex properties, checked against the vertex count.
+struct CompressedLayout {
+    std::vector<int> chunk;  ///< kChunkProps
+    std::vector<int> colour; ///< kColourProps; empty when the chunks have no colour range
+    std::vector<int> packed; ///< kPackedProps
+};
+
+CompressedLayout compressedLayout(const std::string& path, const PlyElementValues& chunk,
+                                  const PlyElementValues& vertex)
+{
+    const std::size_t n = vertex.count();
+    if (chunk.count() != (n + kChunkSize - 1) / kChunkSize)
+        throw InputError(msg(path, ": compressed PLY has ", chunk.count(), " chunk records for ", n,
+                             " vertices; expected ", (n + kChunkSize - 1) / kChunkSize, " (", kChunkSize,
+                             " per chunk)"));
+    CompressedLayout l;
+    l.chunk = columns(path, chunk.element(), {std::begin(kChunkProps), std::end(kChunkProps)});
+    if (chunk.element().find("min_r") >= 0)
+        l.colour = columns(path, chunk.element(), {std::begin(kColourProps), std::end(kColourProps)});
+    l.packed = columns(path, vertex.element(), {std::begin(kPackedProps), std::end(kPackedProps)});
+    for (int c : l.packed)
+        if (vertex.element().properties[c].type != PlyType::UInt32)
+            throw InputError(msg(path, ": compressed PLY property '", vertex.element().properties[c].name,
+                                 "' must be uint"));
+    return l;
+}
+
+/// The optional `sh` element: higher SH bands (degree 0 and no values when absent).
+struct CompressedSh {
+    int degree = 0;
+    const PlyElementValues* values = nullptr;
+    std::vector<int> columns; ///< f_rest_0 ...
+};
+
+CompressedSh compressedSh(const std::string& path, const PlyHeader& header, const PlyBody& body, std::size_t n)
+{
+    CompressedSh out;
+    if (!header.find("sh")) return out;
+    out.values = &body.element("sh");
+    const std::size_t m = out.values->element().properties.size();
+    for (int d = 1; d <= 3; ++d)
+        if (m == std::size_t(3 * (shCoeffCount(d) - 1))) out.degree = d;
+    if (out.degree == 0)
+        throw InputError(msg(path, ": compressed PLY element 'sh' has ", m, " properties; expected 9, 24 or 45"));
+    if (out.values->count() != n)
+        throw InputError(msg(path, ": compressed PLY element 'sh' has ", out.values->count(), " records for ", n,
+                             " vertices"));
+    std::vector<std::string> names;
+    for (std::size_t j = 0; j < m; ++j) names.push_back("f_rest_" + std::to_string(j));
+    out.columns = columns(path, out.values->element(), names);
+    return out;
+}
+
+/// Decode vertex i into Gaussian i of g.
+void decodeVertex(std::size_t i, const PlyElementValues& chunk, const PlyElementValues& vertex,
+                  const CompressedLayout& l, const CompressedSh& sh, GaussianCloud& g)
+{
+    const std::size_t ci = i / kChunkSize;
+    const auto packed = [&](int j) { return std::uint32_t(vertex.get(i, l.packed[j])); };
+    const auto ch = [&](int j) { return chunk.get(ci, l.chunk[j]); };
+    double t[3];
+    unpack111011(packed(0), t);
+    for (int a = 0; a < 3; ++a) g.means[3 * i + a] = float(lerp(ch(a), ch(3 + a), t[a]));
+    unpackRotation(packed(1), &g.rotations[4 * i]);
+    unpack111011(packed(2), t);
+    for (int a = 0; a < 3; ++a) g.logScales[3 * i + a] = float(lerp(ch(6 + a), ch(9 + a), t[a]));
+    const std::uint32_t rgba = packed(3);
+    float* s = g.shOf(i);
+    for (int a = 0; a < 3; ++a) {
+        double c = unorm(rgba >> (24 - 8 * a), 8);
+        if (!l.colour.empty()) c = lerp(chunk.get(ci, l.colour[a]), chunk.get(ci, l.colour[3 + a]), c);
+        s[a] = float((c - 0.5) / kShC0);
+    }
+    g.opacities[i] = logitOfU8Alpha(rgba & 0xffu);
+    const int k = g.shCoeffs();
+    for (int c = 0; c < 3 && sh.values; ++c)
+        for (int j = 1; j < k; ++j) {
+            const double q = sh.values->get(i, sh.columns[std::size_t(c * (k - 1) + j - 1)]);
+            const double u = q == 0 ? 0.0 : q == 255 ? 1.0 : (q + 0.5) / 256.0;
+            s[3 * j + c] = float((u - 0.5) * 8.0);
+        }
+}
+
 } // namespace
 
 bool isCompressedPly(const PlyHeader& header)
@@ -78,69 +161,15 @@ GaussianCloud readCompressedPly(const std::string& path, const PlyHeader& header
     const PlyElementValues& chunk = body.element("chunk");
     const PlyElementValues& vertex = body.element("vertex");
     const std::size_t n = vertex.count();
-    if (chunk.count() != (n + kChunkSize - 1) / kChunkSize)
-        throw InputError(msg(path, ": compressed PLY has ", chunk.count(), " chunk records for ", n,
-                             " vertices; expected ", (n + kChunkSize - 1) / kChunkSize, " (", kChunkSize,
-                             " per chunk)"));
-    const std::vector<int> cc = columns(path, chunk.element(), {std::begin(kChunkProps), std::end(kChunkProps)});
-    const bool hasColour = chunk.element().find("min_r") >= 0;
-    const std::vector<int> colour =
-        hasColour ? columns(path, chunk.element(), {std::begin(kColourProps), std::end(kColourProps)}) : std::vector<int>();
-    const std::vector<int> vc = columns(path, vertex.element(), {std::begin(kPackedProps), std::end(kPackedProps)});
-    for (int c : vc)
-        if (vertex.element().properties[c].type != PlyType::UInt32)
-            throw InputError(msg(path, ": compressed PLY property '", vertex.element().properties[c].name,
-                                 "' must be uint"));
-
-    // Optional higher SH bands.
-    int degree = 0;
-    const PlyElementValues* sh = nullptr;
-    std::vector<int> shCol;
-    if (header.find("sh")) {
-        sh = &body.element("sh");
-        const std::size_t m = sh->element().properties.size();
-        for (int d = 1; d <= 3; ++d)
-            if (m == std::size_t(3 * (shCoeffCount(d) - 1))) degree = d;
-        if (degree == 0)
-            throw InputError(msg(path, ": compressed PLY element 'sh' has ", m, " properties; expected 9, 24 or 45"));
-        if (sh->count() != n)
-            throw InputError(msg(path, ": compressed PLY element 'sh' has ", sh->count(), " records for ", n, " vertices"));
-        std::vector<std::string> names;
-        for (std::size_t j = 0; j < m; ++j) names.push_back("f_rest_" + std::to_string(j));
-        shCol = columns(path, sh->element(), names);
-    }
+    const CompressedLayout layout = compressedLayout(path, chunk, vertex);
+    const CompressedSh sh = compressedSh(path, header, body, n);
     for (const PlyElement& e : header.elements)
         if (e.name != "chunk" && e.name != "vertex" && e.name != "sh")
             report.notes.push_back(msg("skipped element '", e.name, "' (", e.count, " records)"));
 
     GaussianCloud g;
-    g.resize(n, degree);
-    const int k = g.shCoeffs();
-    for (std::size_t i = 0; i < n; ++i) {
-        const std::size_t ci = i / kChunkSize;
-        const auto packed = [&](int j) { return std::uint32_t(vertex.get(i, vc[j])); };
-        const auto ch = [&](int j) { return chunk.get(ci, cc[j]); };
-        double t[3];
-        unpack111011(packed(0), t);
-        for (int a = 0; a < 3; ++a) g.means[3 * i + a] = float(lerp(ch(a), ch(3 + a), t[a]));
-        unpackRotation(packed(1), &g.rotations[4 * i]);
-        unpack111011(packed(2), t);
-        for (int a = 0; a < 3; ++a) g.logScales[3 * i + a] = float(lerp(ch(6 + a), ch(9 + a), t[a]));
-        const std::uint32_t rgba = packed(3);
-        float* s = g.shOf(i);
-        for (int a = 0; a < 3; ++a) {
-            double c = unorm(rgba >> (24 - 8 * a), 8);
-            if (hasColour) c = lerp(chunk.get(ci, colour[a]), chunk.get(ci, colour[3 + a]), c);
-            s[a] = float((c - 0.5) / kShC0);
-        }
-        g.opacities[i] = logitOfU8Alpha(rgba & 0xffu);
-        for (int c = 0; c < 3 && sh; ++c)
-            for (int j = 1; j < k; ++j) {
-                const double q = sh->get(i, shCol[std::size_t(c * (k - 1) + j - 1)]);
-                const double u = q == 0 ? 0.0 : q == 255 ? 1.0 : (q + 0.5) / 256.0;
-                s[3 * j + c] = float((u - 0.5) * 8.0);
-            }
-    }
+    g.resize(n, sh.degree);
+    for (std::size_t i = 0; i < n; ++i) decodeVertex(i, chunk, vertex, layout, sh, g);
     report.format = "ply-compressed";
     return g;
 }
