@@ -166,20 +166,36 @@ public:
     /// One Gauss-Newton step of every node (zero for fixed nodes). Returns false if singular.
     bool step(const State& s, State& delta)
     {
-        const Problem& p = mP;
-        const EdOptions& o = p.options;
-        const std::size_t f = p.freeNodes.size();
-        const std::size_t n = p.g.size();
-
+        const std::size_t f = mP.freeNodes.size();
         // 1. Node-local blocks of each free node j (parallel): H_AA, g_A from E_rot and from its
         //    out-edges (j,k), and H_{A_j, t_m} for m in {j} + free neighbours.
         forEachFree([&](std::size_t fi) { assembleNode(s, fi); });
+        // 2. The translation blocks and right-hand side -g_t (serial: scalar diagonal updates only).
+        Eigen::VectorXd rhs = Eigen::VectorXd::Zero(Eigen::Index(3 * f));
+        assembleTranslations(s, rhs);
+        // 3. Eliminate A (parallel per node, then a serial scatter):
+        //    S = H_tt - H_tA H_AA^-1 H_At, rhs = -g_t + H_tA H_AA^-1 g_A.
+        std::vector<std::uint8_t> ok(f, 1);
+        forEachFree([&](std::size_t fi) { ok[fi] = eliminateNode(fi) ? 1 : 0; });
+        if (std::find(ok.begin(), ok.end(), std::uint8_t(0)) != ok.end()) return false;
+        scatterSchur(rhs);
+        // 4. Solve for the translations, then recover each A.
+        if (!mChol.factorize(mBlocks)) return false;
+        const Eigen::VectorXd dt = mChol.solve(rhs);
+        if (!dt.allFinite()) return false;
+        backSubstitute(dt, delta);
+        return true;
+    }
 
-        // 2. The translation blocks and right-hand side (serial: scalar diagonal updates only).
+private:
+    /// Zero the translation blocks, then add E_reg, E_con and damping to them and -g_t to rhs.
+    void assembleTranslations(const State& s, Eigen::VectorXd& rhs)
+    {
+        const Problem& p = mP;
+        const EdOptions& o = p.options;
         for (M3& b : mBlocks) b.setZero();
-        Eigen::VectorXd rhs = Eigen::VectorXd::Zero(Eigen::Index(3 * f)); // -g_t, then Schur-corrected
         auto addDiag = [&](std::size_t blockId, double w) { mBlocks[blockId].diagonal().array() += w; };
-        for (std::size_t j = 0; j < n; ++j) {
+        for (std::size_t j = 0; j < p.g.size(); ++j) {
             const int fj = p.freeIndex[j];
             const auto& nb = p.graph.neighbours(j);
             for (std::size_t e = 0; e < nb.size(); ++e) {
@@ -206,14 +222,13 @@ public:
                 rhs.segment<3>(3 * fj) -= o.conWeight * (p.g[j] + s.t[j] - p.target[j]);
             }
         }
-        for (std::size_t fi = 0; fi < f; ++fi) addDiag(std::size_t(mDiag[fi]), kDamping);
+        for (std::size_t fi = 0; fi < p.freeNodes.size(); ++fi) addDiag(std::size_t(mDiag[fi]), kDamping);
+    }
 
-        // 3. Eliminate A (parallel per node, then a serial scatter):
-        //    S = H_tt - H_tA H_AA^-1 H_At, rhs = -g_t + H_tA H_AA^-1 g_A.
-        std::vector<std::uint8_t> ok(f, 1);
-        forEachFree([&](std::size_t fi) { ok[fi] = eliminateNode(fi) ? 1 : 0; });
-        if (std::find(ok.begin(), ok.end(), std::uint8_t(0)) != ok.end()) return false;
-        for (std::size_t fi = 0; fi < f; ++fi) {
+    /// Subtract every node's Schur products from the blocks and add its rhs parts, in node order.
+    void scatterSchur(Eigen::VectorXd& rhs)
+    {
+        for (std::size_t fi = 0; fi < mP.freeNodes.size(); ++fi) {
             const std::vector<int>& set = mSet[fi];
             const std::size_t m = set.size();
             for (std::size_t a = 0; a < m; ++a) {
@@ -221,23 +236,23 @@ public:
                 for (std::size_t b = 0; b < m; ++b) mBlocks[std::size_t(mPairBlocks[fi][a * m + b])] -= mProd[fi][a * m + b];
             }
         }
-        if (!mChol.factorize(mBlocks)) return false;
-        const Eigen::VectorXd dt = mChol.solve(rhs);
-        if (!dt.allFinite()) return false;
+    }
 
+    /// delta.t from the solved translations, delta.A = -y - sum W dt per free node; zero elsewhere.
+    void backSubstitute(const Eigen::VectorXd& dt, State& delta) const
+    {
+        const std::size_t n = mP.g.size();
         delta.A.assign(n, M3::Zero());
         delta.t.assign(n, V3::Zero());
-        for (std::size_t fi = 0; fi < f; ++fi) {
-            const std::size_t j = std::size_t(p.freeNodes[fi]);
+        for (std::size_t fi = 0; fi < mP.freeNodes.size(); ++fi) {
+            const std::size_t j = std::size_t(mP.freeNodes[fi]);
             delta.t[j] = dt.segment<3>(3 * Eigen::Index(fi));
             Vec9 da = -mY[fi];
             for (std::size_t a = 0; a < mSet[fi].size(); ++a) da.noalias() -= mW[fi][a] * dt.segment<3>(3 * mSet[fi][a]);
             for (int col = 0; col < 3; ++col) delta.A[j].col(col) = da.segment<3>(3 * col);
         }
-        return true;
     }
 
-private:
     template <typename F>
     void forEachFree(const F& fn) const
     {
