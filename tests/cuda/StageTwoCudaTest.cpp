@@ -27,6 +27,7 @@
 #include "stage2/Coverage.h"
 #include "stage2/StageTwoSetup.h"
 #include "stage2/StageTwoDevice.h"
+#include "stage2/StageTwoParams.h"
 #include "stage2/StageTwoTestProblem.h"
 
 using namespace splatwarp;
