@@ -70,7 +70,7 @@ __device__ __forceinline__ bool insideBox(const float* lo, const float* hi, std:
 __global__ void binCountKernel(std::size_t g, const float* lo, const float* hi, float inv,
                                unsigned long long* count /* [G+1]; count[G] = 0 for the exclusive scan */)
 {
-    const std::size_t k = std::size_t(blockIdx.x) * blockDim.x + threadIdx.x;
+    const std::size_t k = globalIndex();
     if (k > g) return;
     unsigned long long c = 0;
     if (k < g && !emptyBox(lo + 3 * k, hi + 3 * k)) {
@@ -86,7 +86,7 @@ __global__ void binFillKernel(std::size_t g, const float* lo, const float* hi, f
                               const unsigned long long* start /* [G+1] */, unsigned long long* keys /* [E] */,
                               std::uint32_t* boxes /* [E] */)
 {
-    const std::size_t k = std::size_t(blockIdx.x) * blockDim.x + threadIdx.x;
+    const std::size_t k = globalIndex();
     if (k >= g || start[k + 1] == start[k]) return;
     long long a[3], b[3];
     for (int i = 0; i < 3; ++i) {
@@ -123,7 +123,7 @@ struct EdgeSumOp {
 
 __global__ void edgeKernel(std::size_t g, const float* lo /* [G,3] */, const float* hi /* [G,3] */, EdgeSum* out /* [G] */)
 {
-    const std::size_t k = std::size_t(blockIdx.x) * blockDim.x + threadIdx.x;
+    const std::size_t k = globalIndex();
     if (k >= g) return;
     const float* a = lo + 3 * k;
     const float* b = hi + 3 * k;

@@ -93,7 +93,7 @@ __device__ Mat3d loadFilter(const double* f) // f: [9] row-major
 __global__ void prepareKernel(std::size_t g, int perG, const float* params /* [G,PER_G] */,
                               const double* filter /* [G,9] */, float cutoff, PreparedGaussian* out /* [G] */)
 {
-    const std::size_t k = std::size_t(blockIdx.x) * blockDim.x + threadIdx.x;
+    const std::size_t k = globalIndex();
     if (k >= g) return;
     out[k] = PreparedGaussian::from(
         prepareParams(unpackParams(params + k * std::size_t(perG)), loadFilter(filter + 9 * k), double(cutoff)));
@@ -137,7 +137,7 @@ __global__ void coverageKernel(std::size_t s, const float* x /* [S,3] */, float 
                                unsigned long long* countOrOffset /* [S+1] */,
                                std::uint32_t* items /* [P] */, std::uint32_t* pairSample /* [P] */)
 {
-    const std::size_t j = std::size_t(blockIdx.x) * blockDim.x + threadIdx.x;
+    const std::size_t j = globalIndex();
     if (j > s) return;
     if (!Fill && j == s) {
         countOrOffset[s] = 0; // the exclusive scan's total lands here
@@ -163,14 +163,14 @@ __global__ void coverageKernel(std::size_t s, const float* x /* [S,3] */, float 
 __global__ void gaussianOffsetsKernel(std::size_t g, const std::uint32_t* sortedBox /* [P] */, std::size_t pairs,
                                       std::uint32_t* offsets /* [G+1] */)
 {
-    const std::size_t k = std::size_t(blockIdx.x) * blockDim.x + threadIdx.x;
+    const std::size_t k = globalIndex();
     if (k > g) return;
     offsets[k] = std::uint32_t(lowerBound(sortedBox, pairs, std::uint32_t(k)));
 }
 
 __global__ void narrowOffsetsKernel(std::size_t n, const unsigned long long* in, std::uint32_t* out) // [n]
 {
-    const std::size_t i = std::size_t(blockIdx.x) * blockDim.x + threadIdx.x;
+    const std::size_t i = globalIndex();
     if (i < n) out[i] = std::uint32_t(in[i]);
 }
 
@@ -190,7 +190,7 @@ __global__ void forwardKernel(std::size_t s, const float* x /* [S,3] */, const f
                               float* opacityOut /* [S] or null */)
 {
     constexpr int perG = 11 + STRIDE;
-    const std::size_t j = std::size_t(blockIdx.x) * blockDim.x + threadIdx.x;
+    const std::size_t j = globalIndex();
     if (j >= s) return;
     float f[STRIDE];
 #pragma unroll
@@ -240,7 +240,7 @@ __global__ void energyPartialKernel(std::size_t s, const float* energy /* [S,3] 
                                     EnergySum* partial /* [kReduceBlocks] */)
 {
     EnergySum a{0, 0, 0, 0};
-    for (std::size_t j = std::size_t(blockIdx.x) * blockDim.x + threadIdx.x; j < s; j += std::size_t(gridDim.x) * blockDim.x) {
+    for (std::size_t j = globalIndex(); j < s; j += std::size_t(gridDim.x) * blockDim.x) {
         a.color += double(energy[3 * j]);
         a.opacity += double(energy[3 * j + 1]);
         a.boundary += double(energy[3 * j + 2]);
@@ -279,7 +279,7 @@ __global__ void backwardKernel(std::size_t g, const std::uint32_t* offsets /* [G
                                const float* gO /* [S] */, float cutoff, float* grad /* [G,PER_G] */)
 {
     constexpr int perG = 11 + STRIDE;
-    const std::size_t k = (std::size_t(blockIdx.x) * blockDim.x + threadIdx.x) / kWarp;
+    const std::size_t k = globalIndex() / kWarp;
     const int lane = int(threadIdx.x) % kWarp;
     if (k >= g) return; // whole warps leave together (blockDim is a multiple of the warp)
     const PreparedGaussian kg = kernels[k];
