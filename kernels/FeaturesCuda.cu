@@ -155,9 +155,7 @@ unsigned long long deviceSum(DeviceBuffer<unsigned char>& temp, const std::uint3
     return out;
 }
 
-} // namespace
-
-void evaluateSampleTargetsCuda(const SampleTargetsProblem& p, float* features, float* opacity, FeatureStats* stats)
+void checkSampleTargets(const SampleTargetsProblem& p)
 {
     if (!p.index || !nanoCellGrid(*p.index))
         throw InputError("sample targets (CUDA): the cell index grid is not a NanoVDB Int32 grid");
@@ -167,71 +165,117 @@ void evaluateSampleTargetsCuda(const SampleTargetsProblem& p, float* features, f
         throw InputError(msg("sample targets (CUDA): ", p.samples, " samples do not fill ", p.cells, " cells evenly"));
     if (p.cloud.count > 0 && (!p.cloud.gaussians || !p.cloud.sh))
         throw InputError("sample targets (CUDA): Gaussians without prepared kernels or SH");
-    const std::size_t n = p.cloud.count, m = p.samples, stride = std::size_t(p.cloud.shStride);
+}
+
+/// The inputs of the sample targets on the device. The host arrays outlive the stream
+/// synchronisation that follows (downloads synchronise).
+struct SampleTargetInputs {
+    DeviceBuffer<unsigned char> grid{"NanoVDB cell index grid"};
+    DeviceCloud cloud;
+    DeviceBuffer<float> positions{"sample positions"};
+    DeviceBuffer<std::int32_t> sampleCell{"sample cells"};
+
+    void upload(const SampleTargetsProblem& p, cudaStream_t st)
+    {
+        uploadArray(grid, static_cast<const unsigned char*>(p.index->data()), p.index->bytes(), st);
+        cloud.upload(p.cloud, st);
+        uploadArray(positions, p.positions, 3 * p.samples, st);
+        uploadArray(sampleCell, p.sampleCell, p.samples, st);
+    }
+    /// The device copy of the validated host bytes (cudaMalloc aligns far beyond NanoVDB's 32).
+    const NanoCellGrid* nano() const { return reinterpret_cast<const NanoCellGrid*>(grid.data()); }
+};
+
+/// (cell, Gaussian) pairs sorted by cell (Gaussians ascending within a cell) and each cell's
+/// [start, end) in them; cells without pairs keep [0, 0).
+struct CellPairs {
+    unsigned long long count = 0;
+    DeviceBuffer<unsigned long long> offsets{"pair offsets per Gaussian"};
+    DeviceBuffer<std::uint32_t> cells{"pair cells"}, owners{"pair Gaussians"};
+    DeviceBuffer<std::uint32_t> sortedCells{"sorted pair cells"}, sortedOwners{"sorted pair Gaussians"};
+    DeviceBuffer<std::uint32_t> cellStart{"cell pair starts"}, cellEnd{"cell pair ends"};
+};
+
+/// Pairs per Gaussian, exclusive scan: sets pairs.count (one synchronising read-back).
+void countCellPairs(const SampleTargetsProblem& p, const SampleTargetInputs& in, DeviceBuffer<unsigned char>& temp,
+                    CellPairs& pairs, cudaStream_t st)
+{
+    const std::size_t n = p.cloud.count;
+    pairs.offsets.resize(n + 1);
+    launch("cellPairCountKernel", cellPairCountKernel, n + 1, st, n, (const PreparedGaussian*)in.cloud.gaussians.data(),
+           p.cellSize, in.nano(), pairs.offsets.data());
+    cubCall(temp, [&](void* t, std::size_t& b) {
+        return cub::DeviceScan::ExclusiveSum(t, b, pairs.offsets.data(), pairs.offsets.data(), n + 1, st);
+    });
+    SPLATWARP_CUDA_CHECK(
+        cudaMemcpyAsync(&pairs.count, pairs.offsets.data() + n, sizeof(pairs.count), cudaMemcpyDeviceToHost, st));
+    SPLATWARP_CUDA_CHECK(cudaStreamSynchronize(st)); // the pair count sizes the next buffers
+    if (pairs.count >= 0xffffffffull) // cell ranges are 32-bit [start, end)
+        throw DeviceMemoryError(
+            msg("sample targets (CUDA): ", pairs.count, " (cell, Gaussian) pairs exceed 32-bit indices"));
+}
+
+/// Fill the pairs in Gaussian order, sort them by cell, mark each cell's range.
+void sortCellPairs(const SampleTargetsProblem& p, const SampleTargetInputs& in, DeviceBuffer<unsigned char>& temp,
+                   CellPairs& pairs, cudaStream_t st)
+{
+    const std::size_t n = p.cloud.count, count = std::size_t(pairs.count);
+    for (auto* b : {&pairs.cells, &pairs.owners, &pairs.sortedCells, &pairs.sortedOwners}) b->resize(count);
+    launch("cellPairFillKernel", cellPairFillKernel, n, st, n, (const PreparedGaussian*)in.cloud.gaussians.data(),
+           p.cellSize, in.nano(), (const unsigned long long*)pairs.offsets.data(), pairs.cells.data(),
+           pairs.owners.data());
+    // Stable LSD radix sort: Gaussians stay ascending within a cell (filled in Gaussian order).
+    if (count > 0)
+        cubCall(temp, [&](void* t, std::size_t& b) {
+            return cub::DeviceRadixSort::SortPairs(t, b, (const std::uint32_t*)pairs.cells.data(),
+                                                   pairs.sortedCells.data(), (const std::uint32_t*)pairs.owners.data(),
+                                                   pairs.sortedOwners.data(), count, 0, keyBits(p.cells), st);
+        });
+    pairs.cellStart.resize(p.cells);
+    pairs.cellEnd.resize(p.cells);
+    if (p.cells) {
+        SPLATWARP_CUDA_CHECK(cudaMemsetAsync(pairs.cellStart.data(), 0, pairs.cellStart.bytes(), st));
+        SPLATWARP_CUDA_CHECK(cudaMemsetAsync(pairs.cellEnd.data(), 0, pairs.cellEnd.bytes(), st));
+    }
+    launch("cellRangeKernel", cellRangeKernel, count, st, count, (const std::uint32_t*)pairs.sortedCells.data(),
+           pairs.cellStart.data(), pairs.cellEnd.data());
+}
+
+/// What the per-sample kernel reads: the inputs and the sorted pairs.
+CellTargetView cellTargetView(const SampleTargetsProblem& p, const SampleTargetInputs& in, const CellPairs& pairs)
+{
+    CellTargetView view;
+    view.gaussians = in.cloud.gaussians.data();
+    view.sh = in.cloud.sh.data();
+    view.shStride = p.cloud.shStride;
+    view.cutoff = p.cloud.cutoff;
+    view.positions = in.positions.data();
+    view.sampleCell = in.sampleCell.data();
+    view.cellStart = pairs.cellStart.data();
+    view.cellEnd = pairs.cellEnd.data();
+    view.cellGaussians = pairs.sortedOwners.data();
+    return view;
+}
+
+} // namespace
+
+void evaluateSampleTargetsCuda(const SampleTargetsProblem& p, float* features, float* opacity, FeatureStats* stats)
+{
+    checkSampleTargets(p);
+    const std::size_t m = p.samples, stride = std::size_t(p.cloud.shStride);
     StreamHolder holder;
     const cudaStream_t st = holder.stream;
-
-    // Inputs. The host arrays outlive the stream synchronisation below (downloads synchronise).
-    DeviceBuffer<unsigned char> grid("NanoVDB cell index grid");
-    uploadArray(grid, static_cast<const unsigned char*>(p.index->data()), p.index->bytes(), st);
-    DeviceCloud cloud;
-    cloud.upload(p.cloud, st);
-    DeviceBuffer<float> positions("sample positions");
-    uploadArray(positions, p.positions, 3 * m, st);
-    DeviceBuffer<std::int32_t> sampleCell("sample cells");
-    uploadArray(sampleCell, p.sampleCell, m, st);
-
-    // The device copy of the validated host bytes (cudaMalloc aligns far beyond NanoVDB's 32).
-    const NanoCellGrid* nano = reinterpret_cast<const NanoCellGrid*>(grid.data());
-
-    // (cell, Gaussian) pairs: count, scan, fill (in Gaussian order).
+    SampleTargetInputs in;
+    in.upload(p, st);
     DeviceBuffer<unsigned char> temp("CUB temporary storage");
-    DeviceBuffer<unsigned long long> offsets(n + 1, "pair offsets per Gaussian");
-    launch("cellPairCountKernel", cellPairCountKernel, n + 1, st, n, (const PreparedGaussian*)cloud.gaussians.data(),
-           p.cellSize, nano, offsets.data());
-    cubCall(temp, [&](void* t, std::size_t& b) {
-        return cub::DeviceScan::ExclusiveSum(t, b, offsets.data(), offsets.data(), n + 1, st);
-    });
-    unsigned long long pairs = 0;
-    SPLATWARP_CUDA_CHECK(cudaMemcpyAsync(&pairs, offsets.data() + n, sizeof(pairs), cudaMemcpyDeviceToHost, st));
-    SPLATWARP_CUDA_CHECK(cudaStreamSynchronize(st)); // the pair count sizes the next buffers
-    if (pairs >= 0xffffffffull) // cell ranges are 32-bit [start, end)
-        throw DeviceMemoryError(msg("sample targets (CUDA): ", pairs, " (cell, Gaussian) pairs exceed 32-bit indices"));
-
-    DeviceBuffer<std::uint32_t> cells(pairs, "pair cells"), owners(pairs, "pair Gaussians");
-    DeviceBuffer<std::uint32_t> sortedCells(pairs, "sorted pair cells"), sortedOwners(pairs, "sorted pair Gaussians");
-    launch("cellPairFillKernel", cellPairFillKernel, n, st, n, (const PreparedGaussian*)cloud.gaussians.data(), p.cellSize,
-           nano, (const unsigned long long*)offsets.data(), cells.data(), owners.data());
-    // Stable LSD radix sort: Gaussians stay ascending within a cell (filled in Gaussian order).
-    if (pairs > 0)
-        cubCall(temp, [&](void* t, std::size_t& b) {
-            return cub::DeviceRadixSort::SortPairs(t, b, (const std::uint32_t*)cells.data(), sortedCells.data(),
-                                                   (const std::uint32_t*)owners.data(), sortedOwners.data(), pairs, 0,
-                                                   keyBits(p.cells), st);
-        });
-
-    // Per-cell ranges; cells without pairs keep [0, 0).
-    DeviceBuffer<std::uint32_t> cellStart(p.cells, "cell pair starts"), cellEnd(p.cells, "cell pair ends");
-    if (p.cells) {
-        SPLATWARP_CUDA_CHECK(cudaMemsetAsync(cellStart.data(), 0, cellStart.bytes(), st));
-        SPLATWARP_CUDA_CHECK(cudaMemsetAsync(cellEnd.data(), 0, cellEnd.bytes(), st));
-    }
-    launch("cellRangeKernel", cellRangeKernel, pairs, st, std::size_t(pairs), (const std::uint32_t*)sortedCells.data(),
-           cellStart.data(), cellEnd.data());
+    CellPairs pairs;
+    countCellPairs(p, in, temp, pairs, st);
+    sortCellPairs(p, in, temp, pairs, st);
 
     // Targets, one thread per sample.
     DeviceBuffer<float> outF(m * stride, "sample features"), outO(m, "sample opacity");
     DeviceBuffer<std::uint32_t> contributing(m, "contributing pairs per sample");
-    CellTargetView view;
-    view.gaussians = cloud.gaussians.data();
-    view.sh = cloud.sh.data();
-    view.shStride = p.cloud.shStride;
-    view.cutoff = p.cloud.cutoff;
-    view.positions = positions.data();
-    view.sampleCell = sampleCell.data();
-    view.cellStart = cellStart.data();
-    view.cellEnd = cellEnd.data();
-    view.cellGaussians = sortedOwners.data();
+    const CellTargetView view = cellTargetView(p, in, pairs);
     dispatchStride(p.cloud.shStride, [&](auto tag) {
         launch("cellTargetKernel", cellTargetKernel<decltype(tag)::value>, m, st, m, view, outF.data(), outO.data(),
                contributing.data());
@@ -242,9 +286,9 @@ void evaluateSampleTargetsCuda(const SampleTargetsProblem& p, float* features, f
     if (stats) {
         // Every sample of a cell tests every Gaussian of the cell's list.
         const std::uint64_t perCell = p.cells ? std::uint64_t(m / p.cells) : 0;
-        stats->pairsTested += std::uint64_t(pairs) * perCell;
+        stats->pairsTested += std::uint64_t(pairs.count) * perCell;
         stats->pairsContributing += contributed;
-        stats->binEntries = pairs;
+        stats->binEntries = pairs.count;
         stats->binCellSize = float(p.cellSize);
     }
 }

@@ -150,6 +150,101 @@ __global__ void compositeKernel(const TileSplat* splats /*[N]*/, const std::uint
 
 void checkLaunch(const char* name) { checkCuda(cudaGetLastError(), name, __FILE__, __LINE__); }
 
+/// The cloud's arrays on the device.
+struct DeviceGaussians {
+    DeviceBuffer<float> means{"Gaussian means"}, rotations{"Gaussian rotations"}, logScales{"Gaussian scales"},
+        opacities{"Gaussian opacities"}, sh{"Gaussian SH coefficients"};
+    DeviceGaussians(const GaussianCloud& cloud, cudaStream_t stream)
+    {
+        means.upload(cloud.means, stream);
+        rotations.upload(cloud.rotations, stream);
+        logScales.upload(cloud.logScales, stream);
+        opacities.upload(cloud.opacities, stream);
+        sh.upload(cloud.sh, stream);
+    }
+};
+
+/// Per Gaussian: its compositing data, box of tiles, depth bits and tile entry count; the
+/// inclusive scan of the counts places its entries; `entries` is the total.
+struct ProjectedSplats {
+    DeviceBuffer<TileSplat> splats;
+    DeviceBuffer<PixelBox> tileBoxes;
+    DeviceBuffer<std::uint32_t> depthBits;
+    // 64-bit counts: CUB scans in the input's type, so 32-bit counts would wrap before the
+    // overflow check could see the total.
+    DeviceBuffer<std::uint64_t> tileCounts, tileEnds;
+    std::uint64_t entries = 0;
+    explicit ProjectedSplats(std::size_t n)
+        : splats(n, "screen splats"), tileBoxes(n, "splat tile boxes"), depthBits(n, "splat depths"),
+          tileCounts(n, "splat tile counts"), tileEnds(n, "splat tile offsets")
+    {
+    }
+};
+
+/// Project every Gaussian and count its tile entries (one synchronising read-back of the total).
+void projectSplats(const GaussianCloud& cloud, const DeviceGaussians& g, const PinholeView& view,
+                   DeviceBuffer<unsigned char>& temp, ProjectedSplats& out, cudaStream_t stream)
+{
+    const std::size_t n = cloud.size();
+    if (n == 0) return;
+    projectKernel<<<blocksFor(n), kBlock, 0, stream>>>(n, g.means.data(), g.rotations.data(), g.logScales.data(),
+                                                       g.opacities.data(), g.sh.data(), cloud.shDegree, view,
+                                                       out.splats.data(), out.tileBoxes.data(), out.depthBits.data(),
+                                                       out.tileCounts.data());
+    checkLaunch("projectKernel");
+    std::size_t bytes = 0;
+    SPLATWARP_CUDA_CHECK(
+        cub::DeviceScan::InclusiveSum(nullptr, bytes, out.tileCounts.data(), out.tileEnds.data(), n, stream));
+    temp.resize(bytes);
+    SPLATWARP_CUDA_CHECK(
+        cub::DeviceScan::InclusiveSum(temp.data(), bytes, out.tileCounts.data(), out.tileEnds.data(), n, stream));
+    SPLATWARP_CUDA_CHECK(cudaMemcpyAsync(&out.entries, out.tileEnds.data() + (n - 1), sizeof(out.entries),
+                                         cudaMemcpyDeviceToHost, stream));
+    SPLATWARP_CUDA_CHECK(cudaStreamSynchronize(stream));
+}
+
+/// The tile entries sorted by (tile, depth) and each tile's [start, end) in them (empty tiles
+/// keep [0, 0)).
+struct TileLists {
+    DeviceBuffer<std::uint32_t> tileStart, tileEnd;
+    DeviceBuffer<std::uint64_t> keys, sortedKeys;
+    DeviceBuffer<std::uint32_t> values, sortedValues;
+    TileLists(std::size_t tiles, std::uint64_t entries, cudaStream_t stream)
+        : tileStart(tiles, "tile ranges"), tileEnd(tiles, "tile ranges"), keys(entries, "tile sort keys"),
+          sortedKeys(entries, "tile sort keys"), values(entries, "tile sort values"),
+          sortedValues(entries, "tile sort values")
+    {
+        SPLATWARP_CUDA_CHECK(cudaMemsetAsync(tileStart.data(), 0, tileStart.bytes(), stream));
+        SPLATWARP_CUDA_CHECK(cudaMemsetAsync(tileEnd.data(), 0, tileEnd.bytes(), stream));
+    }
+};
+
+/// Write every (tile, depth) entry, sort them, mark each tile's range.
+void sortTileEntries(const ProjectedSplats& p, std::size_t n, std::size_t tiles, int tilesX,
+                     DeviceBuffer<unsigned char>& temp, TileLists& lists, cudaStream_t stream)
+{
+    if (p.entries == 0) return;
+    tileEntriesKernel<<<blocksFor(n), kBlock, 0, stream>>>(n, p.tileCounts.data(), p.tileEnds.data(),
+                                                           p.tileBoxes.data(), p.depthBits.data(), tilesX,
+                                                           lists.keys.data(), lists.values.data());
+    checkLaunch("tileEntriesKernel");
+    // Sort only the bits in use: 32 depth bits below the bits of the largest tile index.
+    int tileBits = 0;
+    while ((std::uint64_t(1) << tileBits) < tiles) ++tileBits;
+    const std::uint32_t count = std::uint32_t(p.entries);
+    std::size_t bytes = 0;
+    SPLATWARP_CUDA_CHECK(cub::DeviceRadixSort::SortPairs(nullptr, bytes, lists.keys.data(), lists.sortedKeys.data(),
+                                                         lists.values.data(), lists.sortedValues.data(), count, 0,
+                                                         32 + tileBits, stream));
+    temp.resize(bytes);
+    SPLATWARP_CUDA_CHECK(cub::DeviceRadixSort::SortPairs(temp.data(), bytes, lists.keys.data(),
+                                                         lists.sortedKeys.data(), lists.values.data(),
+                                                         lists.sortedValues.data(), count, 0, 32 + tileBits, stream));
+    tileRangesKernel<<<blocksFor(p.entries), kBlock, 0, stream>>>(p.entries, lists.sortedKeys.data(),
+                                                                  lists.tileStart.data(), lists.tileEnd.data());
+    checkLaunch("tileRangesKernel");
+}
+
 } // namespace
 
 Image renderGaussiansCuda(const GaussianCloud& cloud, const Camera& camera, const RenderOptions& options)
@@ -164,73 +259,20 @@ Image renderGaussiansCuda(const GaussianCloud& cloud, const Camera& camera, cons
     const std::size_t tiles = std::size_t(tilesX) * std::size_t(tilesY);
     const cudaStream_t stream = nullptr; // the default stream: every step waits for the previous one
 
-    DeviceBuffer<float> means("Gaussian means"), rotations("Gaussian rotations"), logScales("Gaussian scales"),
-        opacities("Gaussian opacities"), sh("Gaussian SH coefficients");
-    means.upload(cloud.means, stream);
-    rotations.upload(cloud.rotations, stream);
-    logScales.upload(cloud.logScales, stream);
-    opacities.upload(cloud.opacities, stream);
-    sh.upload(cloud.sh, stream);
-
-    DeviceBuffer<TileSplat> splats(n, "screen splats");
-    DeviceBuffer<PixelBox> tileBoxes(n, "splat tile boxes");
-    DeviceBuffer<std::uint32_t> depthBits(n, "splat depths");
-    // 64-bit counts: CUB scans in the input's type, so 32-bit counts would wrap before the
-    // overflow check below could see the total.
-    DeviceBuffer<std::uint64_t> tileCounts(n, "splat tile counts");
-    DeviceBuffer<std::uint64_t> tileEnds(n, "splat tile offsets");
+    const DeviceGaussians gaussians(cloud, stream);
+    ProjectedSplats projected(n);
     DeviceBuffer<unsigned char> temp("CUB temporary storage");
-    std::uint64_t entries = 0;
-    if (n > 0) {
-        projectKernel<<<blocksFor(n), kBlock, 0, stream>>>(n, means.data(), rotations.data(), logScales.data(),
-                                                           opacities.data(), sh.data(), cloud.shDegree, view,
-                                                           splats.data(), tileBoxes.data(), depthBits.data(),
-                                                           tileCounts.data());
-        checkLaunch("projectKernel");
-        std::size_t bytes = 0;
-        SPLATWARP_CUDA_CHECK(cub::DeviceScan::InclusiveSum(nullptr, bytes, tileCounts.data(), tileEnds.data(), n, stream));
-        temp.resize(bytes);
-        SPLATWARP_CUDA_CHECK(
-            cub::DeviceScan::InclusiveSum(temp.data(), bytes, tileCounts.data(), tileEnds.data(), n, stream));
-        SPLATWARP_CUDA_CHECK(cudaMemcpyAsync(&entries, tileEnds.data() + (n - 1), sizeof(entries),
-                                             cudaMemcpyDeviceToHost, stream));
-        SPLATWARP_CUDA_CHECK(cudaStreamSynchronize(stream));
-    }
-    if (entries > std::numeric_limits<std::uint32_t>::max())
-        throw InputError(msg("CUDA rasteriser: ", entries, " splat-tile entries exceed its 32-bit offsets (render ",
-                             "at a lower resolution)"));
-
-    DeviceBuffer<std::uint32_t> tileStart(tiles, "tile ranges"), tileEnd(tiles, "tile ranges");
-    SPLATWARP_CUDA_CHECK(cudaMemsetAsync(tileStart.data(), 0, tileStart.bytes(), stream));
-    SPLATWARP_CUDA_CHECK(cudaMemsetAsync(tileEnd.data(), 0, tileEnd.bytes(), stream));
-    DeviceBuffer<std::uint64_t> keys(entries, "tile sort keys"), sortedKeys(entries, "tile sort keys");
-    DeviceBuffer<std::uint32_t> values(entries, "tile sort values"), sortedValues(entries, "tile sort values");
-    if (entries > 0) {
-        tileEntriesKernel<<<blocksFor(n), kBlock, 0, stream>>>(n, tileCounts.data(), tileEnds.data(),
-                                                               tileBoxes.data(), depthBits.data(), tilesX,
-                                                               keys.data(), values.data());
-        checkLaunch("tileEntriesKernel");
-        // Sort only the bits in use: 32 depth bits below the bits of the largest tile index.
-        int tileBits = 0;
-        while ((std::uint64_t(1) << tileBits) < tiles) ++tileBits;
-        const std::uint32_t count = std::uint32_t(entries);
-        std::size_t bytes = 0;
-        SPLATWARP_CUDA_CHECK(cub::DeviceRadixSort::SortPairs(nullptr, bytes, keys.data(), sortedKeys.data(),
-                                                             values.data(), sortedValues.data(), count, 0,
-                                                             32 + tileBits, stream));
-        temp.resize(bytes);
-        SPLATWARP_CUDA_CHECK(cub::DeviceRadixSort::SortPairs(temp.data(), bytes, keys.data(), sortedKeys.data(),
-                                                             values.data(), sortedValues.data(), count, 0,
-                                                             32 + tileBits, stream));
-        tileRangesKernel<<<blocksFor(entries), kBlock, 0, stream>>>(entries, sortedKeys.data(), tileStart.data(),
-                                                                    tileEnd.data());
-        checkLaunch("tileRangesKernel");
-    }
+    projectSplats(cloud, gaussians, view, temp, projected, stream);
+    if (projected.entries > std::numeric_limits<std::uint32_t>::max())
+        throw InputError(msg("CUDA rasteriser: ", projected.entries, " splat-tile entries exceed its 32-bit offsets ",
+                             "(render at a lower resolution)"));
+    TileLists lists(tiles, projected.entries, stream);
+    sortTileEntries(projected, n, tiles, tilesX, temp, lists, stream);
 
     DeviceBuffer<float> pixels(std::size_t(view.width) * std::size_t(view.height) * 4, "the image");
     compositeKernel<<<dim3(unsigned(tilesX), unsigned(tilesY)), dim3(kSplatTileSize, kSplatTileSize), 0, stream>>>(
-        splats.data(), sortedValues.data(), tileStart.data(), tileEnd.data(), view.width, view.height,
-        options.background, pixels.data());
+        projected.splats.data(), lists.sortedValues.data(), lists.tileStart.data(), lists.tileEnd.data(), view.width,
+        view.height, options.background, pixels.data());
     checkLaunch("compositeKernel");
     Image image(view.width, view.height, 4);
     pixels.download(image.pixels.data(), image.pixels.size(), stream);
