@@ -168,7 +168,9 @@ SequenceResult runAnimateJob(const AnimateJobOptions& options)
         if (o.render) {
             std::string png;
             add(png, "preview");
-            writePng(png, renderGaussians(o.device, frame, camera));
+            RenderOptions render;
+            render.device = rest->device;
+            writePng(png, renderGaussiansOn(frame, camera, render));
         }
         json entry = {{"files", files}, {"timingsMs", report["timingsMs"]}};
         if (report.contains("stage1") && report["stage1"].contains("field_error"))

@@ -48,7 +48,7 @@ nlohmann::json stageTwoJson(const StageTwoReport& r, const SampleGrid& grid, con
             {"bestEnergy", r.bestEnergy},
             {"rejectedSteps", r.rejectedSteps},
             {"stoppedAt", r.stoppedAt},
-            {"device", r.device},
+            {"device", deviceName(r.device)},
             {"gpuPeakBytes", r.gpuPeakBytes},
             {"sceneExtent", r.sceneExtent},
             {"parameters",
@@ -79,7 +79,9 @@ void writeExtras(const DeformRest& rest, const GaussianCloud& stage1, const Gaus
 {
     Stopwatch clock;
     if (!out.vdb.empty()) {
-        const SampleGrid fieldGrid = runStage("field.vdb sample grid", [&] { return SampleGrid(fitted, withDevice(o.grid, o.device)); });
+        SampleGridOptions gridOptions = o.grid;
+        gridOptions.device = rest.device;
+        const SampleGrid fieldGrid = runStage("field.vdb sample grid", [&] { return SampleGrid(fitted, gridOptions); });
         VdbExportOptions vo;
         vo.source = out.deformed;
         vo.threaded = o.grid.threaded;
@@ -90,7 +92,7 @@ void writeExtras(const DeformRest& rest, const GaussianCloud& stage1, const Gaus
     if (!out.compare.empty()) {
         clock.reset();
         ComparisonSheetOptions sheetOptions;
-        sheetOptions.device = o.device;
+        sheetOptions.render.device = rest.device;
         const Image sheet = renderComparisonSheet({&rest.model, &stage1, &fitted}, {"rest", "stage I", "stage II"},
                                                   comparisonCameras(rest.model, fitted, o), sheetOptions);
         writePng(out.compare, sheet);
@@ -105,14 +107,13 @@ struct FrameErrors {
     std::optional<Judge> judge;
     std::optional<HeldOutPoints> lattice;
     std::optional<FieldErrorTarget> latticeTarget;
-    Device device = Device::Cpu;
 
-    FrameErrors(const DeformRest& rest, const Deformation& deformation, const DeformJobOptions& o) : device(o.device)
+    FrameErrors(const DeformRest& rest, const Deformation& deformation, const DeformJobOptions& o)
     {
         if (!rest.judge) return;
-        judge.emplace(rest.model, *rest.judge, deformation, o.device, o.grid.threaded);
+        judge.emplace(rest.model, *rest.judge, deformation, o.grid.threaded);
         lattice = *rest.latticePoints;
-        warpHeldOutPoints(*lattice, deformation, o.device, o.grid.threaded);
+        warpHeldOutPoints(*lattice, deformation, o.grid.threaded);
         latticeTarget = rotatedTarget(*rest.latticeRest, *lattice);
     }
 
@@ -124,7 +125,7 @@ struct FrameErrors {
         progress(label + ", judged as `splatwarp eval` prints it:");
         std::istringstream lines(judgeText(j));
         for (std::string line; std::getline(lines, line);) progress(line);
-        const FieldErrorReport l = evaluateHeldOut(*latticeTarget, model, *lattice, device);
+        const FieldErrorReport l = evaluateHeldOut(*latticeTarget, model, *lattice);
         stage["lattice_error"] = fieldErrorJson(l);
         stage["lattice_error"]["filterVariance"] = lattice->features.filterVariance;
         progress(msg(label, " error at the training lattice: opacity ", l.opacity, ", color ", l.color));
@@ -158,7 +159,7 @@ GaussianCloud stageTwo(DeformRest& rest, const Deformation& deformation, const S
     if (rigidMotionOf(deformation)) return skipStageTwo(rest, deformation, stage1, o, report);
     Stopwatch clock;
     SampleSet samples = rest.grid->samples(); // the rest samples stay untouched for the next frame
-    const char* warpDevice = warpSamplesOn(o.device, samples, deformation, o.grid.threaded);
+    const char* warpDevice = deviceName(warpSamplesOn(samples, deformation, {rest.device, o.grid.threaded}));
     report["timingsMs"]["warpSamples"] = clock.ms();
     report["warpDevice"] = warpDevice;
     progress(msg("warped ", rest.grid->stats().samples, " samples in ", int(clock.ms()), " ms on ", warpDevice));
@@ -180,7 +181,9 @@ GaussianCloud stageTwo(DeformRest& rest, const Deformation& deformation, const S
         progress(msg("Stage II iteration ", iteration, ": judged opacity error ", e.opacity));
     };
     progress(msg("Stage II: ", o.stage2.iterations, " iterations on ", stage1.movingCount, " moving Gaussians"));
-    const StageTwoReport r2 = runStageTwo(o.device, fitted, samples, stage1.moving, rest.grid->gaussianCell(), o.stage2,
+    StageTwoOptions s2 = o.stage2;
+    s2.device = rest.device;
+    const StageTwoReport r2 = runStageTwo(fitted, samples, stage1.moving, rest.grid->gaussianCell(), s2,
                                           o.evalEvery > 0 ? std::function<void(int, const GaussianCloud&)>(onEval)
                                                           : std::function<void(int, const GaussianCloud&)>(),
                                           o.evalEvery);
@@ -212,8 +215,8 @@ GraphOptions graphOptionsOf(const DeformSpec& spec, const DeformJobOptions& o)
 
 std::unique_ptr<DeformRest> prepareDeformRest(const DeformJobOptions& o, const GraphOptions& graph)
 {
-    resolveDevice(o.device); // fail before any work when the device cannot run
     auto rest = std::make_unique<DeformRest>();
+    rest->device = resolveDevice(o.device); // before any work: fails when the device cannot run
     Stopwatch clock;
     ReadOptions readOptions;
     readOptions.dropInvalid = o.dropInvalid;
@@ -230,21 +233,24 @@ std::unique_ptr<DeformRest> prepareDeformRest(const DeformJobOptions& o, const G
     clock.reset();
     rest->rig = prepareStageOne(rest->model, rest->graph, o.stage1);
     rest->rigMs = clock.ms();
-    rest->stageOne = std::make_unique<StageOneUpdater>(o.device, rest->model, rest->rig, rest->graph, o.stage1);
+    StageOneOptions stageOneOptions = o.stage1;
+    stageOneOptions.device = rest->device;
+    rest->stageOne = std::make_unique<StageOneUpdater>(rest->model, rest->rig, rest->graph, stageOneOptions);
     if (o.stage1Only) return rest;
     // The rest field sampled into sparse cells; every frame warps a copy of it.
     clock.reset();
-    SampleGridOptions gridOptions = withDevice(o.grid, o.device);
+    SampleGridOptions gridOptions = o.grid;
+    gridOptions.device = rest->device;
     gridOptions.extraBytesPerSample += stageTwoBytesPerSample(rest->model.shDegree);
     rest->grid = runStage("sample grid", [&] { return std::make_unique<SampleGrid>(rest->model, gridOptions); });
     rest->sampleGridMs = clock.ms();
     if (o.evaluate || o.evalEvery > 0) {
         clock.reset();
         HeldOutOptions heldOutOptions = o.heldOut;
-        heldOutOptions.device = o.device;
-        rest->judge = prepareJudgeRest(rest->model, heldOutOptions, o.device);
+        heldOutOptions.device = rest->device;
+        rest->judge = prepareJudgeRest(rest->model, heldOutOptions);
         rest->latticePoints = drawHeldOutPoints(*rest->grid, heldOutOptions);
-        rest->latticeRest = unrotatedTarget(rest->model, *rest->latticePoints, o.device);
+        rest->latticeRest = unrotatedTarget(rest->model, *rest->latticePoints);
         rest->heldOutMs = clock.ms();
         progress(msg("judge: ", heldOutOptions.points, " held-out points in the rest model's active region (",
                      int(rest->heldOutMs), " ms with the training-lattice points)"));
@@ -261,7 +267,7 @@ nlohmann::json runDeformFrame(DeformRest& rest, const DeformSpec& spec, const De
     StageOneResult stage1 = rest.stageOne->apply(deformation.transforms, deformation.nodeMoving);
     stage1.timings.rigMs = rest.rigMs;
     progress(msg("Stage I: ", stage1.movingCount, " of ", rest.model.size(), " Gaussians moved (", int(rest.rigMs),
-                 " ms weights, ", int(stage1.timings.updateMs), " ms update on ", stage1.device, ")"));
+                 " ms weights, ", int(stage1.timings.updateMs), " ms update on ", deviceName(stage1.device), ")"));
     nlohmann::json report = stageOneReportJson(deformation, stage1, graphOptionsOf(spec, o), o.ed);
     report["input"] = {{"path", o.input}, {"format", rest.read.format}, {"gaussians", rest.model.size()},
                        {"shDegree", rest.model.shDegree}};

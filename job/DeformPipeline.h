@@ -42,7 +42,9 @@ struct DeformJobOptions {
     bool render = false;    ///< compare.png: rest | Stage I | Stage II from a few orbit views
     int renderViews = 3;    ///< orbit views in compare.png
     int renderSize = 320;   ///< pixels per view (square)
-    Device device = Device::Auto; ///< where the Stage I update and Stage II run (auto: CUDA when compiled in and a GPU is present)
+    /// Where every computing step runs (auto: CUDA when compiled in and a GPU is present),
+    /// resolved once by prepareDeformRest() (DeformRest::device); the device of the options above is not used.
+    Device device = Device::Auto;
 };
 
 /// @brief The spec's graph block with the options' --nodes/--k/--seed overrides applied.
@@ -53,6 +55,7 @@ GraphOptions graphOptionsOf(const DeformSpec& spec, const DeformJobOptions& opti
 ///        training lattice's held-out rest side.
 ///        Shared by every frame of an animation; not copyable or movable (the engine refers to it).
 struct DeformRest {
+    ResolvedDevice device; ///< DeformJobOptions::device, resolved once for every frame
     GaussianCloud model;
     ReadReport read;
     DeformationGraph graph;

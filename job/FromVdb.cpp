@@ -52,7 +52,7 @@ nlohmann::json fitJson(const VolumeFitReport& r)
 {
     nlohmann::json rounds = nlohmann::json::array();
     for (const StageTwoReport& s : r.rounds) {
-        rounds.push_back({{"device", s.device},
+        rounds.push_back({{"device", deviceName(s.device)},
                           {"iterations", s.pairsPerIteration.size()},
                           {"best_iteration", s.bestIteration},
                           {"rejected_steps", s.rejectedSteps},
@@ -237,7 +237,7 @@ Image labelledPair(const Image& a, const Image& b, const char* la, const char* l
 } // namespace
 
 Image renderVolumeComparison(const Volume& volume, VolumeMeaning resolved, const GaussianCloud& splats,
-                             const Camera& camera)
+                             const Camera& camera, const RenderOptions& render)
 {
     const double sigmaPerValue =
         resolved == VolumeMeaning::Extinction ? 1.0 : 1.0 / (std::sqrt(2.0 * M_PI) * medianScale(splats));
@@ -257,7 +257,7 @@ Image renderVolumeComparison(const Volume& volume, VolumeMeaning resolved, const
     RayMarchOptions ro;
     ro.step = 0.5 * volume.info().voxelSize;
     const Image marched = rayMarch(lookup, lo, hi, camera, ro);
-    const Image rendered = renderGaussians(Device::Auto, splats, camera);
+    const Image rendered = renderGaussiansOn(splats, camera, render);
     return labelledPair(rendered, marched, "splats", "volume (ray marched)");
 }
 

@@ -15,6 +15,7 @@
 #include "fit/VolumeFit.h"
 #include "image/Image.h"
 #include "render/Camera.h"
+#include "render/Rasterizer.h"
 
 namespace splatwarp {
 
@@ -91,8 +92,9 @@ FromVdbResult fromVdb(const Volume& volume, const FromVdbOptions& options);
 /// @brief The splats (left) beside a ray-marched render of the volume (right) from one camera,
 ///        labelled. Extinction volumes march their values; Field volumes march
 ///        O / (sqrt(2 pi) s) with s the splats' median geometric-mean scale (the extinction whose
-///        centre-ray transmittance a splat of that size would have).
+///        centre-ray transmittance a splat of that size would have). The splats render with
+///        renderGaussiansOn(splats, camera, render).
 Image renderVolumeComparison(const Volume& volume, VolumeMeaning resolved, const GaussianCloud& splats,
-                             const Camera& camera);
+                             const Camera& camera, const RenderOptions& render = {});
 
 } // namespace splatwarp

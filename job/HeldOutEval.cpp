@@ -14,13 +14,6 @@ namespace splatwarp {
 
 namespace {
 
-FeatureOptions onDevice(const HeldOutPoints& points, Device device)
-{
-    FeatureOptions options = points.features;
-    options.device = device;
-    return options;
-}
-
 /// Points uniform over equal-volume cells: a uniform cell then a uniform offset. Continuous
 /// offsets never coincide with a training lattice.
 HeldOutPoints drawInCells(const std::int32_t* cells, std::size_t cellCount, const std::int64_t origin[3], double h,
@@ -153,6 +146,7 @@ HeldOutPoints drawJudgePoints(const GaussianCloud& rest, const HeldOutOptions& o
     const JudgeRegion region = judgeRegion(rest);
     HeldOutPoints out = drawInCells(region.cells.data(), region.size(), region.origin, region.cellSize, options);
     out.features = judgeFeatureOptions();
+    out.features.device = options.device;
     return out;
 }
 
@@ -162,25 +156,26 @@ HeldOutPoints drawHeldOutPoints(const SampleGrid& grid, const HeldOutOptions& op
     HeldOutPoints out = drawInCells(grid.cellCoords().data(), grid.cellCoords().size() / 3, origin,
                                     grid.samples().cellSize, options);
     out.features = grid.targetOptions(); // the very cutoff and filter the rest targets used
+    out.features.device = options.device;
     return out;
 }
 
-void warpHeldOutPoints(HeldOutPoints& points, const Deformation& deformation, Device device, bool threaded)
+void warpHeldOutPoints(HeldOutPoints& points, const Deformation& deformation, bool threaded)
 {
-    warpPointsOn(device, deformation.graph, deformation.transforms, points.rest.data(), points.size(),
-                 points.warped.data(), points.rotations.data(), threaded);
+    warpPointsOn(deformation.graph, deformation.transforms, points.rest.data(), points.size(), points.warped.data(),
+                 points.rotations.data(), {points.features.device, threaded});
 }
 
 HeldOutPoints makeHeldOutPoints(const SampleGrid& grid, const Deformation& deformation, const HeldOutOptions& options)
 {
     HeldOutPoints out = drawHeldOutPoints(grid, options);
-    warpHeldOutPoints(out, deformation, options.device, grid.options().threaded);
+    warpHeldOutPoints(out, deformation, grid.options().threaded);
     return out;
 }
 
-FieldErrorTarget unrotatedTarget(const GaussianCloud& rest, const HeldOutPoints& points, Device device)
+FieldErrorTarget unrotatedTarget(const GaussianCloud& rest, const HeldOutPoints& points)
 {
-    return fieldErrorTarget(rest, points.rest.data(), nullptr, points.size(), onDevice(points, device));
+    return fieldErrorTarget(rest, points.rest.data(), nullptr, points.size(), points.features);
 }
 
 FieldErrorTarget rotatedTarget(const FieldErrorTarget& unrotated, const HeldOutPoints& points)
@@ -198,24 +193,23 @@ FieldErrorTarget rotatedTarget(const FieldErrorTarget& unrotated, const HeldOutP
 }
 
 
-FieldErrorTarget heldOutTarget(const GaussianCloud& rest, const HeldOutPoints& points, Device device)
+FieldErrorTarget heldOutTarget(const GaussianCloud& rest, const HeldOutPoints& points)
 {
-    return fieldErrorTarget(rest, points.rest.data(), points.rotations.data(), points.size(), onDevice(points, device));
+    return fieldErrorTarget(rest, points.rest.data(), points.rotations.data(), points.size(), points.features);
 }
 
 FieldErrorReport evaluateHeldOut(const FieldErrorTarget& target, const GaussianCloud& deformed,
-                                 const HeldOutPoints& points, Device device)
+                                 const HeldOutPoints& points)
 {
     if (target.size() != points.size())
         throw InputError(msg("held-out evaluation: a rest side of ", target.size(), " points for ", points.size(), " points"));
-    return fieldError(target, deformed, points.warped.data(), onDevice(points, device));
+    return fieldError(target, deformed, points.warped.data(), points.features);
 }
 
-FieldErrorReport evaluateHeldOut(const GaussianCloud& rest, const GaussianCloud& deformed, const HeldOutPoints& points,
-                                 Device device)
+FieldErrorReport evaluateHeldOut(const GaussianCloud& rest, const GaussianCloud& deformed, const HeldOutPoints& points)
 {
     return fieldError(rest, deformed, points.rest.data(), points.warped.data(), points.rotations.data(), points.size(),
-                      onDevice(points, device));
+                      points.features);
 }
 
 nlohmann::json fieldErrorJson(const FieldErrorReport& r)

@@ -21,7 +21,8 @@ namespace splatwarp {
 struct HeldOutOptions {
     std::size_t points = 100000; ///< held-out points (uniform over the active rest cells)
     std::uint32_t seed = 1;      ///< deterministic for a seed
-    Device device = Device::Cpu; ///< where the points are warped (deform/WarpDevice.h)
+    /// Where the points are warped and the features at them evaluated (HeldOutPoints::features.device).
+    ResolvedDevice device;
 };
 
 /// @brief Held-out points with their warped positions and local rotations.
@@ -29,7 +30,7 @@ struct HeldOutPoints {
     std::vector<float> rest;      ///< [P,3] X
     std::vector<float> warped;    ///< [P,3] x = phi(X)
     std::vector<float> rotations; ///< [P,9] polar rotation of the local deformation gradient
-    FeatureOptions features;      ///< cutoff and (rest, isotropic) filter of the grid's targets
+    FeatureOptions features;      ///< cutoff and (rest, isotropic) filter of the grid's targets; the device of every step
     std::size_t size() const { return rest.size() / 3; }
 };
 
@@ -65,28 +66,27 @@ HeldOutPoints makeHeldOutPoints(const SampleGrid& grid, const Deformation& defor
 /// @brief The rest side of makeHeldOutPoints(): the points X only (warped = X, rotations identity).
 HeldOutPoints drawHeldOutPoints(const SampleGrid& grid, const HeldOutOptions& options = {});
 
-/// @brief The per-deformation side of makeHeldOutPoints(): x = phi(X) and R_p on `device`.
-void warpHeldOutPoints(HeldOutPoints& points, const Deformation& deformation, Device device, bool threaded = true);
+/// @brief The per-deformation side of makeHeldOutPoints(): x = phi(X) and R_p on points.features.device.
+void warpHeldOutPoints(HeldOutPoints& points, const Deformation& deformation, bool threaded = true);
 
 /// @brief Field error of `deformed` against `rest` pushed through the deformation, at the points;
-///        the feature evaluations run on `device` (Auto: CUDA when available, CPU fallback on
+///        the feature evaluations run on points.features.device (Auto: CPU fallback on
 ///        out-of-GPU-memory).
-FieldErrorReport evaluateHeldOut(const GaussianCloud& rest, const GaussianCloud& deformed, const HeldOutPoints& points,
-                                 Device device = Device::Cpu);
+FieldErrorReport evaluateHeldOut(const GaussianCloud& rest, const GaussianCloud& deformed, const HeldOutPoints& points);
 
 /// @brief The rest side of evaluateHeldOut() (rest features at the points, SH rotated), for
 ///        judging several deformed models against one rest model without recomputing it.
-FieldErrorTarget heldOutTarget(const GaussianCloud& rest, const HeldOutPoints& points, Device device = Device::Cpu);
+FieldErrorTarget heldOutTarget(const GaussianCloud& rest, const HeldOutPoints& points);
 
 /// @brief The rest features at the points without the SH rotation (computed once per rest model).
-FieldErrorTarget unrotatedTarget(const GaussianCloud& rest, const HeldOutPoints& points, Device device = Device::Cpu);
+FieldErrorTarget unrotatedTarget(const GaussianCloud& rest, const HeldOutPoints& points);
 
 /// @brief unrotatedTarget() rotated by the points' R_p: equal to heldOutTarget(rest, points).
 FieldErrorTarget rotatedTarget(const FieldErrorTarget& unrotated, const HeldOutPoints& points);
 
 /// @brief evaluateHeldOut() against a precomputed rest side (heldOutTarget() of the same points).
 FieldErrorReport evaluateHeldOut(const FieldErrorTarget& target, const GaussianCloud& deformed,
-                                 const HeldOutPoints& points, Device device = Device::Cpu);
+                                 const HeldOutPoints& points);
 
 /// @brief JSON of a report: opacity, color, points, inside{...}, outside{...}.
 nlohmann::json fieldErrorJson(const FieldErrorReport& report);

@@ -80,19 +80,19 @@ std::string judgeText(const JudgeReport& report)
     return out;
 }
 
-JudgeRest prepareJudgeRest(const GaussianCloud& rest, const HeldOutOptions& options, Device device)
+JudgeRest prepareJudgeRest(const GaussianCloud& rest, const HeldOutOptions& options)
 {
     JudgeRest j;
     j.points = drawJudgePoints(rest, options);
-    j.unrotated = unrotatedTarget(rest, j.points, device);
+    j.unrotated = unrotatedTarget(rest, j.points);
     return j;
 }
 
-Judge::Judge(const GaussianCloud& restModel, const JudgeRest& rest, const Deformation& deformation, Device device,
-             bool threaded)
-    : mPoints(rest.points), mDevice(device)
+Judge::Judge(const GaussianCloud& restModel, const JudgeRest& rest, const Deformation& deformation, bool threaded)
+    : mPoints(rest.points)
 {
-    warpHeldOutPoints(mPoints, deformation, device, threaded);
+    mRender.device = mPoints.features.device;
+    warpHeldOutPoints(mPoints, deformation, threaded);
     mTarget = rotatedTarget(rest.unrotated, mPoints);
     const std::optional<RigidMotion> motion = rigidMotionOf(deformation);
     if (!motion) return;
@@ -101,13 +101,13 @@ Judge::Judge(const GaussianCloud& restModel, const JudgeRest& rest, const Deform
     orbit.width = orbit.height = kSize;
     for (const Camera& c : orbitCameras(restModel, orbit)) {
         mMovedCameras.push_back(movedCamera(c, *motion));
-        mTruth.push_back(renderGaussians(device, restModel, c));
+        mTruth.push_back(renderGaussiansOn(restModel, c, mRender));
     }
 }
 
 FieldErrorReport Judge::fieldError(const GaussianCloud& deformed) const
 {
-    return evaluateHeldOut(mTarget, deformed, mPoints, mDevice);
+    return evaluateHeldOut(mTarget, deformed, mPoints);
 }
 
 JudgeReport Judge::judge(const GaussianCloud& deformed) const
@@ -118,7 +118,7 @@ JudgeReport Judge::judge(const GaussianCloud& deformed) const
     // One PSNR over every view's pixels: the mean of the per-view squared errors.
     double mse = 0.0;
     for (std::size_t v = 0; v < mTruth.size(); ++v) {
-        const double db = psnr(renderGaussians(mDevice, deformed, mMovedCameras[v]), mTruth[v]);
+        const double db = psnr(renderGaussiansOn(deformed, mMovedCameras[v], mRender), mTruth[v]);
         mse += (std::isfinite(db) ? std::pow(10.0, -db / 10.0) : 0.0) / double(mTruth.size());
     }
     r.psnr = ImagePsnr{mse > 0.0 ? -10.0 * std::log10(mse) : std::numeric_limits<double>::infinity(), kViews, kSize};

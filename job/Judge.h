@@ -13,6 +13,7 @@
 #include "HeldOutEval.h"
 #include "image/Image.h"
 #include "render/Camera.h"
+#include "render/Rasterizer.h"
 
 namespace splatwarp {
 
@@ -52,18 +53,18 @@ struct JudgeRest {
     FieldErrorTarget unrotated;
 };
 
-/// @brief drawJudgePoints() and the rest features there, on `device`.
-JudgeRest prepareJudgeRest(const GaussianCloud& rest, const HeldOutOptions& options, Device device);
+/// @brief drawJudgePoints() and the rest features there, on options.device.
+JudgeRest prepareJudgeRest(const GaussianCloud& rest, const HeldOutOptions& options);
 
 /// @brief The judge of one deformation: the points warped and the rest side rotated once; for a
-///        rigid spec, the ground-truth images rendered once.
+///        rigid spec, the ground-truth images rendered once. Everything runs on the device of
+///        the rest side's points (points.features.device).
 class Judge {
 public:
     /// Views and size of the rigid-spec PSNR renders (orbit cameras around the rest model).
     static constexpr int kViews = 4, kSize = 256;
 
-    Judge(const GaussianCloud& restModel, const JudgeRest& rest, const Deformation& deformation, Device device,
-          bool threaded = true);
+    Judge(const GaussianCloud& restModel, const JudgeRest& rest, const Deformation& deformation, bool threaded = true);
     /// @brief The field error and, for a rigid spec, the image PSNR of a deformed model.
     JudgeReport judge(const GaussianCloud& deformed) const;
     /// @brief The field error alone (the Stage II curve).
@@ -73,7 +74,7 @@ public:
 private:
     HeldOutPoints mPoints;
     FieldErrorTarget mTarget;
-    Device mDevice;
+    RenderOptions mRender; ///< the device of the renders
     std::vector<Camera> mMovedCameras; ///< the rest cameras moved with the model
     std::vector<Image> mTruth;         ///< the rest model from the rest cameras
 };

@@ -348,7 +348,7 @@ public:
         mSetupMs = mSetupWatch.ms();
     }
 
-    const char* device() const override { return "cuda"; }
+    Device device() const override { return Device::Cuda; }
     void describe(StageTwoReport& r) const override
     {
         r.samplesUsed = mS;

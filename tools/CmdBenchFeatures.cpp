@@ -2,7 +2,7 @@
 #include <random>
 
 #include "Command.h"
-#include "GridArgs.h"
+#include "SharedArgs.h"
 #include "core/Error.h"
 #include "core/Progress.h"
 #include "field/FeatureDevice.h"
@@ -16,7 +16,7 @@ struct BenchFeatureArgs {
     std::size_t points = 1000000;
     int degree = -1;
     bool serial = false;
-    std::string device = "auto";
+    Device device = Device::Auto;
 };
 
 const CommandRegistrar reg(1010, [](CLI::App& app) {
@@ -47,7 +47,7 @@ const CommandRegistrar reg(1010, [](CLI::App& app) {
         }
         FeatureOptions opt;
         opt.threaded = !args->serial;
-        opt.device = parseDevice(args->device);
+        opt.device = resolveDevice(args->device);
         std::vector<float> f(args->points * std::size_t(g.shStride())), o(args->points);
         FeatureStats stats;
         Stopwatch sw;

@@ -7,6 +7,7 @@
 #include <vector>
 
 #include "Command.h"
+#include "SharedArgs.h"
 #include "RenderArgs.h"
 #include "core/Progress.h"
 #include "io/GaussianIO.h"
@@ -19,7 +20,8 @@ namespace splatwarp::cli {
 namespace {
 
 struct BenchRenderArgs {
-    std::string input = "stripes", size = "800x800", device = "auto";
+    std::string input = "stripes", size = "800x800";
+    Device device = Device::Auto;
     int repeats = 5;
     bool dropInvalid = false;
 };
@@ -35,9 +37,7 @@ const CommandRegistrar reg(1010, [](CLI::App& app) {
     sub->add_option("--repeats", args->repeats, "Timed renders (after one warm-up)")
         ->capture_default_str()
         ->check(positive());
-    sub->add_option("--device", args->device, "Where to render: auto (CUDA when compiled in and a GPU is present), cpu, cuda")
-        ->capture_default_str()
-        ->check(CLI::IsMember({"auto", "cpu", "cuda"}));
+    addDeviceOption(sub, args->device, "to render");
     sub->callback([args] {
         const auto names = sampleNames();
         const bool sample = !std::filesystem::exists(args->input) &&
@@ -47,13 +47,14 @@ const CommandRegistrar reg(1010, [](CLI::App& app) {
         o.views = 1;
         parseImageSize(args->size, o.width, o.height);
         const Camera camera = orbitCameras(cloud, o)[0];
-        const Device requested = parseDevice(args->device);
+        RenderOptions render;
+        render.device = resolveDevice(args->device);
         Device device = Device::Cpu;
-        renderGaussians(requested, cloud, camera, {}, &device); // warm-up: thread pool, page faults, CUDA context
+        renderGaussiansOn(cloud, camera, render, &device); // warm-up: thread pool, page faults, CUDA context
         std::vector<double> ms;
         for (int i = 0; i < args->repeats; ++i) {
             Stopwatch watch;
-            renderGaussians(device, cloud, camera);
+            renderGaussiansOn(cloud, camera, render);
             ms.push_back(watch.ms());
         }
         std::sort(ms.begin(), ms.end());

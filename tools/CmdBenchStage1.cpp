@@ -4,6 +4,7 @@
 #include <nlohmann/json.hpp>
 
 #include "Command.h"
+#include "SharedArgs.h"
 #include "core/Error.h"
 #include "core/Progress.h"
 #include "deform/StageOneDevice.h"
@@ -20,7 +21,7 @@ struct BenchArgs {
     std::string spec = "samples/specs/bend.json";   // relative to the repository root
     int runs = 5;
     bool json = false;
-    std::string device = "auto";
+    Device device = Device::Auto;
 };
 
 double median(std::vector<double> v)
@@ -36,7 +37,8 @@ void runBench(const BenchArgs& a)
     const DeformSpec spec = loadDeformSpec(a.spec);
     const bool quiet = !progressEnabled();
     setProgressEnabled(false); // the per-phase lines would swamp the table
-    const Device device = parseDevice(a.device);
+    StageOneOptions options;
+    options.device = resolveDevice(a.device);
     std::vector<double> graphMs, weightsMs, uploadMs, solveMs, updateMs, stepMs;
     Deformation d;
     StageOneResult s;
@@ -45,12 +47,12 @@ void runBench(const BenchArgs& a)
         const DeformationGraph graph = DeformationGraph::build(rest, spec.graph);
         graphMs.push_back(t.ms());
         t.reset();
-        const StageOneRig rig = prepareStageOne(rest, graph);
+        const StageOneRig rig = prepareStageOne(rest, graph, options);
         weightsMs.push_back(t.ms());
         t.reset();
         // The rest model and rig go to the device once per model; a step uploads only the
         // node transforms.
-        StageOneUpdater updater(device, rest, rig, graph);
+        StageOneUpdater updater(rest, rig, graph, options);
         uploadMs.push_back(t.ms());
         t.reset();
         d = solveDeformation(graph, rest, spec);
@@ -64,7 +66,7 @@ void runBench(const BenchArgs& a)
     const std::string name = a.input.empty() ? std::string("stripes (sample)") : a.input;
     nlohmann::json j = {{"model", name}, {"spec", a.spec}, {"gaussians", rest.size()}, {"shDegree", rest.shDegree},
                         {"nodes", d.graph.nodeCount()}, {"k", d.graph.k()}, {"moving", s.movingCount},
-                        {"solverIterations", d.report.solver.iterations}, {"runs", a.runs}, {"device", s.device},
+                        {"solverIterations", d.report.solver.iterations}, {"runs", a.runs}, {"device", deviceName(s.device)},
                         {"medianMs", {{"graph", median(graphMs)}, {"weights", median(weightsMs)}, {"upload", median(uploadMs)},
                                       {"solve", median(solveMs)}, {"update", median(updateMs)},
                                       {"step", median(stepMs)}, {"precompute", median(graphMs) + median(weightsMs)}}}};
@@ -74,7 +76,7 @@ void runBench(const BenchArgs& a)
     }
     std::printf("Stage I benchmark: %s, %zu Gaussians (SH %d), %zu nodes, k %d, %zu moving, %d GN iterations, update on %s\n",
                 name.c_str(), rest.size(), rest.shDegree, d.graph.nodeCount(), d.graph.k(), s.movingCount,
-                d.report.solver.iterations, s.device);
+                d.report.solver.iterations, deviceName(s.device));
     std::printf("%-34s %10s\n", "phase (median of runs)", "ms");
     const auto& m = j["medianMs"];
     std::printf("%-34s %10.2f\n", "graph build (FPS + edges)", m["graph"].get<double>());
@@ -94,11 +96,8 @@ const CommandRegistrar reg(1010, [](CLI::App& app) {
         ->capture_default_str();
     sub->add_option("--runs", args->runs, "Runs per phase; the median is reported")->check(inRange(1, 1000))->capture_default_str();
     sub->add_flag("--json", args->json, "Print JSON instead of a table");
-    sub->add_option("--device", args->device,
-                    "Where the per-Gaussian update runs: auto (CUDA when compiled in and a GPU is present), cpu, cuda "
-                    "(the rest model and rig are uploaded once per run, outside the step)")
-        ->check(CLI::IsMember({"auto", "cpu", "cuda"}))
-        ->capture_default_str();
+    addDeviceOption(sub, args->device,
+                    "the per-Gaussian update runs (the rest model and rig are uploaded once per run, outside the step)");
     sub->callback([args] { runBench(*args); });
 });
 

@@ -8,6 +8,7 @@
 #include <tuple>
 
 #include "Command.h"
+#include "SharedArgs.h"
 #include "core/Error.h"
 #include "core/Progress.h"
 #include "field/FeatureField.h"
@@ -20,7 +21,7 @@ namespace {
 
 struct BenchStageTwoArgs {
     int samplesPerAxis = 2;
-    std::string device = "auto";
+    Device device = Device::Auto;
     StageTwoOptions options;
 };
 
@@ -79,11 +80,10 @@ const CommandRegistrar reg(1020, [](CLI::App& app) {
     CLI::App* sub = benchCommand(app)->add_subcommand("stage2", "Stage II optimiser on the stripes sample");
     sub->add_option("--iterations", args->options.iterations, "Adam iterations")->capture_default_str();
     sub->add_option("--samples-per-axis", args->samplesPerAxis, "n: samples per cell axis")->capture_default_str();
-    sub->add_option("--device", args->device, "auto (CUDA when compiled in and a GPU is present, else CPU), cpu or cuda")
-        ->check(CLI::IsMember({"auto", "cpu", "cuda"}))
-        ->capture_default_str();
+    addDeviceOption(sub, args->device, "Stage II runs");
     sub->add_flag("--serial", [args](std::int64_t) { args->options.threaded = false; }, "Single thread");
     sub->callback([args] {
+        args->options.device = resolveDevice(args->device);
         const GaussianCloud rest = makeSample("stripes");
         const double angle = 10.0 * M_PI / 180.0;
         Mat3d rot = Mat3d::identity();
@@ -97,12 +97,12 @@ const CommandRegistrar reg(1020, [](CLI::App& app) {
         const double msSamples = sw.ms();
         GaussianCloud cloud = rest;
         std::vector<std::uint8_t> moving(rest.size(), 1);
-        const StageTwoReport r = runStageTwo(parseDevice(args->device), cloud, s, moving, cells, args->options);
+        const StageTwoReport r = runStageTwo(cloud, s, moving, cells, args->options);
         std::uint64_t pairs = 0;
         for (std::uint64_t p : r.pairsPerIteration) pairs += p;
         const double it = std::max(1, args->options.iterations);
         std::printf("stage2 (%s): %zu Gaussians SH%d, %zu samples (built in %.0f ms), %d iterations\n",
-                    r.device.c_str(), rest.size(), rest.shDegree, r.samplesUsed, msSamples, args->options.iterations);
+                    deviceName(r.device), rest.size(), rest.shDegree, r.samplesUsed, msSamples, args->options.iterations);
         std::printf("  energy %.6g -> %.6g (held iterate %d, %d steps rejected)\n", r.energies.front().total,
                     r.bestEnergy, r.bestIteration, r.rejectedSteps);
         std::printf("  per iteration: %.1f ms total; coverage %.1f, forward %.1f, backward %.1f, update %.1f ms; "
@@ -112,7 +112,7 @@ const CommandRegistrar reg(1020, [](CLI::App& app) {
         std::printf("  counted pairs/iteration %.3g, candidate pairs %llu, %.1f M counted pairs/s (forward+backward)\n",
                     double(pairs) / it, (unsigned long long)r.coveragePairs,
                     double(pairs) / (r.msForward + r.msBackward) * 1e-3);
-        if (r.device == "cuda")
+        if (r.device == Device::Cuda)
             std::printf("  peak GPU memory of the run's buffers: %.1f MiB\n", double(r.gpuPeakBytes) / (1024.0 * 1024.0));
     });
 });

@@ -8,7 +8,7 @@
 #include <tbb/task_arena.h>
 
 #include "Command.h"
-#include "GridArgs.h"
+#include "SharedArgs.h"
 #include "SampleGrid.h"
 #include "VdbExport.h"
 #include "core/Error.h"
@@ -25,7 +25,7 @@ struct BenchToVdbArgs {
     bool dropInvalid = false;
     SampleGridOptions grid;
     std::vector<int> degrees{0, 2};
-    std::string device = "auto";
+    Device device = Device::Auto;
 };
 
 /// Peak resident set size of the process so far, MiB (Linux reports ru_maxrss in KiB).
@@ -51,7 +51,7 @@ const CommandRegistrar reg(1040, [](CLI::App& app) {
         ->check(inRange(0, 3));
     addDeviceOption(sub, args->device, "the rest targets run (topology and export stay on the CPU)");
     sub->callback([args] {
-        args->grid.device = parseDevice(args->device);
+        args->grid.device = resolveDevice(args->device);
         const GaussianCloud source = args->input.empty() ? makeSample("stripes") : readModel(args->input, args->dropInvalid);
         const std::string label = args->input.empty() ? std::string("stripes") : args->input;
         // The threads that run (--threads limits them through a global control, not the arena).

@@ -6,6 +6,7 @@
 
 #include "Command.h"
 #include "GridArgs.h"
+#include "SharedArgs.h"
 #include "FromVdb.h"
 #include "HeldOutEval.h"
 #include "Judge.h"
@@ -26,7 +27,7 @@ struct EvalArgs {
     VolumeReadOptions read;
     VolumeJudgeOptions judge;
     bool json = false;
-    std::string device = "auto";
+    Device device = Device::Auto;
     SampleGridOptions grid;
     HeldOutOptions heldOut;
     bool dropInvalid = false;
@@ -106,7 +107,7 @@ const CommandRegistrar reg(35, [](CLI::App& app) {
                 if (sub->count(flag) > 0)
                     throw UsageError(msg("eval: ", flag, " sets a training lattice, which the judge does not depend on; "
                                          "add --lattice for the error at that lattice"));
-        const Device device = parseDevice(a->device);
+        const ResolvedDevice device = resolveDevice(a->device);
         const GaussianCloud rest = readModel(a->rest, a->dropInvalid);
         const GaussianCloud deformed = readModel(a->deformed, a->dropInvalid);
         if (deformed.shDegree != rest.shDegree)
@@ -119,11 +120,13 @@ const CommandRegistrar reg(35, [](CLI::App& app) {
         HeldOutOptions heldOut = a->heldOut;
         heldOut.device = device;
         if (a->lattice) {
-            const SampleGrid grid = runStage("sample grid", [&] { return SampleGrid(rest, withDevice(a->grid, device)); });
+            SampleGridOptions gridOptions = a->grid;
+            gridOptions.device = device;
+            const SampleGrid grid = runStage("sample grid", [&] { return SampleGrid(rest, gridOptions); });
             const HeldOutPoints points = makeHeldOutPoints(grid, deformation, heldOut);
-            return printReport(evaluateHeldOut(rest, deformed, points, device), a->json);
+            return printReport(evaluateHeldOut(rest, deformed, points), a->json);
         }
-        const Judge judge(rest, prepareJudgeRest(rest, heldOut, device), deformation, device);
+        const Judge judge(rest, prepareJudgeRest(rest, heldOut), deformation);
         const JudgeReport r = judge.judge(deformed);
         if (a->json)
             std::printf("%s\n", judgeJson(r).dump(2).c_str());

@@ -3,7 +3,7 @@
 
 #include "Command.h"
 #include "FromVdb.h"
-#include "GridArgs.h"
+#include "SharedArgs.h"
 #include "core/AtomicFile.h"
 #include "core/Error.h"
 #include "core/Progress.h"
@@ -14,7 +14,8 @@ namespace splatwarp::cli {
 namespace {
 
 struct FromVdbArgs {
-    std::string input, output, report, as = "auto", device = "auto";
+    std::string input, output, report, as = "auto";
+    Device device = Device::Auto;
     bool render = false, noFit = false;
     int size = 512;
     VolumeReadOptions read;
@@ -70,10 +71,7 @@ void addFitOptions(CLI::App* sub, FromVdbArgs& a)
                     "Rebuild the coverage every this many iterations (its boxes grow with the learning rates times this)")
         ->capture_default_str()
         ->check(inRange(1, 1000));
-    sub->add_option("--max-mean-step", s2.maxMeanStep,
-                    "Longest step of a Gaussian's centre, in its own standard deviations (0: unbounded)")
-        ->capture_default_str()
-        ->check(nonNegative());
+    addMaxMeanStepOption(sub, s2);
     sub->add_option("--reject-steps", s2.rejectSteps,
                     "Undo a step that raises the training energy and retry at half the rates (true/false)")
         ->capture_default_str();
@@ -101,13 +99,13 @@ const CommandRegistrar reg(45, [](CLI::App& app) {
         ->capture_default_str()
         ->check(CLI::IsMember({"auto", "field", "extinction"}));
     addFitOptions(sub, *a);
-    addDeviceOption(sub, a->device, "the Stage II fit runs");
+    addDeviceOption(sub, a->device, "the Stage II fit and --render run");
     sub->add_flag("--render", a->render, "Also write OUT.png: the splats beside a ray-marched render of the volume");
     sub->add_option("--size", a->size, "Square size of each --render picture")->capture_default_str()->check(inRange(16, 4096));
     sub->callback([a] {
         a->job.meaning = parseVolumeMeaning(a->as);
         a->job.fit = !a->noFit;
-        a->job.fitting.device = parseDevice(a->device);
+        a->job.fitting.stage2.device = resolveDevice(a->device);
         const Volume volume = readVolume(a->input, a->read);
         const VolumeInfo& info = volume.info();
         progress(msg("read '", info.grid, "' from ", a->input, ": ", info.activeVoxels, " active voxels, voxel size ",
@@ -119,8 +117,10 @@ const CommandRegistrar reg(45, [](CLI::App& app) {
             OrbitOptions orbit;
             orbit.views = 1;
             orbit.width = orbit.height = a->size;
+            RenderOptions render;
+            render.device = a->job.fitting.stage2.device;
             picture = renderVolumeComparison(volume, resolveMeaning(a->job.meaning, volume), result.splats,
-                                             orbitCameras(result.splats, orbit).front());
+                                             orbitCameras(result.splats, orbit).front(), render);
         }
         writePly(a->output, result.splats);
         writeFileAtomic(a->report.empty() ? besideOutput(a->output, ".report.json") : a->report, result.report.dump(2) + "\n");

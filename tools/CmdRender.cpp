@@ -3,6 +3,7 @@
 #include <filesystem>
 
 #include "Command.h"
+#include "SharedArgs.h"
 #include "ReadArgs.h"
 #include "RenderArgs.h"
 #include "core/AtomicFile.h"
@@ -17,7 +18,8 @@ namespace splatwarp::cli {
 namespace {
 
 struct RenderArgs {
-    std::string input, output, size, cameraFile, background = "0,0,0", format = "png", device = "auto";
+    std::string input, output, size, cameraFile, background = "0,0,0", format = "png";
+    Device device = Device::Auto;
     int orbit = 0;
     bool dropInvalid = false;
     OrbitOptions orbitOptions;
@@ -35,7 +37,7 @@ void run(const RenderArgs& a)
     if (!a.size.empty()) parseImageSize(a.size, width, height);
     RenderOptions renderOptions;
     renderOptions.background = parseColour(a.background);
-    const Device device = parseDevice(a.device);
+    renderOptions.device = resolveDevice(a.device);
 
     std::vector<Camera> cameras;
     if (!a.cameraFile.empty()) {
@@ -67,7 +69,7 @@ void run(const RenderArgs& a)
     for (std::size_t i = 0; i < cameras.size(); ++i) {
         Stopwatch watch;
         Device used = Device::Cpu;
-        const Image image = renderGaussians(device, cloud, cameras[i], renderOptions, &used);
+        const Image image = renderGaussiansOn(cloud, cameras[i], renderOptions, &used);
         char name[32];
         std::snprintf(name, sizeof(name), "view_%03zu.%s", i, a.format.c_str());
         const std::string path = single ? a.output : (std::filesystem::path(a.output) / name).string();
@@ -109,10 +111,7 @@ const CommandRegistrar reg(60, [](CLI::App& app) {
     sub->add_option("--format", args->format, "Image format of the files written into an output directory")
         ->capture_default_str()
         ->check(CLI::IsMember({"png", "exr"}));
-    sub->add_option("--device", args->device,
-                    "Where to render: auto (CUDA when compiled in and a GPU is present), cpu, cuda")
-        ->capture_default_str()
-        ->check(CLI::IsMember({"auto", "cpu", "cuda"}));
+    addDeviceOption(sub, args->device, "to render");
     addDropInvalidFlag(sub, args->dropInvalid);
     sub->callback([args] { run(*args); });
 });

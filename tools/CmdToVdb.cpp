@@ -1,6 +1,7 @@
 /// `splatwarp to-vdb IN -o OUT.vdb`: sample a model's radiance field into sparse VDB grids.
 #include "Command.h"
 #include "GridArgs.h"
+#include "SharedArgs.h"
 #include "SampleGrid.h"
 #include "deform/WarpDevice.h"
 #include "VdbExport.h"
@@ -17,7 +18,7 @@ namespace {
 
 struct ToVdbArgs {
     std::string input, output, spec;
-    std::string device = "auto";
+    Device device = Device::Auto;
     SampleGridOptions grid;
     VdbExportOptions vdb;
     bool dropInvalid = false;
@@ -38,18 +39,18 @@ const CommandRegistrar reg(40, [](CLI::App& app) {
                     "Deformation spec (JSON): warp the samples and add the per-cell `stretch` grid (largest singular "
                     "value of the cell's deformation gradient); SH grids are then rotated to the warped frame");
     sub->callback([args] {
+        args->grid.device = resolveDevice(args->device);
         OutputSet outputs({args->input, args->spec});
         outputs.checkTarget(args->output);
         const GaussianCloud cloud = readModel(args->input, args->dropInvalid);
         progress(msg("read ", cloud.size(), " Gaussians (SH degree ", cloud.shDegree, ") from ", args->input));
-        const Device device = parseDevice(args->device);
-        SampleGrid grid = runStage("sample grid", [&] { return SampleGrid(cloud, withDevice(args->grid, device)); });
+        SampleGrid grid = runStage("sample grid", [&] { return SampleGrid(cloud, args->grid); });
         args->vdb.source = args->input;
         if (!args->spec.empty()) {
             const Deformation deformation = solveDeformation(cloud, loadDeformSpec(args->spec));
             progress(msg("solved the deformation of ", args->spec, " (", deformation.graph.nodeCount(), " nodes)"));
-            const char* used = warpSamplesOn(device, grid.samples(), deformation);
-            progress(msg("warped ", grid.stats().samples, " samples on ", used));
+            const Device used = warpSamplesOn(grid.samples(), deformation, {args->grid.device});
+            progress(msg("warped ", grid.stats().samples, " samples on ", deviceName(used)));
             args->vdb.spec = args->spec;
             args->vdb.stretch = true;
         }

@@ -9,7 +9,7 @@
 #include "DeformPipeline.h"
 #include "GridArgs.h"
 #include "ReadArgs.h"
-#include "core/Device.h"
+#include "SharedArgs.h"
 
 namespace splatwarp::cli {
 
@@ -18,7 +18,6 @@ struct DeformArgs {
     int nodes = 0, k = 0;
     std::uint32_t seed = 0;
     bool noLpf = false, noEval = false;
-    std::string device = "auto";
 };
 
 /// @brief Every flag of a deform run except the input, --spec, -o, --vdb and --render.
@@ -43,10 +42,7 @@ inline void addDeformOptions(CLI::App* sub, DeformArgs& args)
                     "(0: run every iteration; a step that raises the energy is always undone, and 6 such in a row end the run)")
         ->capture_default_str()
         ->check(inRange(0.0, 1.0));
-    sub->add_option("--max-mean-step", job.stage2.maxMeanStep,
-                    "Longest Stage II step of a Gaussian's centre, in its own standard deviations (0: unbounded)")
-        ->capture_default_str()
-        ->check(nonNegative());
+    addMaxMeanStepOption(sub, job.stage2);
     sub->add_flag("--no-lpf", args.noLpf, "Turn off the adaptive anisotropic low-pass filter");
     sub->add_option("--rebuild-every", job.stage2.rebuildEvery, "Rebuild the Gaussian-sample coverage every K iterations")
         ->capture_default_str()
@@ -55,9 +51,9 @@ inline void addDeformOptions(CLI::App* sub, DeformArgs& args)
         ->check(nonNegative());
     sub->add_option("--eval-points", job.heldOut.points, "Held-out points for the field errors")->capture_default_str()->check(positive());
     sub->add_flag("--no-eval", args.noEval, "Skip the held-out field errors");
-    sub->add_option("--device", args.device, "Where the computing stages run (Stage I update, field targets, sample and held-out warping, held-out evaluation, Stage II, --render): auto (CUDA when compiled in and a GPU is present; out of GPU memory falls back to the CPU), cpu, cuda")
-        ->capture_default_str()
-        ->check(CLI::IsMember({"auto", "cpu", "cuda"}));
+    addDeviceOption(sub, job.device,
+                    "the computing stages run (Stage I update, field targets, sample and held-out warping, held-out "
+                    "evaluation, Stage II, --render)");
 }
 
 /// @brief The job options once parsed (overrides only for the flags given).
@@ -69,7 +65,6 @@ inline DeformJobOptions deformJobOptions(const DeformArgs& args, const CLI::App*
     if (sub->count("--seed")) job.seed = args.seed;
     job.stage2.lowPassFilter = !args.noLpf;
     job.evaluate = !args.noEval;
-    job.device = parseDevice(args.device);
     return job;
 }
 

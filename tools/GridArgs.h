@@ -28,14 +28,4 @@ inline void addGridOptions(CLI::App* sub, SampleGridOptions& grid)
         ->type_name("SIZE");
 }
 
-/// @brief `--device auto|cpu|cuda` (default auto); `what` says what runs there ("the rest
-///        targets run"). The callback parses it with parseDevice().
-inline void addDeviceOption(CLI::App* sub, std::string& device, const std::string& what)
-{
-    sub->add_option("--device", device,
-                    "Where " + what + ": auto (CUDA when compiled in and a GPU is present, else CPU), cpu or cuda")
-        ->capture_default_str()
-        ->check(CLI::IsMember({"auto", "cpu", "cuda"}));
-}
-
 } // namespace splatwarp::cli

@@ -142,8 +142,6 @@ SampleGrid::SampleGrid(const GaussianCloud& cloud, const SampleGridOptions& opti
     if (!(options.cellSize >= 0.0f) || (options.cellSize <= 0.0f && options.cells < 1))
         throw InputError("sample grid: give a positive cell count or cell size");
 
-    if (options.device == Device::Cuda) resolveDevice(options.device); // fail before any work without a GPU
-
     Impl& im = *mImpl;
     im.options = options;
     SampleSet& set = im.set;
@@ -338,8 +336,6 @@ const std::vector<std::int32_t>& SampleGrid::cellCoords() const { return mImpl->
 std::int32_t SampleGrid::cellIndex(int i, int j, int k) const { return mImpl->index->tree().getValue(openvdb::Coord(i, j, k)); }
 
 std::int32_t SampleGrid::cellIndexAt(const Vec3d& p) const { return mImpl->index->tree().getValue(mImpl->cellOf(p)); }
-
-int SampleGrid::cellCoordOf(double x) const { return mImpl->cellCoordOf(x); }
 
 const FeatureOptions& SampleGrid::targetOptions() const { return mImpl->targetOptions; }
 

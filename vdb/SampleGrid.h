@@ -39,7 +39,7 @@ struct SampleGridOptions {
     /// and tools that do not ask); the CLI passes `--device` (default auto). Cuda looks the
     /// Gaussians' cells up in the NanoVDB index grid on the GPU; under Auto a GPU out-of-memory
     /// falls back to the CPU. Both give the same targets to float rounding (expf, summation).
-    Device device = Device::Cpu;
+    ResolvedDevice device;
     /// Refuse (InputError naming the flags and the estimate) a grid whose host memory, estimated
     /// from the cell count before the per-sample arrays are allocated, exceeds this (0 = no limit).
     std::size_t maxMemoryBytes = 0;
@@ -50,13 +50,6 @@ struct SampleGridOptions {
 /// @brief Host bytes one active cell costs (its n^3 samples' positions, targets and indices, the
 ///        cell's coordinates, gradient and index-grid voxel), plus extraBytesPerSample per sample.
 std::size_t sampleGridBytesPerCell(const SampleGridOptions& options, int shDegree);
-
-/// @brief A copy of grid options with another target device (for callers holding const options).
-inline SampleGridOptions withDevice(SampleGridOptions options, Device device)
-{
-    options.device = device;
-    return options;
-}
 
 /// @brief Counts and timings of a build (for progress lines, reports and the benchmark).
 struct SampleGridStats {
@@ -98,8 +91,6 @@ public:
     std::int32_t cellIndex(int i, int j, int k) const;
     /// @brief Cell index of the cell containing a rest-space point, -1 when not active.
     std::int32_t cellIndexAt(const Vec3d& p) const;
-    /// @brief Integer coordinate of the cell containing x along one axis: floor(x / h).
-    int cellCoordOf(double x) const;
     /// @brief The feature options the rest targets were evaluated with (cutoff, rest filter).
     const FeatureOptions& targetOptions() const;
     /// @brief The Int32 index grid converted to NanoVDB (same values as cellIndex(), background

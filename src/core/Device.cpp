@@ -33,19 +33,26 @@ bool cudaPresent()
     return probe && probe();
 }
 
-Device resolveDevice(Device requested)
+ResolvedDevice resolveDevice(Device requested)
 {
     switch (requested) {
-    case Device::Cpu: return Device::Cpu;
-    case Device::Auto: return cudaPresent() ? Device::Cuda : Device::Cpu;
+    case Device::Cpu: return {};
+    case Device::Auto: return {requested, cudaPresent() ? Device::Cuda : Device::Cpu};
     case Device::Cuda:
         if (!cudaCompiledIn())
             throw InputError("--device cuda: this build has no CUDA support (rebuild with nvcc available, "
                              "or use --device cpu)");
         if (!cudaPresent()) throw InputError("--device cuda: no usable CUDA GPU found (use --device cpu or auto)");
-        return Device::Cuda;
+        return {requested, Device::Cuda};
     }
-    return Device::Cpu;
+    return {};
+}
+
+void fallBackToCpu(const ResolvedDevice& device, const char* what, const DeviceMemoryError& e)
+{
+    if (!device.cpuFallback())
+        throw DeviceMemoryError(msg(e.what(), " (--device cuda; --device auto would fall back to the CPU)"));
+    progress(msg(what, ": ", e.what(), "; running on the CPU instead"));
 }
 
 void registerCudaProbe(bool (*probe)()) { probeSlot.set(probe); }

@@ -36,9 +36,32 @@ bool cudaCompiledIn();
 /// @brief Whether a CUDA GPU can be used (compiled in and the registered probe finds one).
 bool cudaPresent();
 
-/// @brief Auto -> Cuda when compiled in and a GPU is present, else Cpu; Cpu -> Cpu.
+/// @brief A device resolved once per job (resolveDevice()), carried in the options of every
+///        operation: where it runs (Cpu or Cuda, never Auto) and whether an operation that runs
+///        out of GPU memory may fall back to the CPU (Auto was asked). Only resolveDevice() makes
+///        a Cuda one, after its probe found a GPU; the default is the CPU (no probe).
+class ResolvedDevice {
+public:
+    ResolvedDevice() = default;
+    /// Cpu or Cuda.
+    Device device() const { return mDevice; }
+    /// What was asked: Auto, Cpu or Cuda.
+    Device requested() const { return mRequested; }
+    bool cuda() const { return mDevice == Device::Cuda; }
+    /// Auto was asked: out of GPU memory (or without a CUDA version of an operation), run on the CPU.
+    bool cpuFallback() const { return mRequested == Device::Auto; }
+
+private:
+    friend ResolvedDevice resolveDevice(Device requested);
+    ResolvedDevice(Device requested, Device device) : mRequested(requested), mDevice(device) {}
+    Device mRequested = Device::Cpu;
+    Device mDevice = Device::Cpu;
+};
+
+/// @brief Auto -> Cuda when compiled in and a GPU is present, else Cpu; Cpu -> Cpu (the one GPU
+///        probe of a job).
 /// @throws InputError for Cuda in a build without CUDA support or without a usable GPU
-Device resolveDevice(Device requested);
+ResolvedDevice resolveDevice(Device requested);
 
 /// @brief Register the CUDA probe (returns whether a GPU is usable); nullptr unregisters.
 ///        Called by the kernels' registerBackends() (tests may register fakes).
@@ -58,27 +81,30 @@ private:
     std::atomic<F> mF{nullptr};
 };
 
-/// @brief Run a computation on a device: the registered CUDA implementation `cuda` (may be null:
-///        no CUDA version compiled in) when `requested` resolves to CUDA, else `cpu`. Under Auto a
-///        GPU out-of-memory error falls back to the CPU with a progress line naming `what`; under
+/// @brief A GPU ran out of memory running `what` on `device`: under Auto, a progress line says
+///        `what` runs on the CPU instead; under Cuda the error is rethrown with a hint.
+/// @throws DeviceMemoryError when `device` may not fall back to the CPU
+void fallBackToCpu(const ResolvedDevice& device, const char* what, const DeviceMemoryError& error);
+
+/// @brief Run a computation on a resolved device: the registered CUDA implementation `cuda` (may
+///        be null: no CUDA version compiled in) when `device` is Cuda, else `cpu`. Under Auto a GPU
+///        out-of-memory error (or no CUDA version) runs `cpu` instead, see fallBackToCpu(); under
 ///        Cuda it propagates. `used` (optional) receives the device that ran.
-/// @throws InputError when Cuda is requested but unavailable (see resolveDevice())
+/// @throws InputError when Cuda was asked and there is no CUDA version of `what`
 template <typename CudaFn, typename CpuFn>
-auto runOnDevice(Device requested, const char* what, bool hasCuda, CudaFn&& cuda, CpuFn&& cpu, Device* used = nullptr)
-    -> decltype(cpu())
+auto runOnDevice(const ResolvedDevice& device, const char* what, bool hasCuda, CudaFn&& cuda, CpuFn&& cpu,
+                 Device* used = nullptr) -> decltype(cpu())
 {
-    if (resolveDevice(requested) == Device::Cuda) {
+    if (device.cuda()) {
         if (!hasCuda) {
-            if (requested == Device::Cuda) throw InputError(msg("--device cuda: this build has no CUDA ", what));
+            if (!device.cpuFallback()) throw InputError(msg("--device cuda: this build has no CUDA ", what));
         } else {
             try {
                 auto result = cuda();
                 if (used) *used = Device::Cuda;
                 return result;
             } catch (const DeviceMemoryError& e) {
-                if (requested == Device::Cuda)
-                    throw DeviceMemoryError(msg(e.what(), " (--device cuda; --device auto would fall back to the CPU)"));
-                progress(msg(what, ": ", e.what(), "; running on the CPU instead"));
+                fallBackToCpu(device, what, e);
             }
         }
     }

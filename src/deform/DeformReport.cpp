@@ -31,7 +31,7 @@ nlohmann::json stageOneReportJson(const Deformation& d, const StageOneResult& s,
                    {"initial", energiesJson(r.solver.initial)}, {"final", energiesJson(r.solver.final)},
                    {"weights", {{"rot", o.rotWeight}, {"reg", o.regWeight}, {"con", o.conWeight}}}};
     j["stage1"] = {{"gaussians", s.moving.size()}, {"moving", s.movingCount},
-                   {"static", s.moving.size() - s.movingCount}, {"device", s.device}};
+                   {"static", s.moving.size() - s.movingCount}, {"device", deviceName(s.device)}};
     j["timingsMs"] = {{"graph", r.graphMs}, {"resolve", r.resolveMs}, {"solve", r.solver.ms},
                       {"weights", s.timings.rigMs}, {"update", s.timings.updateMs}};
     return j;

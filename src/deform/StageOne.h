@@ -6,6 +6,7 @@
 #include <cstdint>
 #include <vector>
 
+#include "core/Device.h"
 #include "core/GaussianCloud.h"
 #include "deform/Deformation.h"
 #include "deform/DeformationGraph.h"
@@ -20,6 +21,9 @@ struct StageOneOptions {
     double absoluteEpsilon = 1e-6;   ///< ... + absoluteEpsilon * model extent: near-zero Gaussians too
     double minStretch = 1e-6;        ///< lower bound of the stretch along an axis (keeps log-scales finite)
     bool threaded = true;
+    /// Where StageOneUpdater and runStageOne() (deform/StageOneDevice.h) run the update;
+    /// applyStageOne() is always the CPU.
+    ResolvedDevice device;
 };
 
 /// @brief Per-model precomputation: the 7 skinned points of every Gaussian (centre, then the
@@ -43,7 +47,7 @@ struct StageOneResult {
     std::vector<std::uint8_t> moving;  ///< [N] 1 if any of its 7 points has weight on a moving node
     std::size_t movingCount = 0;
     StageOneTimings timings;
-    const char* device = "cpu";        ///< where the update ran ("cpu" or "cuda")
+    Device device = Device::Cpu;       ///< where the update ran
 };
 
 struct StageOneParams; // deform/StageOneKernel.h
@@ -64,8 +68,8 @@ StageOneResult applyStageOne(const GaussianCloud& rest, const StageOneRig& rig, 
                              const NodeTransforms& transforms, const std::vector<std::uint8_t>& nodeMoving,
                              const StageOneOptions& options = {});
 
-/// @brief prepareStageOne + applyStageOne for a solved deformation, on the CPU (runStageOneOn(),
-///        deform/StageOneDevice.h, picks the device).
+/// @brief prepareStageOne + the update for a solved deformation (the rig on the CPU, the update
+///        on options.device; defined in deform/StageOneDevice.cpp).
 StageOneResult runStageOne(const GaussianCloud& rest, const Deformation& deformation, const StageOneOptions& options = {});
 
 } // namespace splatwarp

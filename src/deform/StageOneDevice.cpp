@@ -11,13 +11,13 @@ CudaSlot<StageOneEngineFactory> cudaSlot;
 
 void registerStageOneCuda(StageOneEngineFactory cuda) { cudaSlot.set(cuda); }
 
-StageOneUpdater::StageOneUpdater(Device device, const GaussianCloud& rest, const StageOneRig& rig,
-                                 const DeformationGraph& graph, const StageOneOptions& options)
-    : mRequested(device), mRest(rest), mRig(rig), mGraph(graph), mOptions(options)
+StageOneUpdater::StageOneUpdater(const GaussianCloud& rest, const StageOneRig& rig, const DeformationGraph& graph,
+                                 const StageOneOptions& options)
+    : mRest(rest), mRig(rig), mGraph(graph), mOptions(options)
 {
     const StageOneEngineFactory cuda = cudaSlot.get();
     mEngine = runOnDevice(
-        device, "Stage I", cuda != nullptr, [&] { return cuda(rest, rig, graph.nodeCount(), options); },
+        options.device, "Stage I", cuda != nullptr, [&] { return cuda(rest, rig, graph.nodeCount(), options); },
         [] { return std::unique_ptr<StageOneEngine>(); });
 }
 
@@ -31,36 +31,29 @@ StageOneResult StageOneUpdater::apply(const NodeTransforms& transforms, const st
         try {
             StageOneResult r = mEngine->apply(nodeAffines(mGraph, transforms), nodeMoving);
             r.timings.updateMs = clock.ms();
-            r.device = deviceName(Device::Cuda);
+            r.device = Device::Cuda;
             return r;
         } catch (const DeviceMemoryError& e) {
-            if (mRequested == Device::Cuda)
-                throw DeviceMemoryError(msg(e.what(), " (--device cuda; --device auto would fall back to the CPU)"));
-            progress(msg("Stage I: ", e.what(), "; running on the CPU instead"));
+            fallBackToCpu(mOptions.device, "Stage I", e);
             mEngine.reset();
         }
     }
     StageOneResult r = applyStageOne(mRest, mRig, mGraph, transforms, nodeMoving, mOptions);
-    r.device = deviceName(Device::Cpu);
+    r.device = Device::Cpu;
     return r;
-}
-
-StageOneResult runStageOneOn(Device device, const GaussianCloud& rest, const Deformation& d, const StageOneOptions& o)
-{
-    const Stopwatch clock;
-    const StageOneRig rig = prepareStageOne(rest, d.graph, o);
-    const double rigMs = clock.ms();
-    StageOneUpdater updater(device, rest, rig, d.graph, o);
-    StageOneResult res = updater.apply(d.transforms, d.nodeMoving);
-    res.timings.rigMs = rigMs;
-    progress(msg("Stage I: ", res.movingCount, " of ", rest.size(), " Gaussians moved (", int(rigMs), " ms weights, ",
-                 int(res.timings.updateMs), " ms update on ", res.device, ")"));
-    return res;
 }
 
 StageOneResult runStageOne(const GaussianCloud& rest, const Deformation& d, const StageOneOptions& o)
 {
-    return runStageOneOn(Device::Cpu, rest, d, o);
+    const Stopwatch clock;
+    const StageOneRig rig = prepareStageOne(rest, d.graph, o);
+    const double rigMs = clock.ms();
+    StageOneUpdater updater(rest, rig, d.graph, o);
+    StageOneResult res = updater.apply(d.transforms, d.nodeMoving);
+    res.timings.rigMs = rigMs;
+    progress(msg("Stage I: ", res.movingCount, " of ", rest.size(), " Gaussians moved (", int(rigMs), " ms weights, ",
+                 int(res.timings.updateMs), " ms update on ", deviceName(res.device), ")"));
+    return res;
 }
 
 } // namespace splatwarp

@@ -30,15 +30,15 @@ using StageOneEngineFactory = std::unique_ptr<StageOneEngine> (*)(const Gaussian
 /// @brief Register the CUDA Stage I engine (nullptr unregisters). Called by cuda::registerBackends().
 void registerStageOneCuda(StageOneEngineFactory cuda);
 
-/// @brief Stage I updates of one rest model and rig on a device, as many as wanted (the bench
-///        times each). Auto picks CUDA when available; when the GPU runs out of memory under
-///        Auto (creating the engine or updating) the update runs on the CPU from then on, with a
-///        progress message; under Cuda the DeviceMemoryError propagates.
+/// @brief Stage I updates of one rest model and rig on options.device, as many as wanted (the
+///        bench times each). When the GPU runs out of memory under Auto (creating the engine or
+///        updating) the update runs on the CPU from then on, with a progress message; under Cuda
+///        the DeviceMemoryError propagates.
 /// @note  rest, rig and graph are referenced, not copied: they must outlive the updater.
 class StageOneUpdater {
 public:
-    /// @throws InputError when Cuda is requested but unavailable (see resolveDevice())
-    StageOneUpdater(Device device, const GaussianCloud& rest, const StageOneRig& rig, const DeformationGraph& graph,
+    /// @throws InputError when Cuda was asked and no CUDA engine is registered
+    StageOneUpdater(const GaussianCloud& rest, const StageOneRig& rig, const DeformationGraph& graph,
                     const StageOneOptions& options = {});
     ~StageOneUpdater();
     StageOneUpdater(const StageOneUpdater&) = delete;
@@ -50,16 +50,11 @@ public:
     Device device() const { return mEngine ? Device::Cuda : Device::Cpu; }
 
 private:
-    Device mRequested;
     const GaussianCloud& mRest;
     const StageOneRig& mRig;
     const DeformationGraph& mGraph;
     StageOneOptions mOptions;
     std::unique_ptr<StageOneEngine> mEngine; ///< null: the CPU
 };
-
-/// @brief runStageOne() (rig on the CPU, update on the device).
-StageOneResult runStageOneOn(Device device, const GaussianCloud& rest, const Deformation& deformation,
-                             const StageOneOptions& options = {});
 
 } // namespace splatwarp

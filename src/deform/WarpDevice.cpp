@@ -14,27 +14,26 @@ void registerWarpCuda(WarpPointsFunction points, WarpSamplesFunction samples)
     samplesSlot.set(samples);
 }
 
-const char* warpPointsOn(Device device, const DeformationGraph& graph, const NodeTransforms& transforms,
-                         const float* points, std::size_t count, float* warped, float* rotations, bool threaded)
+Device warpPointsOn(const DeformationGraph& graph, const NodeTransforms& transforms, const float* points,
+                    std::size_t count, float* warped, float* rotations, const WarpOptions& o)
 {
     const WarpPointsFunction cuda = pointsSlot.get();
     Device used = Device::Cpu;
     runOnDevice(
-        device, "point warping", cuda != nullptr,
-        [&] { return (cuda(graph, transforms, points, count, warped, rotations, threaded), 0); },
-        [&] { return (warpPoints(graph, transforms, points, count, warped, rotations, threaded), 0); }, &used);
-    return deviceName(used);
+        o.device, "point warping", cuda != nullptr,
+        [&] { return (cuda(graph, transforms, points, count, warped, rotations, o.threaded), 0); },
+        [&] { return (warpPoints(graph, transforms, points, count, warped, rotations, o.threaded), 0); }, &used);
+    return used;
 }
 
-const char* warpSamplesOn(Device device, SampleSet& samples, const Deformation& d, bool threaded)
+Device warpSamplesOn(SampleSet& samples, const Deformation& d, const WarpOptions& o)
 {
     const WarpSamplesFunction cuda = samplesSlot.get();
     Device used = Device::Cpu;
     runOnDevice(
-        device, "sample warping", cuda != nullptr,
-        [&] { return (cuda(samples, d.graph, d.transforms, threaded), 0); },
-        [&] { return (warpSamples(samples, d.graph, d.transforms, threaded), 0); }, &used);
-    return deviceName(used);
+        o.device, "sample warping", cuda != nullptr, [&] { return (cuda(samples, d.graph, d.transforms, o.threaded), 0); },
+        [&] { return (warpSamples(samples, d.graph, d.transforms, o.threaded), 0); }, &used);
+    return used;
 }
 
 } // namespace splatwarp

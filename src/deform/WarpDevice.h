@@ -22,13 +22,20 @@ using WarpSamplesFunction = void (*)(SampleSet&, const DeformationGraph&, const 
 /// @brief Register the CUDA warping (nullptr unregisters). Called by cuda::registerBackends().
 void registerWarpCuda(WarpPointsFunction points, WarpSamplesFunction samples);
 
-/// @brief warpPoints() on a device (Auto: CUDA when available, CPU on out-of-GPU-memory with a
-///        progress line; Cuda: errors propagate). Returns the device that ran ("cpu"/"cuda").
-/// @throws InputError when Cuda is requested but unavailable (see resolveDevice())
-const char* warpPointsOn(Device device, const DeformationGraph& graph, const NodeTransforms& transforms,
-                         const float* points, std::size_t count, float* warped, float* rotations, bool threaded = true);
+/// @brief Options of a warp on a device.
+struct WarpOptions {
+    ResolvedDevice device; ///< where it runs (see runOnDevice())
+    bool threaded = true;  ///< oneTBB on the CPU
+};
 
-/// @brief warpSamples() on a device, as warpPointsOn(). Returns the device that ran.
-const char* warpSamplesOn(Device device, SampleSet& samples, const Deformation& deformation, bool threaded = true);
+/// @brief warpPoints() on options.device (Auto: CPU on out-of-GPU-memory with a progress line;
+///        Cuda: errors propagate).
+/// @return the device that ran
+/// @throws InputError when Cuda was asked and no CUDA warping is registered
+Device warpPointsOn(const DeformationGraph& graph, const NodeTransforms& transforms, const float* points,
+                    std::size_t count, float* warped, float* rotations, const WarpOptions& options = {});
+
+/// @brief warpSamples() on options.device, as warpPointsOn(). Returns the device that ran.
+Device warpSamplesOn(SampleSet& samples, const Deformation& deformation, const WarpOptions& options = {});
 
 } // namespace splatwarp

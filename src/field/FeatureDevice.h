@@ -67,7 +67,7 @@ void registerFeaturesCuda(FeaturesFunction cuda);
 /// @brief evaluateFeatures() on options.device: CUDA when registered and resolved (Auto falls
 ///        back to the CPU on out-of-GPU-memory with a progress line), else the CPU.
 /// @return the device that ran
-/// @throws InputError as evaluateFeatures(), or for Cuda without a usable GPU
+/// @throws InputError as evaluateFeatures(), or when Cuda was asked and no CUDA version is registered
 Device evaluateFeaturesOn(const GaussianCloud& cloud, const float* points, std::size_t m, const FeatureOptions& options,
                           float* features, float* opacity, FeatureStats* stats = nullptr);
 

@@ -27,7 +27,7 @@ struct FeatureOptions {
     bool threaded = true;          ///< oneTBB over points (results identical to serial)
     /// Where evaluateFeaturesOn() (field/FeatureDevice.h) runs; evaluateFeatures() is always the
     /// CPU. Library default Cpu; the CLI passes `--device`.
-    Device device = Device::Cpu;
+    ResolvedDevice device;
 };
 
 /// @brief Work counters of an evaluation.

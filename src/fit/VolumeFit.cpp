@@ -108,7 +108,7 @@ VolumeFitReport fitToSamples(GaussianCloud& cloud, const SampleSet& samples, std
         s2.iterations = o.iterations / o.rounds + (round < o.iterations % o.rounds ? 1 : 0);
         const std::vector<std::uint8_t> moving(cloud.size(), 1);
         const std::vector<std::int32_t> cell(cloud.size(), samples.cellCount() > 0 && s2.lowPassFilter ? 0 : -1);
-        if (s2.iterations > 0) report.rounds.push_back(runStageTwo(o.device, cloud, samples, moving, cell, s2));
+        if (s2.iterations > 0) report.rounds.push_back(runStageTwo(cloud, samples, moving, cell, s2));
         if (round + 1 == o.rounds) break;
         Stopwatch watch;
         report.pruned += pruneTransparent(cloud, o.pruneAlpha);

@@ -6,7 +6,6 @@
 #include <cstddef>
 #include <vector>
 
-#include "core/Device.h"
 #include "core/GaussianCloud.h"
 #include "field/SampleSet.h"
 #include "stage2/StageTwo.h"
@@ -20,8 +19,7 @@ struct VolumeFitOptions {
     float pruneAlpha = 1.0f / 255.0f; ///< Gaussians below this opacity are removed between rounds
     /// Share of the budget held back at the start and spent on splits (only when rounds > 1).
     double splitReserve = 0.1;
-    StageTwoOptions stage2;   ///< the engine's options (iterations is set per round)
-    Device device = Device::Cpu;
+    StageTwoOptions stage2;   ///< the engine's options (iterations is set per round) and device
 };
 
 /// @brief What fitToSamples() did.

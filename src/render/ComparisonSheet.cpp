@@ -37,7 +37,7 @@ Image renderComparisonSheet(const std::vector<const GaussianCloud*>& models, con
                  o.labelColour);
         if (models[std::size_t(j)] == nullptr) throw InputError(msg("comparison sheet: model '", labels[std::size_t(j)], "' is missing"));
         for (int i = 0; i < rows; ++i) {
-            const Image cell = renderGaussians(o.device, *models[std::size_t(j)], cameras[std::size_t(i)], o.render);
+            const Image cell = renderGaussiansOn(*models[std::size_t(j)], cameras[std::size_t(i)], o.render);
             const int top = bandH + i * (cellH + o.padding);
             for (int y = 0; y < cell.height; ++y)
                 for (int x = 0; x < cell.width; ++x)

@@ -5,7 +5,6 @@
 #include <string>
 #include <vector>
 
-#include "core/Device.h"
 #include "core/GaussianCloud.h"
 #include "image/Image.h"
 #include "render/Camera.h"
@@ -15,8 +14,7 @@ namespace splatwarp {
 
 /// @brief Options for renderComparisonSheet().
 struct ComparisonSheetOptions {
-    RenderOptions render;                    ///< how each cell is rendered
-    Device device = Device::Cpu;             ///< where each cell is rendered (see render/RenderDevice.h)
+    RenderOptions render;                    ///< how and where each cell is rendered (render/RenderDevice.h)
     int labelScale = 2;                      ///< image pixels per font pixel of the column labels
     int padding = 4;                         ///< pixels between cells and around labels
     Vec3f sheetColour{0.02f, 0.02f, 0.02f};  ///< linear RGB of the gaps and the label band
@@ -26,8 +24,8 @@ struct ComparisonSheetOptions {
 /// @brief Render every model from every camera into one RGBA image: a label band on top
 ///        (labels[j] centred over column j), then one row per camera. Cells are as large as the
 ///        largest camera; smaller renders sit at their cell's top-left corner.
-/// @throws InputError when models and labels differ in count or either list is empty, or when
-///         options.device is Cuda and no GPU is usable.
+/// @throws InputError when models and labels differ in count or either list is empty, or as
+///         renderGaussiansOn().
 Image renderComparisonSheet(const std::vector<const GaussianCloud*>& models, const std::vector<std::string>& labels,
                             const std::vector<Camera>& cameras, const ComparisonSheetOptions& options = {});
 

@@ -3,6 +3,7 @@
 /// @brief CPU 3DGS splat rasteriser: EWA projection, 16x16 screen tiles, depth-sorted
 ///        front-to-back alpha compositing (oneTBB over tiles). Deterministic: every pixel composites
 ///        the same splats in the same (depth, index) order whatever the thread count.
+#include "core/Device.h"
 #include "core/GaussianCloud.h"
 #include "core/SmallMath.h"
 #include "image/Image.h"
@@ -15,6 +16,7 @@ namespace splatwarp {
 struct RenderOptions {
     Vec3f background{0.0f, 0.0f, 0.0f}; ///< linear RGB behind the splats
     bool threaded = true;               ///< oneTBB over Gaussians and tiles
+    ResolvedDevice device;              ///< where renderGaussiansOn() (render/RenderDevice.h) renders
 };
 
 /// @brief Render a model from a camera.

@@ -11,12 +11,11 @@ CudaSlot<RenderFunction> cudaSlot;
 
 void registerRenderCuda(RenderFunction cuda) { cudaSlot.set(cuda); }
 
-Image renderGaussians(Device device, const GaussianCloud& cloud, const Camera& camera, const RenderOptions& options,
-                      Device* used)
+Image renderGaussiansOn(const GaussianCloud& cloud, const Camera& camera, const RenderOptions& options, Device* used)
 {
     const RenderFunction cuda = cudaSlot.get();
     return runOnDevice(
-        device, "rasteriser", cuda != nullptr, [&] { return cuda(cloud, camera, options); },
+        options.device, "rasteriser", cuda != nullptr, [&] { return cuda(cloud, camera, options); },
         [&] { return renderGaussians(cloud, camera, options); }, used);
 }
 

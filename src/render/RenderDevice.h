@@ -14,14 +14,14 @@ using RenderFunction = Image (*)(const GaussianCloud&, const Camera&, const Rend
 /// @brief Register the CUDA rasteriser (nullptr unregisters). Called by cuda::registerBackends().
 void registerRenderCuda(RenderFunction cuda);
 
-/// @brief renderGaussians() on a device, with the same result up to float rounding (the CPU
-///        rasteriser is the reference). Auto picks CUDA when available (resolveDevice()); when the
-///        GPU runs out of memory under Auto the image is rendered on the CPU (with a progress
-///        message), under Cuda the DeviceMemoryError propagates.
+/// @brief renderGaussians() on options.device, with the same result up to float rounding (the
+///        CPU rasteriser is the reference). When the GPU runs out of memory under Auto the image
+///        is rendered on the CPU (with a progress message), under Cuda the DeviceMemoryError
+///        propagates.
 /// @param used  when not null, receives the device that rendered (Cpu or Cuda)
-/// @throws InputError when Cuda is requested but unavailable (see resolveDevice()), and as
+/// @throws InputError when Cuda was asked and no CUDA rasteriser is registered, and as
 ///         renderGaussians() for bad inputs
-Image renderGaussians(Device device, const GaussianCloud& cloud, const Camera& camera,
-                      const RenderOptions& options = {}, Device* used = nullptr);
+Image renderGaussiansOn(const GaussianCloud& cloud, const Camera& camera, const RenderOptions& options = {},
+                        Device* used = nullptr);
 
 } // namespace splatwarp

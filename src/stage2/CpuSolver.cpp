@@ -48,7 +48,7 @@ public:
     CpuSolver(const GaussianCloud& cloud, const SampleSet& samples, const std::vector<std::uint8_t>& moving,
               const std::vector<std::int32_t>& gaussianCell, const StageTwoOptions& options);
 
-    const char* device() const override { return "cpu"; }
+    Device device() const override { return Device::Cpu; }
     void describe(StageTwoReport& r) const override;
     void prepare() override;
     void rebuildCoverage(int iteration) override;

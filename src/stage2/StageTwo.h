@@ -25,7 +25,7 @@ struct StageTwoEnergy {
 
 /// @brief What a Stage II run did.
 struct StageTwoReport {
-    std::string device = "cpu"; ///< which device ran: "cpu" or "cuda"
+    Device device = Device::Cpu; ///< which device ran
     std::vector<StageTwoEnergy> energies;
     int bestIteration = 0;   ///< the iterate returned (the last accepted one; with neither rejectSteps nor keepBest the last)
     double bestEnergy = 0;   ///< its training energy

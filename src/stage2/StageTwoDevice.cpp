@@ -11,7 +11,7 @@ CudaSlot<StageTwoFunction> cudaSlot;
 
 void registerStageTwoCuda(StageTwoFunction cuda) { cudaSlot.set(cuda); }
 
-StageTwoReport runStageTwo(Device device, GaussianCloud& cloud, const SampleSet& samples,
+StageTwoReport runStageTwo(GaussianCloud& cloud, const SampleSet& samples,
                            const std::vector<std::uint8_t>& moving, const std::vector<std::int32_t>& gaussianCell,
                            const StageTwoOptions& options,
                            const std::function<void(int, const GaussianCloud&)>& onEval, int evalEvery)
@@ -19,10 +19,10 @@ StageTwoReport runStageTwo(Device device, GaussianCloud& cloud, const SampleSet&
     const StageTwoFunction cuda = cudaSlot.get();
     Device used = Device::Cpu;
     StageTwoReport r = runOnDevice(
-        device, "Stage II", cuda != nullptr,
+        options.device, "Stage II", cuda != nullptr,
         [&] { return cuda(cloud, samples, moving, gaussianCell, options, onEval, evalEvery); },
         [&] { return optimiseStageTwo(cloud, samples, moving, gaussianCell, options, onEval, evalEvery); }, &used);
-    r.device = deviceName(used);
+    r.device = used;
     return r;
 }
 

@@ -18,12 +18,12 @@ using StageTwoFunction = StageTwoReport (*)(GaussianCloud&, const SampleSet&, co
 void registerStageTwoCuda(StageTwoFunction cuda);
 
 /// @brief Run Stage II (same arguments and results as optimiseStageTwo()) on a device.
-///        Auto picks CUDA when available (resolveDevice()); when the GPU runs out of memory
-///        under Auto the run repeats on the CPU with a progress message, under Cuda the
-///        DeviceMemoryError propagates. report.device says which device ran.
+///        options.device says where; when the GPU runs out of memory under Auto the run repeats
+///        on the CPU with a progress message, under Cuda the DeviceMemoryError propagates.
+///        report.device says which device ran.
 /// @note  After a fallback, onEval sees the iterations again from the CPU run.
-/// @throws InputError when Cuda is requested but unavailable (see resolveDevice())
-StageTwoReport runStageTwo(Device device, GaussianCloud& cloud, const SampleSet& samples,
+/// @throws InputError when Cuda was asked and no CUDA Stage II is registered
+StageTwoReport runStageTwo(GaussianCloud& cloud, const SampleSet& samples,
                            const std::vector<std::uint8_t>& moving, const std::vector<std::int32_t>& gaussianCell,
                            const StageTwoOptions& options,
                            const std::function<void(int, const GaussianCloud&)>& onEval = {}, int evalEvery = 0);

@@ -122,7 +122,7 @@ bool stopsOnNonFinite(const StageTwoEnergy& e, int it, const StageTwoOptions& o)
 
 void logEnergy(const StageTwoSolver& solver, const StageTwoEnergy& e, std::uint64_t pairs)
 {
-    progress(msg("Stage II iteration ", e.iteration, " (", solver.device(), "): energy ", e.total, " (colour ", e.color,
+    progress(msg("Stage II iteration ", e.iteration, " (", deviceName(solver.device()), "): energy ", e.total, " (colour ", e.color,
                  ", opacity ", e.opacity, ", boundary ", e.boundary, "), ", pairs, " pairs",
                  e.rejected ? "; step rejected, rates halved" : ""));
 }

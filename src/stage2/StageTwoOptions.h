@@ -2,6 +2,7 @@
 /// @file StageTwoOptions.h
 /// @brief Every parameter of the Stage II optimiser with its documented default; shared by the
 ///        CLI, the JSON spec and the tests (DESIGN.md "Stage II", paper Sec. 3.2).
+#include "core/Device.h"
 #include "field/GaussianKernel.h"
 
 namespace splatwarp {
@@ -59,6 +60,8 @@ struct StageTwoOptions {
 
     int reportEvery = 10;  ///< record the energy at iteration 0 and every this many iterations
     bool threaded = true;  ///< oneTBB (results identical for any thread count)
+    /// Where runStageTwo() (stage2/StageTwoDevice.h) runs; optimiseStageTwo() is always the CPU.
+    ResolvedDevice device;
 };
 
 } // namespace splatwarp

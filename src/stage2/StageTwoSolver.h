@@ -20,8 +20,8 @@ struct StageTwoPhaseTimes {
 class StageTwoSolver {
 public:
     virtual ~StageTwoSolver() = default;
-    /// @brief Name of the device that runs it ("cpu", "cuda").
-    virtual const char* device() const = 0;
+    /// @brief The device that runs it.
+    virtual Device device() const = 0;
     /// @brief Counts known after set-up (samples used and skipped, moving Gaussians, scene extent).
     virtual void describe(StageTwoReport& report) const = 0;
     /// @brief Prepare the Gaussians' kernels from the current parameters.

@@ -127,11 +127,13 @@ TEST(RasterizerCudaDispatch, RegisteredAndDevicesResolved)
     const GaussianCloud cloud = randomCloud(200, 1, 5);
     const Camera camera = randomCloudCameras()[0];
     Device used = Device::Cpu;
-    const Image autoImage = renderGaussians(Device::Auto, cloud, camera, {}, &used);
+    RenderOptions autoOptions;
+    autoOptions.device = resolveDevice(Device::Auto);
+    const Image autoImage = renderGaussiansOn(cloud, camera, autoOptions, &used);
     if (!cuda::cudaDeviceAvailable()) {
         EXPECT_EQ(used, Device::Cpu);
         EXPECT_EQ(autoImage.pixels, renderGaussians(cloud, camera).pixels);
-        EXPECT_THROW(renderGaussians(Device::Cuda, cloud, camera), InputError);
+        EXPECT_THROW(resolveDevice(Device::Cuda), InputError);
     } else {
         EXPECT_EQ(used, Device::Cuda);
         EXPECT_EQ(autoImage.pixels, cuda::renderGaussiansCuda(cloud, camera).pixels);

@@ -48,9 +48,9 @@ double relativeError(const std::vector<float>& a, const std::vector<float>& b)
 void expectParity(const GaussianCloud& cloud, SampleGridOptions options)
 {
     cuda::registerBackends();
-    options.device = Device::Cpu;
+    options.device = resolveDevice(Device::Cpu);
     const SampleGrid cpu(cloud, options);
-    options.device = Device::Cuda;
+    options.device = resolveDevice(Device::Cuda);
     const SampleGrid gpu(cloud, options);
     registerSampleTargetsCuda(nullptr);
     registerFeaturesCuda(nullptr);
@@ -112,17 +112,14 @@ TEST(SampleTargetsCuda, DispatchWithoutGpu)
     cuda::registerBackends();
     SampleGridOptions o;
     o.cells = 8;
-    o.device = Device::Cuda;
-    EXPECT_THROW(SampleGrid(makeSample("stripes"), o), InputError);
-    o.device = Device::Auto;
+    EXPECT_THROW(resolveDevice(Device::Cuda), InputError);
+    o.device = resolveDevice(Device::Auto);
     const SampleGrid g(makeSample("stripes"), o);
     EXPECT_EQ(g.stats().device, Device::Cpu);
     std::vector<float> opacity(1);
     const float point[3] = {0.0f, 0.0f, 0.0f};
     FeatureOptions fo;
-    fo.device = Device::Cuda;
-    EXPECT_THROW(evaluateFeaturesOn(makeSample("stripes"), point, 1, fo, nullptr, opacity.data()), InputError);
-    fo.device = Device::Auto;
+    fo.device = resolveDevice(Device::Auto);
     EXPECT_EQ(evaluateFeaturesOn(makeSample("stripes"), point, 1, fo, nullptr, opacity.data()), Device::Cpu);
     registerSampleTargetsCuda(nullptr);
     registerFeaturesCuda(nullptr);
@@ -149,9 +146,9 @@ TEST(FeaturesCuda, MatchesCpuAtRandomPoints)
         const std::size_t stride = std::size_t(cloud.shStride());
         std::vector<float> fc(m * stride), oc(m), fg(m * stride), og(m);
         FeatureStats sc, sg;
-        o.device = Device::Cpu;
+        o.device = resolveDevice(Device::Cpu);
         EXPECT_EQ(evaluateFeaturesOn(cloud, points.data(), m, o, fc.data(), oc.data(), &sc), Device::Cpu);
-        o.device = Device::Cuda;
+        o.device = resolveDevice(Device::Cuda);
         EXPECT_EQ(evaluateFeaturesOn(cloud, points.data(), m, o, fg.data(), og.data(), &sg), Device::Cuda);
         EXPECT_LT(relativeError(fg, fc), kFeatureRel);
         EXPECT_LT(relativeError(og, oc), kOpacityRel);

@@ -82,10 +82,12 @@ TEST(StageOneCuda, RepeatedUpdatesReuseTheResidentModel)
     SPLATWARP_REQUIRE_GPU();
     const BendProblem p;
     // Identity transforms after the bend: the engine must restart from the rest model each step.
-    StageOneUpdater updater(Device::Cuda, p.rest, p.rig, p.d.graph);
+    StageOneOptions options;
+    options.device = resolveDevice(Device::Cuda);
+    StageOneUpdater updater(p.rest, p.rig, p.d.graph, options);
     ASSERT_EQ(updater.device(), Device::Cuda);
     const StageOneResult bent = updater.apply(p.d.transforms, p.d.nodeMoving);
-    EXPECT_STREQ(bent.device, "cuda");
+    EXPECT_EQ(bent.device, Device::Cuda);
     const StageOneResult still = updater.apply(NodeTransforms::identity(p.d.graph.nodeCount()), p.d.nodeMoving);
     // Identity affines skin every point to itself up to the float-weight sum (exact division), so
     // the means come back to float rounding of the rest values.

@@ -124,11 +124,12 @@ TEST(CudaBackends, RegistrationAndNoGpuErrors)
         Problem p = makeProblem(1, 3, false, 12);
         p.options.iterations = 2;
         GaussianCloud cloud = p.start;
-        EXPECT_THROW(runStageTwo(Device::Cuda, cloud, p.samples, p.moving, p.cells, p.options), InputError);
-        const StageTwoReport r = runStageTwo(Device::Auto, cloud, p.samples, p.moving, p.cells, p.options);
-        EXPECT_EQ(r.device, "cpu");
+        EXPECT_THROW(resolveDevice(Device::Cuda), InputError);
+        p.options.device = resolveDevice(Device::Auto);
+        const StageTwoReport r = runStageTwo(cloud, p.samples, p.moving, p.cells, p.options);
+        EXPECT_EQ(r.device, Device::Cpu);
     } else {
-        EXPECT_EQ(resolveDevice(Device::Auto), Device::Cuda);
+        EXPECT_EQ(resolveDevice(Device::Auto).device(), Device::Cuda);
     }
     registerCudaProbe(nullptr);
     registerStageTwoCuda(nullptr);
@@ -265,7 +266,7 @@ TEST(StageTwoCuda, OneAdamStepMatchesCpu)
     GaussianCloud a = p.start, b = p.start;
     optimiseStageTwo(a, p.samples, p.moving, p.cells, p.options);
     const StageTwoReport r = cuda::optimiseStageTwoCuda(b, p.samples, p.moving, p.cells, p.options);
-    EXPECT_EQ(r.device, "cuda");
+    EXPECT_EQ(r.device, Device::Cuda);
     const StageTwoOptions& o = p.options;
     std::size_t total = 0, off = 0;
     auto compare = [&](const std::vector<float>& x, const std::vector<float>& y, float lr) {

@@ -88,6 +88,14 @@ bool sameModel(const GaussianCloud& a, const GaussianCloud& b)
     return a.means == b.means && a.rotations == b.rotations && a.logScales == b.logScales && a.sh == b.sh;
 }
 
+/// Stage I options on a device resolved now (after any fake registration).
+StageOneOptions on(Device requested)
+{
+    StageOneOptions o;
+    o.device = resolveDevice(requested);
+    return o;
+}
+
 } // namespace
 
 TEST(StageOneDevice, CpuAndAutoWithoutGpuRunTheCpuPath)
@@ -95,14 +103,18 @@ TEST(StageOneDevice, CpuAndAutoWithoutGpuRunTheCpuPath)
     const Problem p;
     const StageOneResult ref = p.cpu();
     for (Device dev : {Device::Cpu, Device::Auto}) {
-        StageOneUpdater u(dev, p.rest, p.rig, p.d.graph);
+        StageOneUpdater u(p.rest, p.rig, p.d.graph, on(dev));
         EXPECT_EQ(u.device(), Device::Cpu);
         const StageOneResult r = u.apply(p.d.transforms, p.d.nodeMoving);
-        EXPECT_STREQ(r.device, "cpu");
+        EXPECT_EQ(r.device, Device::Cpu);
         EXPECT_TRUE(sameModel(r.deformed, ref.deformed));
         EXPECT_EQ(r.moving, ref.moving);
     }
-    EXPECT_THROW(StageOneUpdater(Device::Cuda, p.rest, p.rig, p.d.graph), InputError);
+    EXPECT_THROW(on(Device::Cuda), InputError);
+    // A GPU but no CUDA engine registered: refused under Cuda, the CPU under Auto.
+    const FakeCuda probeOnly(nullptr);
+    EXPECT_THROW(StageOneUpdater(p.rest, p.rig, p.d.graph, on(Device::Cuda)), InputError);
+    EXPECT_EQ(StageOneUpdater(p.rest, p.rig, p.d.graph, on(Device::Auto)).device(), Device::Cpu);
 }
 
 TEST(StageOneDevice, OutOfMemoryFallsBackUnderAutoOnly)
@@ -112,29 +124,29 @@ TEST(StageOneDevice, OutOfMemoryFallsBackUnderAutoOnly)
     {
         const FakeCuda fake(&oomOnApply);
         gApplyCalls = 0;
-        StageOneUpdater autoU(Device::Auto, p.rest, p.rig, p.d.graph);
+        StageOneUpdater autoU(p.rest, p.rig, p.d.graph, on(Device::Auto));
         EXPECT_EQ(autoU.device(), Device::Cuda);
         const StageOneResult r = autoU.apply(p.d.transforms, p.d.nodeMoving);
         EXPECT_EQ(gApplyCalls, 1);
-        EXPECT_STREQ(r.device, "cpu");
+        EXPECT_EQ(r.device, Device::Cpu);
         EXPECT_TRUE(sameModel(r.deformed, ref.deformed));
         EXPECT_EQ(autoU.device(), Device::Cpu); // later steps stay on the CPU
-        StageOneUpdater cudaU(Device::Cuda, p.rest, p.rig, p.d.graph);
+        StageOneUpdater cudaU(p.rest, p.rig, p.d.graph, on(Device::Cuda));
         EXPECT_THROW(cudaU.apply(p.d.transforms, p.d.nodeMoving), DeviceMemoryError);
     }
     {
         const FakeCuda fake(&oomOnUpload);
-        StageOneUpdater autoU(Device::Auto, p.rest, p.rig, p.d.graph);
+        StageOneUpdater autoU(p.rest, p.rig, p.d.graph, on(Device::Auto));
         EXPECT_EQ(autoU.device(), Device::Cpu);
         EXPECT_TRUE(sameModel(autoU.apply(p.d.transforms, p.d.nodeMoving).deformed, ref.deformed));
-        EXPECT_THROW(StageOneUpdater(Device::Cuda, p.rest, p.rig, p.d.graph), DeviceMemoryError);
+        EXPECT_THROW(StageOneUpdater(p.rest, p.rig, p.d.graph, on(Device::Cuda)), DeviceMemoryError);
     }
     {
         const FakeCuda fake(&works);
-        StageOneUpdater u(Device::Cuda, p.rest, p.rig, p.d.graph);
+        StageOneUpdater u(p.rest, p.rig, p.d.graph, on(Device::Cuda));
         const StageOneResult r = u.apply(p.d.transforms, p.d.nodeMoving);
         EXPECT_EQ(r.movingCount, 424242u);
-        EXPECT_STREQ(r.device, "cuda");
+        EXPECT_EQ(r.device, Device::Cuda);
         // Mismatched transforms are rejected before reaching the device.
         EXPECT_THROW(u.apply(NodeTransforms::identity(3), p.d.nodeMoving), InputError);
     }
@@ -146,19 +158,18 @@ TEST(WarpDevice, OutOfMemoryFallsBackUnderAutoOnly)
     const std::size_t n = p.rest.size();
     std::vector<float> ref(3 * n), refRot(9 * n), got(3 * n), gotRot(9 * n);
     warpPoints(p.d.graph, p.d.transforms, p.rest.means.data(), n, ref.data(), refRot.data());
-    EXPECT_STREQ(warpPointsOn(Device::Auto, p.d.graph, p.d.transforms, p.rest.means.data(), n, got.data(),
-                              gotRot.data()),
-                 "cpu");
+    EXPECT_EQ(warpPointsOn(p.d.graph, p.d.transforms, p.rest.means.data(), n, got.data(), gotRot.data(),
+                           {resolveDevice(Device::Auto)}),
+              Device::Cpu);
     EXPECT_EQ(got, ref);
-    EXPECT_THROW(warpPointsOn(Device::Cuda, p.d.graph, p.d.transforms, p.rest.means.data(), n, got.data(), nullptr),
-                 InputError);
     const FakeCuda fake(&works, &oomWarp);
     std::fill(got.begin(), got.end(), 0.0f);
-    EXPECT_STREQ(warpPointsOn(Device::Auto, p.d.graph, p.d.transforms, p.rest.means.data(), n, got.data(),
-                              gotRot.data()),
-                 "cpu");
+    EXPECT_EQ(warpPointsOn(p.d.graph, p.d.transforms, p.rest.means.data(), n, got.data(), gotRot.data(),
+                           {resolveDevice(Device::Auto)}),
+              Device::Cpu);
     EXPECT_EQ(got, ref);
     EXPECT_EQ(gotRot, refRot);
-    EXPECT_THROW(warpPointsOn(Device::Cuda, p.d.graph, p.d.transforms, p.rest.means.data(), n, got.data(), nullptr),
+    EXPECT_THROW(warpPointsOn(p.d.graph, p.d.transforms, p.rest.means.data(), n, got.data(), nullptr,
+                              {resolveDevice(Device::Cuda)}),
                  DeviceMemoryError);
 }

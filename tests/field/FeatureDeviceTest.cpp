@@ -1,5 +1,6 @@
 // evaluateFeaturesOn() in a build without registered CUDA: Cpu and Auto run the CPU path (the
-// same numbers and counters as evaluateFeatures()), Cuda is refused with InputError.
+// same numbers and counters as evaluateFeatures()), Cuda is refused with InputError (without a
+// GPU when resolved, with a GPU but no CUDA feature evaluation when run).
 #include <gtest/gtest.h>
 
 #include <random>
@@ -9,6 +10,18 @@
 #include "field/FieldTestModels.h"
 
 using namespace splatwarp;
+
+namespace {
+
+bool gpu() { return true; }
+
+/// A GPU probe without a CUDA feature evaluation, for one test.
+struct ProbeOnly {
+    ProbeOnly() { registerCudaProbe(&gpu); }
+    ~ProbeOnly() { registerCudaProbe(nullptr); }
+};
+
+} // namespace
 
 TEST(FeatureDevice, CpuAndAutoRunTheCpuPathAndCudaIsRefused)
 {
@@ -24,7 +37,7 @@ TEST(FeatureDevice, CpuAndAutoRunTheCpuPathAndCudaIsRefused)
     FeatureStats s0, s1;
     evaluateFeatures(cloud, points.data(), m, o, f0.data(), o0.data(), &s0);
     for (const Device d : {Device::Cpu, Device::Auto}) {
-        o.device = d;
+        o.device = resolveDevice(d);
         s1 = {};
         EXPECT_EQ(evaluateFeaturesOn(cloud, points.data(), m, o, f1.data(), o1.data(), &s1), Device::Cpu);
         EXPECT_EQ(f1, f0);
@@ -33,6 +46,11 @@ TEST(FeatureDevice, CpuAndAutoRunTheCpuPathAndCudaIsRefused)
         EXPECT_EQ(s1.pairsTested, s0.pairsTested);
     }
     EXPECT_GT(s0.pairsContributing, 0u);
-    o.device = Device::Cuda;
+    EXPECT_THROW(resolveDevice(Device::Cuda), InputError);
+    const ProbeOnly probe;
+    o.device = resolveDevice(Device::Cuda);
     EXPECT_THROW(evaluateFeaturesOn(cloud, points.data(), m, o, f1.data(), o1.data()), InputError);
+    o.device = resolveDevice(Device::Auto);
+    EXPECT_EQ(evaluateFeaturesOn(cloud, points.data(), m, o, f1.data(), o1.data()), Device::Cpu);
+    EXPECT_EQ(o1, o0);
 }

@@ -1,5 +1,6 @@
-// evaluateHeldOut() on a device, in a build without registered CUDA: Cpu and Auto give the same
-// report (the CPU path), Cuda is refused with InputError before any work.
+// evaluateHeldOut() on a device, in a build without registered CUDA: the held-out options' device
+// reaches the points, Cpu and Auto give the same report (the CPU path), Cuda is refused with
+// InputError when resolved, before any work.
 #include <gtest/gtest.h>
 
 #include <string>
@@ -20,13 +21,17 @@ TEST(HeldOutDevice, CpuAndAutoAgreeAndCudaIsRefusedWithoutCuda)
         solveDeformation(rest, loadDeformSpec(std::string(SPLATWARP_SOURCE_DIR) + "/samples/specs/bend.json"));
     HeldOutOptions ho;
     ho.points = 3000;
-    const HeldOutPoints points = makeHeldOutPoints(grid, deformation, ho);
+    HeldOutPoints points = makeHeldOutPoints(grid, deformation, ho);
+    EXPECT_EQ(points.features.device.requested(), Device::Cpu);
     // The rest model against itself pushed through a bend: a nonzero error to compare.
-    const FieldErrorReport cpu = evaluateHeldOut(rest, rest, points, Device::Cpu);
-    const FieldErrorReport autoRun = evaluateHeldOut(rest, rest, points, Device::Auto);
+    const FieldErrorReport cpu = evaluateHeldOut(rest, rest, points);
+    ho.device = resolveDevice(Device::Auto);
+    points = makeHeldOutPoints(grid, deformation, ho);
+    EXPECT_EQ(points.features.device.requested(), Device::Auto);
+    const FieldErrorReport autoRun = evaluateHeldOut(rest, rest, points);
     EXPECT_GT(cpu.opacity, 0.0);
     EXPECT_EQ(autoRun.opacity, cpu.opacity);
     EXPECT_EQ(autoRun.color, cpu.color);
     EXPECT_EQ(autoRun.insidePoints, cpu.insidePoints);
-    EXPECT_THROW(evaluateHeldOut(rest, rest, points, Device::Cuda), InputError);
+    EXPECT_THROW(resolveDevice(Device::Cuda), InputError);
 }

@@ -83,7 +83,7 @@ TEST(Judge, PointsDependOnTheRestModelAndSeedOnlyAndUseNoFilter)
     o.seed = 2;
     EXPECT_NE(drawJudgePoints(rest, o).rest, a.rest);
     // The rest model against itself at rest: zero error, both sides of the split populated.
-    const JudgeRest jr = prepareJudgeRest(rest, HeldOutOptions{5000, 1, Device::Cpu}, Device::Cpu);
+    const JudgeRest jr = prepareJudgeRest(rest, HeldOutOptions{5000, 1, {}});
     const FieldErrorReport e = evaluateHeldOut(jr.unrotated, rest, jr.points);
     EXPECT_EQ(e.opacity, 0.0);
     EXPECT_GT(e.insidePoints, 500u);

@@ -50,6 +50,14 @@ Image fakeOutOfMemory(const GaussianCloud&, const Camera&, const RenderOptions&)
     throw DeviceMemoryError("CUDA: cannot allocate 1234 bytes of GPU memory for tile sort keys");
 }
 
+/// Render options on a device resolved now (after any fake registration).
+RenderOptions on(Device requested)
+{
+    RenderOptions o;
+    o.device = resolveDevice(requested);
+    return o;
+}
+
 struct Scene {
     GaussianCloud cloud = smallSample("stripes", 1500);
     Camera camera = smallOrbit(cloud, 1, 40, 28)[0];
@@ -62,12 +70,12 @@ TEST(RenderDevice, CpuOnlyBuildRendersAutoOnTheCpuAndRejectsCuda)
 {
     const Scene s;
     Device used = Device::Cuda;
-    EXPECT_EQ(renderGaussians(Device::Auto, s.cloud, s.camera, {}, &used).pixels, s.cpu.pixels);
+    EXPECT_EQ(renderGaussiansOn(s.cloud, s.camera, on(Device::Auto), &used).pixels, s.cpu.pixels);
     EXPECT_EQ(used, Device::Cpu);
     used = Device::Cuda;
-    EXPECT_EQ(renderGaussians(Device::Cpu, s.cloud, s.camera, {}, &used).pixels, s.cpu.pixels);
+    EXPECT_EQ(renderGaussiansOn(s.cloud, s.camera, on(Device::Cpu), &used).pixels, s.cpu.pixels);
     EXPECT_EQ(used, Device::Cpu);
-    const std::string e = test::inputErrorMessage([&] { renderGaussians(Device::Cuda, s.cloud, s.camera); });
+    const std::string e = test::inputErrorMessage([&] { on(Device::Cuda); });
     EXPECT_NE(e.find("--device cuda"), std::string::npos) << e;
     EXPECT_NE(e.find("no CUDA support"), std::string::npos) << e;
 }
@@ -79,12 +87,12 @@ TEST(RenderDevice, RegisteredGpuRasteriserIsUsedUnderAutoAndCuda)
     gFakeCalls = 0;
     for (Device d : {Device::Auto, Device::Cuda}) {
         Device used = Device::Cpu;
-        const Image img = renderGaussians(d, s.cloud, s.camera, {}, &used);
+        const Image img = renderGaussiansOn(s.cloud, s.camera, on(d), &used);
         EXPECT_EQ(used, Device::Cuda) << deviceName(d);
         EXPECT_EQ(img.at(3, 4, 3), 0.25f) << deviceName(d);
     }
     EXPECT_EQ(gFakeCalls, 2);
-    EXPECT_EQ(renderGaussians(Device::Cpu, s.cloud, s.camera).pixels, s.cpu.pixels);
+    EXPECT_EQ(renderGaussiansOn(s.cloud, s.camera, on(Device::Cpu)).pixels, s.cpu.pixels);
     EXPECT_EQ(gFakeCalls, 2);
 }
 
@@ -92,8 +100,8 @@ TEST(RenderDevice, GpuWithoutRasteriserFallsBackUnderAutoOnly)
 {
     const Scene s;
     const FakeCuda fake(&gpu, nullptr); // a probe but no rasteriser: CUDA build without this kernel
-    EXPECT_EQ(renderGaussians(Device::Auto, s.cloud, s.camera).pixels, s.cpu.pixels);
-    const std::string e = test::inputErrorMessage([&] { renderGaussians(Device::Cuda, s.cloud, s.camera); });
+    EXPECT_EQ(renderGaussiansOn(s.cloud, s.camera, on(Device::Auto)).pixels, s.cpu.pixels);
+    const std::string e = test::inputErrorMessage([&] { renderGaussiansOn(s.cloud, s.camera, on(Device::Cuda)); });
     EXPECT_NE(e.find("no CUDA rasteriser"), std::string::npos) << e;
 }
 
@@ -103,11 +111,11 @@ TEST(RenderDevice, OutOfGpuMemoryFallsBackUnderAutoAndPropagatesUnderCuda)
     const FakeCuda fake(&gpu, &fakeOutOfMemory);
     gFakeCalls = 0;
     Device used = Device::Cuda;
-    EXPECT_EQ(renderGaussians(Device::Auto, s.cloud, s.camera, {}, &used).pixels, s.cpu.pixels);
+    EXPECT_EQ(renderGaussiansOn(s.cloud, s.camera, on(Device::Auto), &used).pixels, s.cpu.pixels);
     EXPECT_EQ(used, Device::Cpu);
     EXPECT_EQ(gFakeCalls, 1);
     try {
-        renderGaussians(Device::Cuda, s.cloud, s.camera);
+        renderGaussiansOn(s.cloud, s.camera, on(Device::Cuda));
         ADD_FAILURE() << "expected DeviceMemoryError";
     } catch (const DeviceMemoryError& e) {
         EXPECT_NE(std::string(e.what()).find("tile sort keys"), std::string::npos) << e.what();
@@ -119,13 +127,12 @@ TEST(RenderDevice, ComparisonSheetRendersOnItsDevice)
 {
     const Scene s;
     ComparisonSheetOptions o;
-    o.device = Device::Cuda;
-    EXPECT_THROW(renderComparisonSheet({&s.cloud}, {"rest"}, {s.camera}, o), InputError); // CPU-only state
     const FakeCuda fake(&gpu, &fakeRender);
+    o.render = on(Device::Cuda);
     gFakeCalls = 0;
     renderComparisonSheet({&s.cloud, &s.cloud}, {"a", "b"}, {s.camera, s.camera, s.camera}, o);
     EXPECT_EQ(gFakeCalls, 6); // every cell
-    o.device = Device::Cpu;
+    o.render = on(Device::Cpu);
     renderComparisonSheet({&s.cloud}, {"a"}, {s.camera}, o);
     EXPECT_EQ(gFakeCalls, 6);
 }

@@ -58,6 +58,14 @@ RigidStageTwoProblem smallProblem()
     return rigidStageTwoProblem(12, 0, 7, 0.4f, Mat3d::identity(), Vec3d(0.03, 0, 0), 6, 0.9f, o);
 }
 
+/// The problem's options on a device resolved now (after any fake registration).
+StageTwoOptions on(const RigidStageTwoProblem& p, Device requested)
+{
+    StageTwoOptions o = p.options;
+    o.device = resolveDevice(requested);
+    return o;
+}
+
 bool sameParams(const GaussianCloud& a, const GaussianCloud& b)
 {
     return a.means == b.means && a.rotations == b.rotations && a.logScales == b.logScales &&
@@ -81,15 +89,13 @@ TEST(Device, ParseNamesAndRejectOthers)
 TEST(Device, CudaWithoutSupportFailsClearly)
 {
     ASSERT_FALSE(cudaCompiledIn()) << "the CPU test binary must not register CUDA backends";
-    EXPECT_EQ(resolveDevice(Device::Auto), Device::Cpu);
-    EXPECT_EQ(resolveDevice(Device::Cpu), Device::Cpu);
+    EXPECT_EQ(resolveDevice(Device::Auto).device(), Device::Cpu);
+    EXPECT_EQ(resolveDevice(Device::Auto).requested(), Device::Auto);
+    EXPECT_EQ(resolveDevice(Device::Cpu).device(), Device::Cpu);
+    EXPECT_FALSE(resolveDevice(Device::Cpu).cpuFallback());
+    EXPECT_EQ(ResolvedDevice().device(), Device::Cpu);
     const std::string e = test::inputErrorMessage([] { resolveDevice(Device::Cuda); });
     EXPECT_NE(e.find("this build has no CUDA support"), std::string::npos) << e;
-
-    const RigidStageTwoProblem p = smallProblem();
-    GaussianCloud cloud = p.start;
-    EXPECT_THROW(runStageTwo(Device::Cuda, cloud, p.samples, p.moving, p.cells, p.options), InputError);
-    EXPECT_TRUE(sameParams(cloud, p.start));
 }
 
 TEST(Device, CudaWithoutGpuFailsClearlyAndAutoUsesCpu)
@@ -102,9 +108,21 @@ TEST(Device, CudaWithoutGpuFailsClearlyAndAutoUsesCpu)
     EXPECT_NE(e.find("no usable CUDA GPU"), std::string::npos) << e;
     const RigidStageTwoProblem p = smallProblem();
     GaussianCloud cloud = p.start;
-    const StageTwoReport r = runStageTwo(Device::Auto, cloud, p.samples, p.moving, p.cells, p.options);
-    EXPECT_EQ(r.device, "cpu");
+    const StageTwoReport r = runStageTwo(cloud, p.samples, p.moving, p.cells, on(p, Device::Auto));
+    EXPECT_EQ(r.device, Device::Cpu);
     EXPECT_EQ(gFakeCalls, 0);
+}
+
+TEST(Device, GpuWithoutCudaStageTwoIsRefusedUnderCudaOnly)
+{
+    FakeCuda fake(gpu, nullptr); // a probe but no Stage II: a CUDA build without this kernel
+    const RigidStageTwoProblem p = smallProblem();
+    GaussianCloud cloud = p.start;
+    const std::string e = test::inputErrorMessage(
+        [&] { runStageTwo(cloud, p.samples, p.moving, p.cells, on(p, Device::Cuda)); });
+    EXPECT_NE(e.find("no CUDA Stage II"), std::string::npos) << e;
+    EXPECT_TRUE(sameParams(cloud, p.start));
+    EXPECT_EQ(runStageTwo(cloud, p.samples, p.moving, p.cells, on(p, Device::Auto)).device, Device::Cpu);
 }
 
 TEST(Device, AutoDispatchesToRegisteredCuda)
@@ -113,13 +131,13 @@ TEST(Device, AutoDispatchesToRegisteredCuda)
     FakeCuda fake(gpu, fakeSuccess);
     const RigidStageTwoProblem p = smallProblem();
     GaussianCloud cloud = p.start;
-    const StageTwoReport r = runStageTwo(Device::Auto, cloud, p.samples, p.moving, p.cells, p.options);
+    const StageTwoReport r = runStageTwo(cloud, p.samples, p.moving, p.cells, on(p, Device::Auto));
     EXPECT_EQ(gFakeCalls, 1);
-    EXPECT_EQ(r.device, "cuda");
+    EXPECT_EQ(r.device, Device::Cuda);
     EXPECT_EQ(r.movingGaussians, 12345u);
-    const StageTwoReport c = runStageTwo(Device::Cpu, cloud, p.samples, p.moving, p.cells, p.options);
+    const StageTwoReport c = runStageTwo(cloud, p.samples, p.moving, p.cells, on(p, Device::Cpu));
     EXPECT_EQ(gFakeCalls, 1);
-    EXPECT_EQ(c.device, "cpu");
+    EXPECT_EQ(c.device, Device::Cpu);
 }
 
 TEST(Device, OutOfGpuMemoryFallsBackUnderAutoOnly)
@@ -129,15 +147,15 @@ TEST(Device, OutOfGpuMemoryFallsBackUnderAutoOnly)
     const RigidStageTwoProblem p = smallProblem();
     GaussianCloud reference = p.start, cloud = p.start;
     const StageTwoReport ref = optimiseStageTwo(reference, p.samples, p.moving, p.cells, p.options);
-    const StageTwoReport r = runStageTwo(Device::Auto, cloud, p.samples, p.moving, p.cells, p.options);
+    const StageTwoReport r = runStageTwo(cloud, p.samples, p.moving, p.cells, on(p, Device::Auto));
     EXPECT_EQ(gFakeCalls, 1);
-    EXPECT_EQ(r.device, "cpu");
+    EXPECT_EQ(r.device, Device::Cpu);
     EXPECT_TRUE(sameParams(cloud, reference));
     EXPECT_EQ(r.energies.back().total, ref.energies.back().total);
 
     GaussianCloud explicitCuda = p.start;
     try {
-        runStageTwo(Device::Cuda, explicitCuda, p.samples, p.moving, p.cells, p.options);
+        runStageTwo(explicitCuda, p.samples, p.moving, p.cells, on(p, Device::Cuda));
         ADD_FAILURE() << "expected DeviceMemoryError";
     } catch (const DeviceMemoryError& e) {
         EXPECT_NE(std::string(e.what()).find("coverage pairs"), std::string::npos) << e.what();

@@ -17,7 +17,7 @@ namespace {
 class ScriptedSolver final : public StageTwoSolver {
 public:
     explicit ScriptedSolver(std::vector<double> energies) : mEnergies(std::move(energies)) {}
-    const char* device() const override { return "script"; }
+    Device device() const override { return Device::Cpu; }
     void describe(StageTwoReport& r) const override { r.movingGaussians = 1; }
     void prepare() override {}
     void rebuildCoverage(int iteration) override { rebuilds.push_back(iteration); }

@@ -1,0 +1,36 @@
+#pragma once
+/// @file SharedArgs.h
+/// @brief Flags that several commands take, each declared once: `--device` (every command that
+///        computes on a device) and `--max-mean-step` (every command that runs Stage II).
+#include <string>
+
+#include "Command.h"
+#include "core/Device.h"
+#include "stage2/StageTwoOptions.h"
+
+namespace splatwarp::cli {
+
+/// @brief `--device auto|cpu|cuda` (default auto) into `device`; `what` says what runs there
+///        ("the rest targets run"). A bad name is a usage error; the command resolves the device
+///        once (resolveDevice()) before its work.
+inline void addDeviceOption(CLI::App* sub, Device& device, const std::string& what)
+{
+    device = Device::Auto;
+    sub->add_option_function<std::string>(
+           "--device", [&device](const std::string& name) { device = parseDevice(name); },
+           "Where " + what + ": auto (CUDA when compiled in and a GPU is present, else CPU; out of GPU memory falls back "
+                             "to the CPU), cpu or cuda")
+        ->default_str("auto")
+        ->check(CLI::IsMember({"auto", "cpu", "cuda"}));
+}
+
+/// @brief `--max-mean-step` into the Stage II options (default: the options' value).
+inline void addMaxMeanStepOption(CLI::App* sub, StageTwoOptions& stageTwo)
+{
+    sub->add_option("--max-mean-step", stageTwo.maxMeanStep,
+                    "Longest Stage II step of a Gaussian's centre, in its own standard deviations (0: unbounded)")
+        ->capture_default_str()
+        ->check(nonNegative());
+}
+
+} // namespace splatwarp::cli
