@@ -103,16 +103,6 @@ __global__ void binFillKernel(std::size_t g, const float* lo, const float* hi, f
             }
 }
 
-/// Run a CUB device algorithm (size query, then run) with a temporary buffer that grows.
-template <typename F>
-void cubCall(DeviceBuffer<unsigned char>& temp, const F& f)
-{
-    std::size_t bytes = 0;
-    SPLATWARP_CUDA_CHECK(f(nullptr, bytes));
-    temp.resize(std::max<std::size_t>(bytes, 1));
-    SPLATWARP_CUDA_CHECK(f(temp.data(), bytes));
-}
-
 struct EdgeSum {
     double edge = 0;          ///< sum of the largest box edges
     unsigned long long n = 0; ///< non-empty boxes

@@ -1,12 +1,15 @@
 #pragma once
 /// @file CudaLaunch.cuh
 /// @brief What every kernel file needs: one thread per element launches (checked, no device
-///        synchronisation), the element index, and an owned non-blocking stream.
+///        synchronisation), the element index, CUB calls with a growing temporary buffer, and an
+///        owned non-blocking stream.
 #include <cuda_runtime.h>
 
+#include <algorithm>
 #include <cstddef>
 
 #include "CudaCheck.h"
+#include "DeviceBuffer.h"
 
 namespace splatwarp::cuda {
 
@@ -27,6 +30,16 @@ void launch(const char* name, Kernel kernel, std::size_t n, cudaStream_t stream,
     if (n == 0) return;
     kernel<<<blocksFor(n), kBlock, 0, stream>>>(args...);
     checkCuda(cudaGetLastError(), name, __FILE__, __LINE__);
+}
+
+/// Run a CUB device algorithm (size query, then run) with a temporary buffer that grows.
+template <typename F>
+void cubCall(DeviceBuffer<unsigned char>& temp, const F& f)
+{
+    std::size_t bytes = 0;
+    SPLATWARP_CUDA_CHECK(f(nullptr, bytes));
+    temp.resize(std::max<std::size_t>(bytes, 1));
+    SPLATWARP_CUDA_CHECK(f(temp.data(), bytes));
 }
 
 /// An owned non-blocking stream (work on it never waits for the legacy default stream).

@@ -148,8 +148,6 @@ __global__ void compositeKernel(const TileSplat* splats /*[N]*/, const std::uint
     out[3] = 1.0f - transmittance;
 }
 
-void checkLaunch(const char* name) { checkCuda(cudaGetLastError(), name, __FILE__, __LINE__); }
-
 /// The cloud's arrays on the device.
 struct DeviceGaussians {
     DeviceBuffer<float> means{"Gaussian means"}, rotations{"Gaussian rotations"}, logScales{"Gaussian scales"},
@@ -187,17 +185,12 @@ void projectSplats(const GaussianCloud& cloud, const DeviceGaussians& g, const P
 {
     const std::size_t n = cloud.size();
     if (n == 0) return;
-    projectKernel<<<blocksFor(n), kBlock, 0, stream>>>(n, g.means.data(), g.rotations.data(), g.logScales.data(),
-                                                       g.opacities.data(), g.sh.data(), cloud.shDegree, view,
-                                                       out.splats.data(), out.tileBoxes.data(), out.depthBits.data(),
-                                                       out.tileCounts.data());
-    checkLaunch("projectKernel");
-    std::size_t bytes = 0;
-    SPLATWARP_CUDA_CHECK(
-        cub::DeviceScan::InclusiveSum(nullptr, bytes, out.tileCounts.data(), out.tileEnds.data(), n, stream));
-    temp.resize(bytes);
-    SPLATWARP_CUDA_CHECK(
-        cub::DeviceScan::InclusiveSum(temp.data(), bytes, out.tileCounts.data(), out.tileEnds.data(), n, stream));
+    launch("projectKernel", projectKernel, n, stream, n, g.means.data(), g.rotations.data(), g.logScales.data(),
+           g.opacities.data(), g.sh.data(), cloud.shDegree, view, out.splats.data(), out.tileBoxes.data(),
+           out.depthBits.data(), out.tileCounts.data());
+    cubCall(temp, [&](void* t, std::size_t& bytes) {
+        return cub::DeviceScan::InclusiveSum(t, bytes, out.tileCounts.data(), out.tileEnds.data(), n, stream);
+    });
     SPLATWARP_CUDA_CHECK(cudaMemcpyAsync(&out.entries, out.tileEnds.data() + (n - 1), sizeof(out.entries),
                                          cudaMemcpyDeviceToHost, stream));
     SPLATWARP_CUDA_CHECK(cudaStreamSynchronize(stream));
@@ -224,25 +217,18 @@ void sortTileEntries(const ProjectedSplats& p, std::size_t n, std::size_t tiles,
                      DeviceBuffer<unsigned char>& temp, TileLists& lists, cudaStream_t stream)
 {
     if (p.entries == 0) return;
-    tileEntriesKernel<<<blocksFor(n), kBlock, 0, stream>>>(n, p.tileCounts.data(), p.tileEnds.data(),
-                                                           p.tileBoxes.data(), p.depthBits.data(), tilesX,
-                                                           lists.keys.data(), lists.values.data());
-    checkLaunch("tileEntriesKernel");
+    launch("tileEntriesKernel", tileEntriesKernel, n, stream, n, p.tileCounts.data(), p.tileEnds.data(),
+           p.tileBoxes.data(), p.depthBits.data(), tilesX, lists.keys.data(), lists.values.data());
     // Sort only the bits in use: 32 depth bits below the bits of the largest tile index.
     int tileBits = 0;
     while ((std::uint64_t(1) << tileBits) < tiles) ++tileBits;
     const std::uint32_t count = std::uint32_t(p.entries);
-    std::size_t bytes = 0;
-    SPLATWARP_CUDA_CHECK(cub::DeviceRadixSort::SortPairs(nullptr, bytes, lists.keys.data(), lists.sortedKeys.data(),
-                                                         lists.values.data(), lists.sortedValues.data(), count, 0,
-                                                         32 + tileBits, stream));
-    temp.resize(bytes);
-    SPLATWARP_CUDA_CHECK(cub::DeviceRadixSort::SortPairs(temp.data(), bytes, lists.keys.data(),
-                                                         lists.sortedKeys.data(), lists.values.data(),
-                                                         lists.sortedValues.data(), count, 0, 32 + tileBits, stream));
-    tileRangesKernel<<<blocksFor(p.entries), kBlock, 0, stream>>>(p.entries, lists.sortedKeys.data(),
-                                                                  lists.tileStart.data(), lists.tileEnd.data());
-    checkLaunch("tileRangesKernel");
+    cubCall(temp, [&](void* t, std::size_t& bytes) {
+        return cub::DeviceRadixSort::SortPairs(t, bytes, lists.keys.data(), lists.sortedKeys.data(), lists.values.data(),
+                                               lists.sortedValues.data(), count, 0, 32 + tileBits, stream);
+    });
+    launch("tileRangesKernel", tileRangesKernel, std::size_t(p.entries), stream, p.entries, lists.sortedKeys.data(),
+           lists.tileStart.data(), lists.tileEnd.data());
 }
 
 } // namespace
@@ -273,7 +259,7 @@ Image renderGaussiansCuda(const GaussianCloud& cloud, const Camera& camera, cons
     compositeKernel<<<dim3(unsigned(tilesX), unsigned(tilesY)), dim3(kSplatTileSize, kSplatTileSize), 0, stream>>>(
         projected.splats.data(), lists.sortedValues.data(), lists.tileStart.data(), lists.tileEnd.data(), view.width,
         view.height, options.background, pixels.data());
-    checkLaunch("compositeKernel");
+    SPLATWARP_CUDA_CHECK_LAUNCH("compositeKernel");
     Image image(view.width, view.height, 4);
     pixels.download(image.pixels.data(), image.pixels.size(), stream);
     return image;
