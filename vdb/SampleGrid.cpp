@@ -9,12 +9,12 @@
 #include <openvdb/tools/Morphology.h>
 #include <openvdb/tree/LeafManager.h>
 #include <tbb/blocked_range.h>
-#include <tbb/parallel_for.h>
 #include <tbb/parallel_reduce.h>
 
 #include "SampleGridImpl.h"
 #include "VdbLibrary.h"
 #include "core/Error.h"
+#include "core/ParallelFor.h"
 #include "core/Memory.h"
 #include "core/Progress.h"
 #include "field/FeatureDevice.h"
@@ -28,17 +28,6 @@ namespace {
 
 /// Gaussians per task in the parallel loops (small enough to balance, large enough to amortise).
 constexpr std::size_t kGrain = 1024;
-
-/// body(begin, end) over [0, n), in parallel chunks or in one serial call.
-template <typename Body>
-void forRange(std::size_t n, bool threaded, const Body& body)
-{
-    if (threaded)
-        tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n, kGrain),
-                          [&](const tbb::blocked_range<std::size_t>& r) { body(r.begin(), r.end()); });
-    else
-        body(std::size_t(0), n);
-}
 
 /// World-space box of a prepared Gaussian: its pruning AABB (the exact cutoff ellipsoid box,
 /// slightly padded; the centre alone when it never contributes), the same box the feature
@@ -55,21 +44,21 @@ void gaussianBox(const PreparedGaussian& g, Vec3d& lo, Vec3d& hi)
 struct TopologyOp {
     const std::vector<PreparedGaussian>& gaussians;
     const SampleGrid::Impl& grid;
-    openvdb::MaskTree tree;
+    openvdb::MaskTree::Ptr tree = std::make_shared<openvdb::MaskTree>();
 
     TopologyOp(const std::vector<PreparedGaussian>& g, const SampleGrid::Impl& im) : gaussians(g), grid(im) {}
     TopologyOp(TopologyOp& o, tbb::split) : gaussians(o.gaussians), grid(o.grid) {}
 
     void operator()(const tbb::blocked_range<std::size_t>& r)
     {
-        openvdb::tree::ValueAccessor<openvdb::MaskTree> acc(tree);
+        openvdb::tree::ValueAccessor<openvdb::MaskTree> acc(*tree);
         for (std::size_t i = r.begin(); i != r.end(); ++i) {
             Vec3d lo, hi;
             gaussianBox(gaussians[i], lo, hi);
             const openvdb::CoordBBox box(grid.cellOf(lo), grid.cellOf(hi));
             // Large boxes (big Gaussians) are filled as tiles where possible; small ones voxel by voxel.
             if (box.volume() > 512) {
-                tree.sparseFill(box, true, true);
+                tree->sparseFill(box, true, true);
                 continue;
             }
             for (int x = box.min().x(); x <= box.max().x(); ++x)
@@ -77,7 +66,7 @@ struct TopologyOp {
                     for (int z = box.min().z(); z <= box.max().z(); ++z) acc.setValueOn(openvdb::Coord(x, y, z));
         }
     }
-    void join(TopologyOp& o) { tree.topologyUnion(o.tree); }
+    void join(TopologyOp& o) { tree->topologyUnion(*o.tree); }
 };
 
 /// Refuse before allocating when `cells` (a lower bound or the exact count) cannot fit the budget.
@@ -111,6 +100,189 @@ double largestBoxCells(const std::vector<PreparedGaussian>& prepared, double h)
     return most;
 }
 
+/// The grid's options and model are usable.
+void checkGridInputs(const GaussianCloud& cloud, const SampleGridOptions& o)
+{
+    cloud.checkConsistent();
+    if (cloud.empty()) throw InputError("sample grid: the model has no Gaussians");
+    if (o.samplesPerAxis < 2 || o.samplesPerAxis > 16)
+        throw InputError(msg("sample grid: samples per cell axis must be in 2..16, got ", o.samplesPerAxis));
+    if (!(o.cutoff > 0.0f && o.cutoff < 1.0f)) throw InputError(msg("sample grid: cutoff must be in (0, 1), got ", o.cutoff));
+    if (!(o.lambdaLpf >= 0.0f)) throw InputError(msg("sample grid: lambdaLpf must be >= 0, got ", o.lambdaLpf));
+    if (!(o.cellSize >= 0.0f) || (o.cellSize <= 0.0f && o.cells < 1))
+        throw InputError("sample grid: give a positive cell count or cell size");
+}
+
+/// Cell edge h: the explicit cell size, else the largest extent of the unfiltered extent boxes / cells.
+double cellEdge(const GaussianCloud& cloud, const SampleGridOptions& o)
+{
+    if (o.cellSize > 0.0f) return o.cellSize;
+    Vec3d lo(std::numeric_limits<double>::max(), std::numeric_limits<double>::max(), std::numeric_limits<double>::max());
+    Vec3d hi = -lo;
+    for (std::size_t i = 0; i < cloud.size(); ++i) {
+        Vec3d a, b;
+        gaussianBox(prepareGaussian(cloud, i, 0.0, o.cutoff), a, b);
+        for (int k = 0; k < 3; ++k) {
+            lo[k] = std::min(lo[k], a[k]);
+            hi[k] = std::max(hi[k], b[k]);
+        }
+    }
+    const double extent = std::max(hi.x - lo.x, std::max(hi.y - lo.y, hi.z - lo.z));
+    if (!(extent > 0.0) || !std::isfinite(extent))
+        throw InputError("sample grid: the model has zero extent; give an explicit cell size");
+    return extent / o.cells;
+}
+
+/// The sample set's lattice: SH degree, n samples per cell axis, cell edge h and spacing h / n.
+void setLattice(SampleSet& set, int shDegree, int n, double h)
+{
+    set.shDegree = shDegree;
+    set.samplesPerAxis = n;
+    set.cellSize = float(h);
+    set.spacing = float(h / n);
+}
+
+/// Active cells: every cell a Gaussian's box overlaps, then one cell of 26-neighbour dilation.
+/// The memory budget is checked at each stage, before the next one could exhaust it.
+openvdb::MaskTree::Ptr activeCells(const SampleGrid::Impl& im, const std::vector<PreparedGaussian>& prepared, double h,
+                                   int shDegree)
+{
+    const SampleGridOptions& o = im.options;
+    checkMemory(o, shDegree, largestBoxCells(prepared, h), "the largest Gaussian alone covers");
+    TopologyOp topo(prepared, im);
+    if (o.threaded)
+        tbb::parallel_reduce(tbb::blocked_range<std::size_t>(0, prepared.size(), kGrain), topo);
+    else
+        topo(tbb::blocked_range<std::size_t>(0, prepared.size()));
+    // Tiles still count as their volume here: checked before dilation expands them into voxels.
+    checkMemory(o, shDegree, double(topo.tree->activeVoxelCount()), "the Gaussians cover at least");
+    openvdb::tools::dilateActiveValues(*topo.tree, 1, openvdb::tools::NN_FACE_EDGE_VERTEX, openvdb::tools::EXPAND_TILES,
+                                       o.threaded);
+    topo.tree->voxelizeActiveTiles(o.threaded);
+    return topo.tree;
+}
+
+/// The index grid of the active cells (-1 background, cells numbered in leaf order, deterministic
+/// for a topology) and each cell's coordinates; returns the cell count.
+std::size_t indexCells(SampleGrid::Impl& im, const openvdb::MaskTree& topology, double h, int shDegree)
+{
+    im.index = openvdb::Int32Grid::create(-1);
+    im.index->setTree(std::make_shared<openvdb::Int32Tree>(topology, -1, openvdb::TopologyCopy()));
+    im.index->setTransform(openvdb::math::Transform::createLinearTransform(h));
+    im.index->transform().postTranslate(openvdb::Vec3d(0.5 * h)); // cell (i,j,k) spans [i h, (i+1) h)
+    im.index->setName("cell_index");
+    openvdb::tree::LeafManager<openvdb::Int32Tree> leaves(im.index->tree());
+    std::vector<std::size_t> leafStart(leaves.leafCount() + 1, 0);
+    for (std::size_t l = 0; l < leaves.leafCount(); ++l) leafStart[l + 1] = leafStart[l] + leaves.leaf(l).onVoxelCount();
+    const std::size_t cells = leafStart.back();
+    const int na = im.options.samplesPerAxis;
+    checkMemory(im.options, shDegree, double(cells), "needs");
+    if (cells > std::size_t(std::numeric_limits<std::int32_t>::max()) / std::size_t(na * na * na))
+        throw InputError(msg("sample grid: ", cells, " cells x ", na * na * na, " samples is too many; use fewer cells"));
+    im.cellCoords.resize(3 * cells);
+    parallelForRange(leaves.leafCount(), kGrain, im.options.threaded, [&](std::size_t b, std::size_t e) {
+        for (std::size_t l = b; l < e; ++l) {
+            std::int32_t c = std::int32_t(leafStart[l]);
+            for (auto it = leaves.leaf(l).beginValueOn(); it; ++it, ++c) {
+                it.setValue(c);
+                const openvdb::Coord ijk = it.getCoord();
+                for (int k = 0; k < 3; ++k) im.cellCoords[3 * c + k] = ijk[k];
+            }
+        }
+    });
+    return cells;
+}
+
+/// Samples: a cell-centred n^3 sub-lattice per cell of spacing h / n; warped = rest, gradients identity.
+void placeSamples(SampleGrid::Impl& im, double h)
+{
+    SampleSet& set = im.set;
+    const int na = set.samplesPerAxis;
+    const double spacing = h / na;
+    const std::size_t cells = im.cellCoords.size() / 3;
+    const std::size_t perCell = std::size_t(na) * na * na;
+    const std::size_t m = cells * perCell;
+    set.restPositions.resize(3 * m);
+    set.sampleCell.resize(m);
+    parallelForRange(cells, kGrain, im.options.threaded, [&](std::size_t b, std::size_t e) {
+        for (std::size_t c = b; c < e; ++c) {
+            const std::int32_t* ijk = &im.cellCoords[3 * c];
+            std::size_t s = c * perCell;
+            for (int a = 0; a < na; ++a)
+                for (int bb = 0; bb < na; ++bb)
+                    for (int cc = 0; cc < na; ++cc, ++s) {
+                        set.restPositions[3 * s] = float((ijk[0] * na + a + 0.5) * spacing);
+                        set.restPositions[3 * s + 1] = float((ijk[1] * na + bb + 0.5) * spacing);
+                        set.restPositions[3 * s + 2] = float((ijk[2] * na + cc + 0.5) * spacing);
+                        set.sampleCell[s] = std::int32_t(c);
+                    }
+        }
+    });
+    set.warpedPositions = set.restPositions;
+    set.cellGradient.assign(9 * cells, 0.0f);
+    for (std::size_t c = 0; c < cells; ++c) set.cellGradient[9 * c] = set.cellGradient[9 * c + 4] = set.cellGradient[9 * c + 8] = 1.0f;
+}
+
+/// Cell of each Gaussian's centre (active: its box, which contains the centre, was activated).
+void locateGaussians(SampleGrid::Impl& im, const GaussianCloud& cloud)
+{
+    im.gaussianCell.resize(cloud.size());
+    openvdb::Int32Grid::ConstAccessor acc = im.index->getConstAccessor();
+    for (std::size_t i = 0; i < cloud.size(); ++i) im.gaussianCell[i] = acc.getValue(im.cellOf(Vec3d(cloud.mean(i))));
+}
+
+/// The index grid in NanoVDB (no statistics or checksum: rebuilt per use and only looked up).
+CellIndexGrid nanoIndex(const openvdb::Int32Grid& index)
+{
+    const nanovdb::GridHandle<nanovdb::HostBuffer> handle =
+        nanovdb::openToNanoVDB<nanovdb::HostBuffer>(index, nanovdb::StatsMode::Disable, nanovdb::ChecksumMode::Disable);
+    CellIndexGrid out;
+    out.assign(handle.data(), handle.size());
+    return out;
+}
+
+/// Rest targets F, O of every sample with the rest isotropic filter, on options.device: the
+/// registered CUDA evaluation (cell lists in the NanoVDB index grid) or the CPU block evaluation.
+void evaluateTargets(SampleGrid::Impl& im, const GaussianCloud& cloud, double filterVariance)
+{
+    SampleSet& set = im.set;
+    FeatureOptions& fo = im.targetOptions;
+    fo.cutoff = im.options.cutoff;
+    fo.filterVariance = float(filterVariance);
+    fo.threaded = im.options.threaded;
+    fo.device = im.options.device;
+    const std::size_t m = set.sampleCell.size();
+    set.targetF.assign(m * std::size_t(set.featureStride()), 0.0f);
+    set.targetO.assign(m, 0.0f);
+    const SampleTargetsFunction cuda = sampleTargetsCuda();
+    const FeatureStats fs = runOnDevice(
+        fo.device, "sample grid rest targets", cuda != nullptr,
+        [&] {
+            // The same prepared Gaussians as the CPU path's evaluateFeatures (filter rounded to float).
+            const std::vector<PreparedGaussian> g = prepareCloud(cloud, double(fo.filterVariance), fo.cutoff, fo.threaded);
+            const CellIndexGrid index = nanoIndex(*im.index);
+            SampleTargetsProblem p;
+            p.cloud = preparedView(g, cloud, fo.cutoff);
+            p.index = &index;
+            p.cellSize = double(set.cellSize);
+            p.positions = set.restPositions.data();
+            p.sampleCell = set.sampleCell.data();
+            p.samples = m;
+            p.cells = im.cellCoords.size() / 3;
+            FeatureStats s;
+            cuda(p, set.targetF.data(), set.targetO.data(), &s);
+            return s;
+        },
+        [&] {
+            // A cell's n^3 samples are consecutive: one block each (stage2/BlockFeatures.h).
+            return evaluateBlockFeatures(cloud, set.restPositions.data(), set.sampleCell.data(), m, fo, set.targetF.data(),
+                                         set.targetO.data());
+        },
+        &im.stats.device);
+    im.stats.pairsTested = fs.pairsTested;
+    im.stats.pairsContributing = fs.pairsContributing;
+}
+
 } // namespace
 
 std::size_t sampleGridBytesPerCell(const SampleGridOptions& o, int shDegree)
@@ -132,160 +304,31 @@ int SampleGrid::Impl::cellCoordOf(double x) const { return int(std::floor(x / do
 SampleGrid::SampleGrid(const GaussianCloud& cloud, const SampleGridOptions& options) : mImpl(std::make_unique<Impl>())
 {
     vdb::initialize();
-    cloud.checkConsistent();
-    if (cloud.empty()) throw InputError("sample grid: the model has no Gaussians");
-    if (options.samplesPerAxis < 2 || options.samplesPerAxis > 16)
-        throw InputError(msg("sample grid: samples per cell axis must be in 2..16, got ", options.samplesPerAxis));
-    if (!(options.cutoff > 0.0f && options.cutoff < 1.0f))
-        throw InputError(msg("sample grid: cutoff must be in (0, 1), got ", options.cutoff));
-    if (!(options.lambdaLpf >= 0.0f)) throw InputError(msg("sample grid: lambdaLpf must be >= 0, got ", options.lambdaLpf));
-    if (!(options.cellSize >= 0.0f) || (options.cellSize <= 0.0f && options.cells < 1))
-        throw InputError("sample grid: give a positive cell count or cell size");
-
+    checkGridInputs(cloud, options);
     Impl& im = *mImpl;
     im.options = options;
-    SampleSet& set = im.set;
-    const std::size_t n = cloud.size();
-    const int na = options.samplesPerAxis;
-    const double cutoff = options.cutoff;
     Stopwatch watch;
-
-    // Cell edge: the largest extent of the unfiltered extent boxes / cells.
-    double h = options.cellSize;
-    if (h <= 0.0) {
-        Vec3d lo(std::numeric_limits<double>::max(), std::numeric_limits<double>::max(), std::numeric_limits<double>::max());
-        Vec3d hi = -lo;
-        for (std::size_t i = 0; i < n; ++i) {
-            Vec3d a, b;
-            gaussianBox(prepareGaussian(cloud, i, 0.0, cutoff), a, b);
-            for (int k = 0; k < 3; ++k) { lo[k] = std::min(lo[k], a[k]); hi[k] = std::max(hi[k], b[k]); }
-        }
-        const double extent = std::max(hi.x - lo.x, std::max(hi.y - lo.y, hi.z - lo.z));
-        if (!(extent > 0.0) || !std::isfinite(extent))
-            throw InputError("sample grid: the model has zero extent; give an explicit cell size");
-        h = extent / options.cells;
-    }
-    set.shDegree = cloud.shDegree;
-    set.samplesPerAxis = na;
-    set.cellSize = float(h);
-    set.spacing = float(h / na);
-    const double spacing = h / na;
+    const double h = cellEdge(cloud, options);
+    setLattice(im.set, cloud.shDegree, options.samplesPerAxis, h);
+    const double spacing = h / options.samplesPerAxis;
     const double filterVariance = double(options.lambdaLpf) * spacing * spacing;
 
-    // Active cells: every cell a Gaussian's box overlaps, then one cell of 26-neighbour dilation.
-    const std::vector<PreparedGaussian> prepared = prepareCloud(cloud, filterVariance, cutoff, options.threaded);
-    checkMemory(options, cloud.shDegree, largestBoxCells(prepared, h), "the largest Gaussian alone covers");
-    TopologyOp topo(prepared, im);
-    if (options.threaded)
-        tbb::parallel_reduce(tbb::blocked_range<std::size_t>(0, n, kGrain), topo);
-    else
-        topo(tbb::blocked_range<std::size_t>(0, n));
-    // Tiles still count as their volume here: checked before dilation expands them into voxels.
-    checkMemory(options, cloud.shDegree, double(topo.tree.activeVoxelCount()), "the Gaussians cover at least");
-    openvdb::tools::dilateActiveValues(topo.tree, 1, openvdb::tools::NN_FACE_EDGE_VERTEX, openvdb::tools::EXPAND_TILES,
-                                       options.threaded);
-    topo.tree.voxelizeActiveTiles(options.threaded);
-
-    // Index grid: -1 background, active cells numbered in leaf order (deterministic for a topology).
-    im.index = openvdb::Int32Grid::create(-1);
-    im.index->setTree(std::make_shared<openvdb::Int32Tree>(topo.tree, -1, openvdb::TopologyCopy()));
-    im.index->setTransform(openvdb::math::Transform::createLinearTransform(h));
-    im.index->transform().postTranslate(openvdb::Vec3d(0.5 * h)); // cell (i,j,k) spans [i h, (i+1) h)
-    im.index->setName("cell_index");
-    openvdb::tree::LeafManager<openvdb::Int32Tree> leaves(im.index->tree());
-    std::vector<std::size_t> leafStart(leaves.leafCount() + 1, 0);
-    for (std::size_t l = 0; l < leaves.leafCount(); ++l) leafStart[l + 1] = leafStart[l] + leaves.leaf(l).onVoxelCount();
-    const std::size_t cells = leafStart.back();
-    checkMemory(options, cloud.shDegree, double(cells), "needs");
-    if (cells > std::size_t(std::numeric_limits<std::int32_t>::max()) / std::size_t(na * na * na))
-        throw InputError(msg("sample grid: ", cells, " cells x ", na * na * na, " samples is too many; use fewer cells"));
-    im.cellCoords.resize(3 * cells);
-    forRange(leaves.leafCount(), options.threaded, [&](std::size_t b, std::size_t e) {
-        for (std::size_t l = b; l < e; ++l) {
-            std::int32_t c = std::int32_t(leafStart[l]);
-            for (auto it = leaves.leaf(l).beginValueOn(); it; ++it, ++c) {
-                it.setValue(c);
-                const openvdb::Coord ijk = it.getCoord();
-                for (int k = 0; k < 3; ++k) im.cellCoords[3 * c + k] = ijk[k];
-            }
-        }
-    });
-
-    // Samples: cell-centred n^3 sub-lattice per cell.
-    const std::size_t perCell = std::size_t(na) * na * na;
-    const std::size_t m = cells * perCell;
-    set.restPositions.resize(3 * m);
-    set.sampleCell.resize(m);
-    forRange(cells, options.threaded, [&](std::size_t b, std::size_t e) {
-        for (std::size_t c = b; c < e; ++c) {
-            const std::int32_t* ijk = &im.cellCoords[3 * c];
-            std::size_t s = c * perCell;
-            for (int a = 0; a < na; ++a)
-                for (int bb = 0; bb < na; ++bb)
-                    for (int cc = 0; cc < na; ++cc, ++s) {
-                        set.restPositions[3 * s] = float((ijk[0] * na + a + 0.5) * spacing);
-                        set.restPositions[3 * s + 1] = float((ijk[1] * na + bb + 0.5) * spacing);
-                        set.restPositions[3 * s + 2] = float((ijk[2] * na + cc + 0.5) * spacing);
-                        set.sampleCell[s] = std::int32_t(c);
-                    }
-        }
-    });
-    set.warpedPositions = set.restPositions;
-    set.cellGradient.assign(9 * cells, 0.0f);
-    for (std::size_t c = 0; c < cells; ++c) set.cellGradient[9 * c] = set.cellGradient[9 * c + 4] = set.cellGradient[9 * c + 8] = 1.0f;
-
-    // Cell of each Gaussian's centre (active: its box, which contains the centre, was activated).
-    im.gaussianCell.resize(n);
-    {
-        openvdb::Int32Grid::ConstAccessor acc = im.index->getConstAccessor();
-        for (std::size_t i = 0; i < n; ++i) im.gaussianCell[i] = acc.getValue(im.cellOf(Vec3d(cloud.mean(i))));
-    }
-    im.stats.cells = cells;
-    im.stats.samples = m;
+    const openvdb::MaskTree::Ptr topology =
+        activeCells(im, prepareCloud(cloud, filterVariance, options.cutoff, options.threaded), h, cloud.shDegree);
+    im.stats.cells = indexCells(im, *topology, h, cloud.shDegree);
+    placeSamples(im, h);
+    locateGaussians(im, cloud);
+    im.stats.samples = im.set.sampleCell.size();
     im.stats.topologyMs = watch.ms();
-    progress(msg("sample grid: ", cells, " cells of ", h, " (", na, "^3 samples each, ", m, " samples) in ",
-                 int(im.stats.topologyMs), " ms"));
+    progress(msg("sample grid: ", im.stats.cells, " cells of ", h, " (", options.samplesPerAxis, "^3 samples each, ",
+                 im.stats.samples, " samples) in ", int(im.stats.topologyMs), " ms"));
 
-    // Rest targets with the rest isotropic filter.
     watch.reset();
-    FeatureOptions& fo = im.targetOptions;
-    fo.cutoff = options.cutoff;
-    fo.filterVariance = float(filterVariance);
-    fo.threaded = options.threaded;
-    set.targetF.assign(m * std::size_t(set.featureStride()), 0.0f);
-    set.targetO.assign(m, 0.0f);
-    const SampleTargetsFunction cuda = sampleTargetsCuda();
-    const FeatureStats fs = runOnDevice(
-        options.device, "sample grid rest targets", cuda != nullptr,
-        [&] {
-            // The same prepared Gaussians as the CPU path's evaluateFeatures (filter rounded to float).
-            const std::vector<PreparedGaussian> g = prepareCloud(cloud, double(fo.filterVariance), fo.cutoff, fo.threaded);
-            const CellIndexGrid index = nanoIndexGrid();
-            SampleTargetsProblem p;
-            p.cloud = preparedView(g, cloud, fo.cutoff);
-            p.index = &index;
-            p.cellSize = double(set.cellSize);
-            p.positions = set.restPositions.data();
-            p.sampleCell = set.sampleCell.data();
-            p.samples = m;
-            p.cells = cells;
-            FeatureStats s;
-            cuda(p, set.targetF.data(), set.targetO.data(), &s);
-            return s;
-        },
-        [&] {
-            // A cell's n^3 samples are consecutive: one block each (stage2/BlockFeatures.h).
-            return evaluateBlockFeatures(cloud, set.restPositions.data(), set.sampleCell.data(), m, fo, set.targetF.data(),
-                                         set.targetO.data());
-        },
-        &im.stats.device);
-    im.stats.pairsTested = fs.pairsTested;
-    im.stats.pairsContributing = fs.pairsContributing;
+    evaluateTargets(im, cloud, filterVariance);
     im.stats.featuresMs = watch.ms();
-
     im.computeCellSkip();
-    progress(msg("sample grid: rest targets on ", deviceName(im.stats.device), " in ", int(im.stats.featuresMs), " ms; ", im.stats.skippedCells, " of ", cells,
-                 " cells skipped (empty neighbourhood)"));
+    progress(msg("sample grid: rest targets on ", deviceName(im.stats.device), " in ", int(im.stats.featuresMs), " ms; ",
+                 im.stats.skippedCells, " of ", im.stats.cells, " cells skipped (empty neighbourhood)"));
 }
 
 void SampleGrid::Impl::computeCellSkip()
@@ -294,7 +337,7 @@ void SampleGrid::Impl::computeCellSkip()
     const std::size_t perCell = std::size_t(set.samplesPerAxis) * set.samplesPerAxis * set.samplesPerAxis;
     const std::size_t stride = std::size_t(set.featureStride());
     std::vector<std::uint8_t> nonZero(cells, 0);
-    forRange(cells, options.threaded, [&](std::size_t b, std::size_t e) {
+    parallelForRange(cells, kGrain, options.threaded, [&](std::size_t b, std::size_t e) {
         for (std::size_t c = b; c < e; ++c) {
             const std::size_t s0 = c * perCell, s1 = s0 + perCell;
             bool any = std::any_of(set.targetO.begin() + s0, set.targetO.begin() + s1, [](float v) { return v != 0.0f; });
@@ -304,7 +347,7 @@ void SampleGrid::Impl::computeCellSkip()
         }
     });
     set.cellSkip.assign(cells, 1);
-    forRange(cells, options.threaded, [&](std::size_t b, std::size_t e) {
+    parallelForRange(cells, kGrain, options.threaded, [&](std::size_t b, std::size_t e) {
         openvdb::Int32Grid::ConstAccessor acc = index->getConstAccessor();
         for (std::size_t c = b; c < e; ++c) {
             const std::int32_t* ijk = &cellCoords[3 * c];
@@ -339,14 +382,6 @@ std::int32_t SampleGrid::cellIndexAt(const Vec3d& p) const { return mImpl->index
 
 const FeatureOptions& SampleGrid::targetOptions() const { return mImpl->targetOptions; }
 
-CellIndexGrid SampleGrid::nanoIndexGrid() const
-{
-    // No statistics or checksum: the grid is rebuilt per use and only looked up.
-    const nanovdb::GridHandle<nanovdb::HostBuffer> handle = nanovdb::openToNanoVDB<nanovdb::HostBuffer>(
-        *mImpl->index, nanovdb::StatsMode::Disable, nanovdb::ChecksumMode::Disable);
-    CellIndexGrid out;
-    out.assign(handle.data(), handle.size());
-    return out;
-}
+CellIndexGrid SampleGrid::nanoIndexGrid() const { return nanoIndex(*mImpl->index); }
 
 } // namespace splatwarp
