@@ -236,7 +236,7 @@ void sortTileEntries(const ProjectedSplats& p, std::size_t n, std::size_t tiles,
 Image renderGaussiansCuda(const GaussianCloud& cloud, const Camera& camera, const RenderOptions& options)
 {
     checkRenderInputs(cloud, camera);
-    const PinholeView view = camera.view();
+    const PinholeView view = pinholeView(camera);
     const std::size_t n = cloud.size();
     if (n > std::numeric_limits<std::uint32_t>::max())
         throw InputError(msg("CUDA rasteriser: ", n, " Gaussians exceed its 32-bit splat indices"));

@@ -10,6 +10,7 @@
 #include "core/Error.h"
 #include "core/Progress.h"
 #include "image/ImageIO.h"
+#include "io/CameraFiles.h"
 #include "io/GaussianIO.h"
 #include "render/Camera.h"
 #include "render/RenderDevice.h"

@@ -115,7 +115,7 @@ void checkRenderInputs(const GaussianCloud& cloud, const Camera& camera)
 Image renderGaussians(const GaussianCloud& cloud, const Camera& camera, const RenderOptions& options)
 {
     checkRenderInputs(cloud, camera);
-    const PinholeView view = camera.view();
+    const PinholeView view = pinholeView(camera);
     const std::size_t n = cloud.size();
     const bool threaded = options.threaded;
 

@@ -4,7 +4,7 @@
 #include <string>
 
 #include "core/Error.h"
-#include "render/Camera.h"
+#include "io/CameraFiles.h"
 
 extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size)
 {

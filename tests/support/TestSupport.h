@@ -12,6 +12,7 @@
 #include <string>
 #include <unistd.h>
 
+#include "core/Camera.h"
 #include "core/Error.h"
 
 namespace splatwarp::test {
@@ -76,6 +77,13 @@ std::string inputErrorMessage(const F& f)
         return e.what();
     }
     return "";
+}
+
+/// @brief Pixel position (u, v) and depth of a world point seen by a pinhole camera.
+inline Vec3d project(const Camera& c, const Vec3d& p)
+{
+    const Vec3d t = c.rotation * p + c.translation;
+    return {c.fx * t.x / t.z + c.cx, c.fy * t.y / t.z + c.cy, t.z};
 }
 
 } // namespace splatwarp::test
