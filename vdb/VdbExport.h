@@ -1,11 +1,8 @@
 #pragma once
 /// @file VdbExport.h
-/// @brief Write a SampleGrid as a `.vdb` file (DESIGN.md "Outputs"), and read any `.vdb` back
-///        into plain arrays (round-trip tests, inspection) without OpenVDB types.
-#include <cstdint>
-#include <map>
+/// @brief Write a SampleGrid as a `.vdb` file (grids and metadata below). The tests read files
+///        back with tests/support/VdbFileReader.h.
 #include <string>
-#include <vector>
 
 #include "SampleGrid.h"
 
@@ -30,31 +27,5 @@ struct VdbExportOptions {
 ///          (+ spec).
 /// @throws IoError when the file cannot be written (no partial file is left).
 void writeSampleGridVdb(const std::string& path, const SampleGrid& grid, const VdbExportOptions& options = {});
-
-/// @brief One grid of a `.vdb` file as plain arrays.
-struct VdbGridData {
-    std::string name;
-    std::string valueType;  ///< OpenVDB type name: "float", "vec3s", "mask", ...
-    std::string gridClass;  ///< "fog volume", "level set", "unknown", ...
-    double voxelSize = 0.0; ///< uniform voxel size (x axis)
-    double origin[3] = {0, 0, 0}; ///< world position of the centre of voxel (0,0,0)
-    bool savedAsHalf = false;
-    std::map<std::string, std::string> metadata; ///< grid metadata, values as strings
-    std::vector<std::int32_t> coords;            ///< [V,3] active voxel coordinates
-    std::vector<float> values;                   ///< [V,channels] (float: 1, vec3s: 3, mask/others: none)
-    int channels = 0;
-};
-
-/// @brief File metadata and every grid of a `.vdb` file.
-struct VdbFileData {
-    std::map<std::string, std::string> metadata;
-    std::vector<VdbGridData> grids;
-    /// @brief The grid of a name, or nullptr.
-    const VdbGridData* find(const std::string& name) const;
-};
-
-/// @brief Read a `.vdb` file (float, double, int32, vec3s, bool and mask grids keep values).
-/// @throws IoError naming the file when it cannot be opened or parsed.
-VdbFileData readVdbFile(const std::string& path);
 
 } // namespace splatwarp

@@ -15,8 +15,12 @@
 #include "samples/SampleModels.h"
 #include "sh/SphericalHarmonics.h"
 #include "support/TestSupport.h"
+#include "support/VdbFileReader.h"
 
 using namespace splatwarp;
+using splatwarp::test::readVdbFile;
+using splatwarp::test::VdbFileData;
+using splatwarp::test::VdbGridData;
 
 namespace {
 
