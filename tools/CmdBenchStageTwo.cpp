@@ -1,13 +1,10 @@
 /// `splatwarp bench stage2`: Stage II time per iteration and pair throughput on the stripes
-/// sample. The sample set is built here without VDB (bench only): cells of edge
-/// (largest extent)/64 holding a Gaussian centre, dilated by one cell, n^3 samples each;
-/// targets = features of the model turned 10 degrees about z (a rigid "deformation").
+/// sample. The samples are the rest model's SampleGrid (64 cells, n^3 samples per cell, every
+/// cell used); targets = features of the model turned 10 degrees about z (a rigid "deformation").
 #include <cmath>
-#include <map>
-#include <set>
-#include <tuple>
 
 #include "Command.h"
+#include "SampleGrid.h"
 #include "SharedArgs.h"
 #include "core/Error.h"
 #include "core/Progress.h"
@@ -28,49 +25,17 @@ struct BenchStageTwoArgs {
 SampleSet benchSamples(const GaussianCloud& rest, const GaussianCloud& target, int n, const StageTwoOptions& o,
                        std::vector<std::int32_t>& gaussianCell)
 {
-    Vec3f lo, hi;
-    centreBounds(rest, lo, hi);
-    SampleSet s;
-    s.shDegree = rest.shDegree;
-    s.samplesPerAxis = n;
-    s.cellSize = std::max({hi.x - lo.x, hi.y - lo.y, hi.z - lo.z}) / 64.0f;
-    s.spacing = s.cellSize / float(n);
-    std::set<std::tuple<int, int, int>> cells;
-    for (std::size_t i = 0; i < rest.size(); ++i) {
-        const Vec3f p = rest.mean(i);
-        const int c[3] = {int(std::floor(p.x / s.cellSize)), int(std::floor(p.y / s.cellSize)),
-                          int(std::floor(p.z / s.cellSize))};
-        for (int dx = -1; dx <= 1; ++dx)
-            for (int dy = -1; dy <= 1; ++dy)
-                for (int dz = -1; dz <= 1; ++dz) cells.insert({c[0] + dx, c[1] + dy, c[2] + dz});
-    }
-    std::map<std::tuple<int, int, int>, std::int32_t> index;
-    std::int32_t k = 0;
-    for (const auto& [cx, cy, cz] : cells) {
-        index[{cx, cy, cz}] = k;
-        for (int a = 0; a < n; ++a)
-            for (int b = 0; b < n; ++b)
-                for (int d = 0; d < n; ++d) {
-                    s.restPositions.insert(s.restPositions.end(), {s.cellSize * float(cx) + s.spacing * (float(a) + 0.5f),
-                                                                   s.cellSize * float(cy) + s.spacing * (float(b) + 0.5f),
-                                                                   s.cellSize * float(cz) + s.spacing * (float(d) + 0.5f)});
-                    s.sampleCell.push_back(k);
-                }
-        s.cellGradient.insert(s.cellGradient.end(), {1, 0, 0, 0, 1, 0, 0, 0, 1});
-        s.cellSkip.push_back(0);
-        ++k;
-    }
-    gaussianCell.resize(rest.size());
-    for (std::size_t i = 0; i < rest.size(); ++i) {
-        const Vec3f p = rest.mean(i);
-        gaussianCell[i] = index[{int(std::floor(p.x / s.cellSize)), int(std::floor(p.y / s.cellSize)),
-                                 int(std::floor(p.z / s.cellSize))}];
-    }
-    s.warpedPositions = s.restPositions;
-    FeatureOptions fo;
-    fo.cutoff = o.cutoff;
-    fo.filterVariance = o.lowPassFilter ? o.lambdaLpf * s.spacing * s.spacing : 0.0f;
-    evaluateSampleTargets(target, s, fo);
+    SampleGridOptions go;
+    go.samplesPerAxis = n;
+    go.cutoff = o.cutoff;
+    go.lambdaLpf = o.lowPassFilter ? o.lambdaLpf : 0.0f;
+    go.threaded = o.threaded;
+    const SampleGrid grid(rest, go);
+    gaussianCell = grid.gaussianCell();
+    SampleSet s = grid.samples();
+    evaluateSampleTargets(target, s, grid.targetOptions());
+    // The grid's skip flags describe the rest targets, not the moved model's: use every cell.
+    s.cellSkip.assign(s.cellCount(), 0);
     return s;
 }
 
