@@ -1,6 +1,6 @@
 #pragma once
 /// @file SampleGrid.h
-/// @brief The sampled radiance field (DESIGN.md "The sampled field — SampleGrid"; paper Sec. 3.2.1):
+/// @brief The sampled radiance field (paper Sec. 3.2.1):
 ///        a sparse OpenVDB topology of rest-space cells of edge h, n^3 samples per active cell,
 ///        and the rest targets F, O at every sample. The OpenVDB grids stay behind a pimpl; callers
 ///        see the flat SampleSet.

@@ -1,7 +1,7 @@
 #pragma once
 /// @file AnimSpec.h
-/// @brief A keyframed deformation spec: a function frame -> plain spec (DESIGN.md "Animation and
-///        batch"). The file is a version-1 spec plus "frames" and optional "ease" at the top and,
+/// @brief A keyframed deformation spec: a function frame -> plain spec (`splatwarp
+///        animate`). The file is a version-1 spec plus "frames" and optional "ease" at the top and,
 ///        per moving handle, "keys" [{"frame", "rotate", "translate", "scale", "pivot"}]; a handle
 ///        without keys ramps from rest (frame 0) to its motion (last frame). Rotations are
 ///        slerped, the rest interpolated linearly; key frames reproduce the key exactly.

@@ -1,7 +1,7 @@
 #pragma once
 /// @file SampleWarp.h
-/// @brief Warp a sampled field with an embedded deformation (DESIGN.md "Targets", paper
-///        Sec. 3.2.1/3.2.3): sample positions skinned, target SH rotated by the local rotation,
+/// @brief Warp a sampled field with an embedded deformation (paper Sec. 3.2.1/3.2.3):
+///        sample positions skinned, target SH rotated by the local rotation,
 ///        target opacity unchanged, and the per-cell deformation gradient F_k. Works on the flat
 ///        SampleSet only (no OpenVDB).
 #include "deform/Deformation.h"

@@ -2,7 +2,7 @@
 /// @file StageOne.h
 /// @brief Stage I: move every Gaussian with the embedded deformation. Six endpoints at +-2 sigma
 ///        along its axes are skinned, M = (P Q^T)(Q Q^T)^-1 is split by polar decomposition M = R S,
-///        and mean, rotation, scales and SH follow (DESIGN.md "Stage I").
+///        and mean, rotation, scales and SH follow (choices: docs/design-notes.md).
 #include <cstdint>
 #include <vector>
 

@@ -1,6 +1,6 @@
 #pragma once
 /// @file FieldError.h
-/// @brief Field fidelity of a deformed model at held-out points (DESIGN.md "Evaluation"):
+/// @brief Field fidelity of a deformed model at held-out points (`splatwarp eval`):
 ///        compares the deformed model's features at warped points x = phi(X) with the rest
 ///        model's features at the rest points X (SH rotated by the local rotation R_p).
 #include <cstddef>

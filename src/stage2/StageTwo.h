@@ -1,7 +1,7 @@
 #pragma once
 /// @file StageTwo.h
-/// @brief Stage II: fit the moving Gaussians to the warped sampled field (DESIGN.md "Stage II",
-///        paper Sec. 3.2). E = sum_j |F*_j - F(x_j)|_1 + lambda1 sum_j |O*_j - O(x_j)|
+/// @brief Stage II: fit the moving Gaussians to the warped sampled field (paper
+///        Sec. 3.2; choices: docs/design-notes.md). E = sum_j |F*_j - F(x_j)|_1 + lambda1 sum_j |O*_j - O(x_j)|
 ///        + lambda2 sum_{j: O*_j = 0} |O*_j - O(x_j)| over the samples not skipped, minimised by
 ///        Adam with analytic gradients.
 #include <cstdint>

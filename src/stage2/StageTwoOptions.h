@@ -1,7 +1,7 @@
 #pragma once
 /// @file StageTwoOptions.h
 /// @brief Every parameter of the Stage II optimiser with its documented default; shared by the
-///        CLI, the JSON spec and the tests (DESIGN.md "Stage II", paper Sec. 3.2).
+///        CLI, the JSON spec and the tests (paper Sec. 3.2).
 #include "core/Device.h"
 #include "field/GaussianKernel.h"
 
