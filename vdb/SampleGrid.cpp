@@ -376,10 +376,6 @@ SampleSet& SampleGrid::samples() { return mImpl->set; }
 const std::vector<std::int32_t>& SampleGrid::gaussianCell() const { return mImpl->gaussianCell; }
 const std::vector<std::int32_t>& SampleGrid::cellCoords() const { return mImpl->cellCoords; }
 
-std::int32_t SampleGrid::cellIndex(int i, int j, int k) const { return mImpl->index->tree().getValue(openvdb::Coord(i, j, k)); }
-
-std::int32_t SampleGrid::cellIndexAt(const Vec3d& p) const { return mImpl->index->tree().getValue(mImpl->cellOf(p)); }
-
 const FeatureOptions& SampleGrid::targetOptions() const { return mImpl->targetOptions; }
 
 CellIndexGrid SampleGrid::nanoIndexGrid() const { return nanoIndex(*mImpl->index); }

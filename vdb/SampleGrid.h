@@ -87,14 +87,10 @@ public:
     const std::vector<std::int32_t>& gaussianCell() const;
     /// @brief [C,3] integer coordinates (i,j,k) of each cell.
     const std::vector<std::int32_t>& cellCoords() const;
-    /// @brief Cell index of integer cell coordinates, -1 when the cell is not active.
-    std::int32_t cellIndex(int i, int j, int k) const;
-    /// @brief Cell index of the cell containing a rest-space point, -1 when not active.
-    std::int32_t cellIndexAt(const Vec3d& p) const;
     /// @brief The feature options the rest targets were evaluated with (cutoff, rest filter).
     const FeatureOptions& targetOptions() const;
-    /// @brief The Int32 index grid converted to NanoVDB (same values as cellIndex(), background
-    ///        -1), for the GPU and other OpenVDB-free code (see field/CellTargetKernels.h).
+    /// @brief The Int32 index grid converted to NanoVDB (the index of each cell of cellCoords(),
+    ///        background -1), for the GPU and other OpenVDB-free code (see field/CellTargetKernels.h).
     CellIndexGrid nanoIndexGrid() const;
 
     struct Impl;

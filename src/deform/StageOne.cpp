@@ -63,7 +63,7 @@ StageOneRig prepareStageOne(const GaussianCloud& rest, const DeformationGraph& g
     return rig;
 }
 
-StageOneResult applyStageOne(const GaussianCloud& rest, const StageOneRig& rig, const DeformationGraph& graph,
+StageOneResult applyStageOneCpu(const GaussianCloud& rest, const StageOneRig& rig, const DeformationGraph& graph,
                              const NodeTransforms& transforms, const std::vector<std::uint8_t>& nodeMoving,
                              const StageOneOptions& o)
 {

@@ -21,8 +21,8 @@ struct StageOneOptions {
     double absoluteEpsilon = 1e-6;   ///< ... + absoluteEpsilon * model extent: near-zero Gaussians too
     double minStretch = 1e-6;        ///< lower bound of the stretch along an axis (keeps log-scales finite)
     bool threaded = true;
-    /// Where StageOneUpdater and runStageOne() (deform/StageOneDevice.h) run the update;
-    /// applyStageOne() is always the CPU.
+    /// Where StageOneUpdater (deform/StageOneDevice.h) runs the update; applyStageOneCpu() is
+    /// always the CPU.
     ResolvedDevice device;
 };
 
@@ -63,13 +63,11 @@ void checkStageOneInputs(const GaussianCloud& rest, const StageOneRig& rig, cons
 /// @brief Endpoints and weights for a rest model on a graph (once per model and graph).
 StageOneRig prepareStageOne(const GaussianCloud& rest, const DeformationGraph& graph, const StageOneOptions& options = {});
 
-/// @brief Apply node transforms to every Gaussian. nodeMoving [J]: 0 for nodes at identity.
-StageOneResult applyStageOne(const GaussianCloud& rest, const StageOneRig& rig, const DeformationGraph& graph,
+/// @brief Apply node transforms to every Gaussian on the CPU (the reference of every device;
+///        StageOneUpdater, deform/StageOneDevice.h, picks the device). nodeMoving [J]: 0 for nodes
+///        at identity.
+StageOneResult applyStageOneCpu(const GaussianCloud& rest, const StageOneRig& rig, const DeformationGraph& graph,
                              const NodeTransforms& transforms, const std::vector<std::uint8_t>& nodeMoving,
                              const StageOneOptions& options = {});
-
-/// @brief prepareStageOne + the update for a solved deformation (the rig on the CPU, the update
-///        on options.device; defined in deform/StageOneDevice.cpp).
-StageOneResult runStageOne(const GaussianCloud& rest, const Deformation& deformation, const StageOneOptions& options = {});
 
 } // namespace splatwarp

@@ -38,22 +38,9 @@ StageOneResult StageOneUpdater::apply(const NodeTransforms& transforms, const st
             mEngine.reset();
         }
     }
-    StageOneResult r = applyStageOne(mRest, mRig, mGraph, transforms, nodeMoving, mOptions);
+    StageOneResult r = applyStageOneCpu(mRest, mRig, mGraph, transforms, nodeMoving, mOptions);
     r.device = Device::Cpu;
     return r;
-}
-
-StageOneResult runStageOne(const GaussianCloud& rest, const Deformation& d, const StageOneOptions& o)
-{
-    const Stopwatch clock;
-    const StageOneRig rig = prepareStageOne(rest, d.graph, o);
-    const double rigMs = clock.ms();
-    StageOneUpdater updater(rest, rig, d.graph, o);
-    StageOneResult res = updater.apply(d.transforms, d.nodeMoving);
-    res.timings.rigMs = rigMs;
-    progress(msg("Stage I: ", res.movingCount, " of ", rest.size(), " Gaussians moved (", int(rigMs), " ms weights, ",
-                 int(res.timings.updateMs), " ms update on ", deviceName(res.device), ")"));
-    return res;
 }
 
 } // namespace splatwarp

@@ -1,9 +1,11 @@
 #pragma once
 /// @file StageOneDevice.h
-/// @brief The Stage I per-Gaussian update on the chosen device: the CPU applyStageOne() or a
-///        device-resident CUDA engine the kernels register at start-up (the core library cannot
-///        link them). The engine uploads the rest model and rig once; each update uploads only
-///        the node transforms ([J] affine maps) and downloads the result.
+/// @brief The Stage I per-Gaussian update on the chosen device. Stage I has three parts: the rig
+///        (prepareStageOne(), once per model and graph), the update (StageOneUpdater::apply(), on
+///        options.device) and its two implementations, the CPU applyStageOneCpu() and a
+///        device-resident StageOneEngine the CUDA kernels register at start-up (the core library
+///        cannot link them). The engine uploads the rest model and rig once; each update uploads
+///        only the node transforms ([J] affine maps) and downloads the result.
 #include <cstdint>
 #include <memory>
 #include <vector>
@@ -44,7 +46,7 @@ public:
     StageOneUpdater(const StageOneUpdater&) = delete;
     StageOneUpdater& operator=(const StageOneUpdater&) = delete;
 
-    /// @brief Same result as applyStageOne(); result.device says which device ran.
+    /// @brief Same result as applyStageOneCpu(); result.device says which device ran.
     StageOneResult apply(const NodeTransforms& transforms, const std::vector<std::uint8_t>& nodeMoving);
     /// @brief The device the next update runs on.
     Device device() const { return mEngine ? Device::Cuda : Device::Cpu; }

@@ -1,7 +1,7 @@
 #pragma once
 /// @file StageOneKernel.h
 /// @brief The Stage I per-Gaussian update on raw arrays in the GPU layout, host/device: the one
-///        implementation behind applyStageOne() (CPU) and the CUDA Stage I (kernels/StageOneCuda).
+///        implementation behind applyStageOneCpu() (CPU) and the CUDA Stage I (kernels/StageOneCuda).
 #include <cstddef>
 #include <cstdint>
 

@@ -1,4 +1,4 @@
-// CUDA Stage I update against the CPU applyStageOne() (the reference) on the stripes sample
+// CUDA Stage I update against the CPU applyStageOneCpu() (the reference) on the stripes sample
 // bent by samples/specs/bend.json. Skips with a message where no GPU is present.
 //
 // Tolerances are A-PRIORI, not yet measured (written on a machine without a GPU; confirm and
@@ -48,7 +48,7 @@ TEST(StageOneCuda, MatchesCpuOnStripesBend)
 {
     SPLATWARP_REQUIRE_GPU();
     const BendProblem p;
-    const StageOneResult cpu = applyStageOne(p.rest, p.rig, p.d.graph, p.d.transforms, p.d.nodeMoving);
+    const StageOneResult cpu = applyStageOneCpu(p.rest, p.rig, p.d.graph, p.d.transforms, p.d.nodeMoving);
     auto engine = cuda::makeStageOneCuda(p.rest, p.rig, p.d.graph.nodeCount(), StageOneOptions{});
     const StageOneResult gpu = engine->apply(nodeAffines(p.d.graph, p.d.transforms), p.d.nodeMoving);
     ASSERT_EQ(gpu.moving, cpu.moving); // no arithmetic: weight > 0 on a moving node

@@ -80,7 +80,7 @@ struct Problem {
         d = solveDeformation(rest, spec);
         rig = prepareStageOne(rest, d.graph);
     }
-    StageOneResult cpu() const { return applyStageOne(rest, rig, d.graph, d.transforms, d.nodeMoving); }
+    StageOneResult cpu() const { return applyStageOneCpu(rest, rig, d.graph, d.transforms, d.nodeMoving); }
 };
 
 bool sameModel(const GaussianCloud& a, const GaussianCloud& b)

@@ -35,7 +35,7 @@ TEST(StageOneKernel, UpdateMatchesPlainReferenceOnBend)
     const Deformation d = solveDeformation(rest, spec);
     const StageOneOptions o;
     const StageOneRig rig = prepareStageOne(rest, d.graph, o);
-    const StageOneResult res = applyStageOne(rest, rig, d.graph, d.transforms, d.nodeMoving, o);
+    const StageOneResult res = applyStageOneCpu(rest, rig, d.graph, d.transforms, d.nodeMoving, o);
     ASSERT_GT(res.movingCount, 0u);
 
     const StageOneParams p = stageOneParams(o, rig.extent);

@@ -7,6 +7,7 @@
 #include <Eigen/Dense>
 
 #include "deform/StageOne.h"
+#include "deform/StageOneDevice.h"
 #include "samples/SampleModels.h"
 #include "sh/SphericalHarmonics.h"
 
@@ -24,6 +25,13 @@ DeformSpec bendSpec()
     DeformSpec s = loadDeformSpec(std::string(SPLATWARP_SOURCE_DIR) + "/samples/specs/bend.json");
     s.graph.nodes = 64;
     return s;
+}
+
+/// Stage I of a solved deformation as the deform job runs it: the rig, then one update.
+StageOneResult runStageOne(const GaussianCloud& rest, const Deformation& d, const StageOneOptions& o = {})
+{
+    const StageOneRig rig = prepareStageOne(rest, d.graph, o);
+    return StageOneUpdater(rest, rig, d.graph, o).apply(d.transforms, d.nodeMoving);
 }
 
 void expectFinite(const GaussianCloud& g)
@@ -48,7 +56,7 @@ TEST(StageOne, RigidMotionOfAllNodesMovesGaussiansRigidly)
         x.t[j] = r * graph.nodes()[j] + tr - graph.nodes()[j];
     }
     const StageOneRig rig = prepareStageOne(rest, graph);
-    const StageOneResult res = applyStageOne(rest, rig, graph, x, std::vector<std::uint8_t>(graph.nodeCount(), 1));
+    const StageOneResult res = applyStageOneCpu(rest, rig, graph, x, std::vector<std::uint8_t>(graph.nodeCount(), 1));
     EXPECT_EQ(res.movingCount, rest.size());
 
     // Reference: rotate the model directly.
@@ -142,7 +150,7 @@ TEST(StageOne, NonRigidFieldMatchesNaiveSvdReference)
         x.t[j] = Vec3d(0.1 * u(rng), 0.1 * u(rng), 0.1 * u(rng));
     }
     const StageOneRig rig = prepareStageOne(rest, graph);
-    const StageOneResult res = applyStageOne(rest, rig, graph, x, std::vector<std::uint8_t>(graph.nodeCount(), 1));
+    const StageOneResult res = applyStageOneCpu(rest, rig, graph, x, std::vector<std::uint8_t>(graph.nodeCount(), 1));
     ASSERT_EQ(res.movingCount, rest.size());
     const StageOneOptions o;
     double worst = 0.0;
