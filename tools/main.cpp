@@ -108,7 +108,7 @@ void addCommonChecks(CLI::App& app)
 CLI::App* benchCommand(CLI::App& app)
 {
     for (CLI::App* sub : app.get_subcommands([](CLI::App* a) { return a->get_name() == "bench"; })) return sub;
-    CLI::App* bench = app.add_subcommand("bench", "Benchmarks (times and throughput; results belong in README)");
+    CLI::App* bench = app.add_subcommand("bench", "Benchmarks (times and throughput; results: docs/benchmarks.md)");
     bench->require_subcommand(1);
     return bench;
 }

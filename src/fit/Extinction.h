@@ -14,7 +14,7 @@
 ///            transmit too much at their skirt;
 ///          - overlapping splats composite as prod(1 - alpha_i G2_i) vs exp(-sum tau_i G2_i): the
 ///            same per-splat error, compounded. alpha is capped at the rasteriser's 0.99 (tau 4.6).
-///          Measured in tests/fit/ExtinctionTest.cpp (uniform slab vs exp(-sigma L)) and README.
+///          Measured in tests/fit/ExtinctionTest.cpp (uniform slab vs exp(-sigma L)) and docs/benchmarks.md.
 #include "core/GaussianCloud.h"
 
 namespace splatwarp {
