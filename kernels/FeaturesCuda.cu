@@ -2,7 +2,7 @@
 // stable radix sort by cell, per-cell ranges, then one thread per sample summing its cell's
 // Gaussians in ascending order (the CPU path's contributing set and order). Arbitrary points:
 // the Gaussians' pruning boxes binned (BoxBins), one thread per point summing its bin's
-// Gaussians in ascending order. The per-element work is field/CellTargetKernels.h, which the
+// Gaussians in ascending order. The per-element work is field/CellTargetMath.h, which the
 // CPU path and the CPU tests share.
 #include "FeaturesCuda.h"
 
@@ -18,7 +18,7 @@
 #include "CudaLaunch.cuh"
 #include "DeviceBuffer.h"
 #include "core/Error.h"
-#include "field/CellTargetKernels.h"
+#include "field/CellTargetMath.h"
 
 namespace splatwarp::cuda {
 namespace {

@@ -1,7 +1,7 @@
 #pragma once
 /// @file FeaturesCuda.h
 /// @brief Rest sample targets on the GPU through the NanoVDB cell index grid (see
-///        field/FeatureDevice.h for the contract, field/CellTargetKernels.h for the per-element
+///        field/FeatureDevice.h for the contract, field/CellTargetMath.h for the per-element
 ///        functions the kernels wrap). No CUDA types here.
 #include "field/FeatureDevice.h"
 

@@ -4,12 +4,12 @@
 
 #include "CudaLaunch.cuh"
 #include "DeviceBuffer.h"
-#include "deform/StageOneKernel.h"
+#include "deform/StageOneMath.h"
 
 namespace splatwarp::cuda {
 namespace {
 
-/// One thread per Gaussian: the shared per-element update (deform/StageOneKernel.h).
+/// One thread per Gaussian: the shared per-element update (deform/StageOneMath.h).
 __global__ void stageOneKernel(std::size_t n, StageOneInputs in, StageOneParams params, StageOneOutputs out)
 {
     const std::size_t i = globalIndex();

@@ -365,7 +365,7 @@ public:
     {
         mTimer.begin(PhaseTimer::Forward);
         launch("prepareKernel", prepareKernel, mG, stream(), mG, mPerG, (const float*)mParams.data(),
-               (const double*)mFilter.data(), mOptions.cutoff, mKernels.data());
+               (const double*)mFilter.data(), mOptions.cutoff, mPrepared.data());
         mTimer.end();
     }
 
@@ -416,7 +416,7 @@ public:
             constexpr int kStride = decltype(strideTag)::value;
             launch("forwardKernel", forwardKernel<kStride>, mS, stream(), mS, (const float*)mX.data(),
                    (const float*)mFStatic.data(), (const float*)mOStatic.data(), (const std::uint32_t*)mSampleOffsets.data(),
-                   (const std::uint32_t*)mSampleItems.data(), (const PreparedGaussian*)mKernels.data(),
+                   (const std::uint32_t*)mSampleItems.data(), (const PreparedGaussian*)mPrepared.data(),
                    (const float*)mParams.data(), (const float*)mTargetF.data(), (const float*)mTargetO.data(),
                    mOptions.cutoff, mOptions.lambdaOpacity, mOptions.boundaryWeight, mGF.data(), mGO.data(),
                    mEnergy.data(), mPairCount.data(), featuresOut, opacityOut);
@@ -435,7 +435,7 @@ public:
             constexpr int kStride = decltype(strideTag)::value;
             launch("backwardKernel", backwardKernel<kStride>, mG * kWarp, stream(), mG,
                    (const std::uint32_t*)mGaussianOffsets.data(), (const std::uint32_t*)mGaussianItems.data(),
-                   (const float*)mX.data(), (const PreparedGaussian*)mKernels.data(), (const float*)mParams.data(),
+                   (const float*)mX.data(), (const PreparedGaussian*)mPrepared.data(), (const float*)mParams.data(),
                    (const float*)mGF.data(), (const float*)mGO.data(), mOptions.cutoff, mGrad.data());
         });
         mTimer.end();
@@ -554,7 +554,7 @@ private:
         mKeptM{"kept-iterate Adam moments"}, mKeptV{"kept-iterate Adam moments"};
     DeviceBuffer<CoverageSlabs> mSlabs{"coverage slabs"};
     DeviceBuffer<double> mFilter{"low-pass filters"};
-    DeviceBuffer<PreparedGaussian> mKernels{"prepared Gaussians"};
+    DeviceBuffer<PreparedGaussian> mPrepared{"prepared Gaussians"};
     BoxBins mBins;
     DeviceBuffer<unsigned long long> mSampleCount{"coverage counts"};
     DeviceBuffer<std::uint32_t>
@@ -591,7 +591,7 @@ void Solver::upload(const GaussianCloud& cloud, const SampleSet& samples)
     mTargetO.upload(targetO, st);
     mParams.upload(params, st);
     mFilter.upload(filter, st);
-    mKernels.resize(mG);
+    mPrepared.resize(mG);
     mBoxLo.resize(3 * mG);
     mBoxHi.resize(3 * mG);
     mSlabs.resize(mG);

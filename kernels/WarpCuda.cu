@@ -5,8 +5,8 @@
 
 #include "CudaLaunch.cuh"
 #include "DeviceBuffer.h"
-#include "deform/SkinWeightKernel.h"
-#include "deform/WarpKernel.h"
+#include "deform/SkinWeightMath.h"
+#include "deform/WarpMath.h"
 
 namespace splatwarp::cuda {
 namespace {

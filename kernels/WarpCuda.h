@@ -1,7 +1,7 @@
 #pragma once
 /// @file WarpCuda.h
 /// @brief Point and sample warping on the GPU (double precision, like the CPU): skin weights by
-///        brute force over the graph nodes (deform/SkinWeightKernel.h, same formula as
+///        brute force over the graph nodes (deform/SkinWeightMath.h, same formula as
 ///        DeformationGraph::skinWeights; exact distance ties may pick other nodes than nanoflann),
 ///        skinning, polar rotation, target SH rotation and F_k. No CUDA types here.
 #include <cstddef>

@@ -7,7 +7,7 @@
 #include "core/Progress.h"
 #include "field/FeatureDevice.h"
 #include "field/FeatureField.h"
-#include "samples/SampleModels.h"
+#include "demo/DemoModels.h"
 
 namespace splatwarp::cli {
 namespace {
@@ -27,7 +27,7 @@ const CommandRegistrar reg(1010, [](CLI::App& app) {
     sub->add_flag("--serial", args->serial, "Single thread (pairs per second per core)");
     addDeviceOption(sub, args->device, "the evaluation runs (the timing includes preparation and binning)");
     sub->callback([args] {
-        GaussianCloud g = makeSample("stripes");
+        GaussianCloud g = makeDemoModel("stripes");
         if (args->degree >= 0 && args->degree < g.shDegree) {
             GaussianCloud t;
             t.resize(g.size(), args->degree);

@@ -14,7 +14,7 @@
 #include "ReadArgs.h"
 #include "render/Camera.h"
 #include "render/RenderDevice.h"
-#include "samples/SampleModels.h"
+#include "demo/DemoModels.h"
 
 namespace splatwarp::cli {
 namespace {
@@ -39,10 +39,10 @@ const CommandRegistrar reg(1010, [](CLI::App& app) {
         ->check(positive());
     addDeviceOption(sub, args->device, "to render");
     sub->callback([args] {
-        const auto names = sampleNames();
+        const auto names = demoModelNames();
         const bool sample = !std::filesystem::exists(args->input) &&
                             std::find(names.begin(), names.end(), args->input) != names.end();
-        const GaussianCloud cloud = sample ? makeSample(args->input) : readModel(args->input, args->dropInvalid);
+        const GaussianCloud cloud = sample ? makeDemoModel(args->input) : readModel(args->input, args->dropInvalid);
         OrbitOptions o;
         o.views = 1;
         parseImageSize(args->size, o.width, o.height);

@@ -10,7 +10,7 @@
 #include "deform/StageOneDevice.h"
 #include "io/GaussianIO.h"
 #include "ReadArgs.h"
-#include "samples/SampleModels.h"
+#include "demo/DemoModels.h"
 
 namespace splatwarp::cli {
 namespace {
@@ -33,7 +33,7 @@ double median(std::vector<double> v)
 
 void runBench(const BenchArgs& a)
 {
-    const GaussianCloud rest = a.input.empty() ? makeSample("stripes") : readModel(a.input, a.dropInvalid);
+    const GaussianCloud rest = a.input.empty() ? makeDemoModel("stripes") : readModel(a.input, a.dropInvalid);
     const DeformSpec spec = loadDeformSpec(a.spec);
     const bool quiet = !progressEnabled();
     setProgressEnabled(false); // the per-phase lines would swamp the table

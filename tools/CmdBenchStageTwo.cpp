@@ -9,7 +9,7 @@
 #include "core/Error.h"
 #include "core/Progress.h"
 #include "field/FeatureField.h"
-#include "samples/SampleModels.h"
+#include "demo/DemoModels.h"
 #include "field/RigidMotion.h"
 #include "stage2/StageTwoDevice.h"
 
@@ -49,7 +49,7 @@ const CommandRegistrar reg(1020, [](CLI::App& app) {
     sub->add_flag("--serial", [args](std::int64_t) { args->options.threaded = false; }, "Single thread");
     sub->callback([args] {
         args->options.device = resolveDevice(args->device);
-        const GaussianCloud rest = makeSample("stripes");
+        const GaussianCloud rest = makeDemoModel("stripes");
         const double angle = 10.0 * M_PI / 180.0;
         Mat3d rot = Mat3d::identity();
         rot.m[0][0] = rot.m[1][1] = std::cos(angle);

@@ -15,7 +15,7 @@
 #include "core/Progress.h"
 #include "io/GaussianIO.h"
 #include "ReadArgs.h"
-#include "samples/SampleModels.h"
+#include "demo/DemoModels.h"
 
 namespace splatwarp::cli {
 namespace {
@@ -52,7 +52,7 @@ const CommandRegistrar reg(1040, [](CLI::App& app) {
     addDeviceOption(sub, args->device, "the rest targets run (topology and export stay on the CPU)");
     sub->callback([args] {
         args->grid.device = resolveDevice(args->device);
-        const GaussianCloud source = args->input.empty() ? makeSample("stripes") : readModel(args->input, args->dropInvalid);
+        const GaussianCloud source = args->input.empty() ? makeDemoModel("stripes") : readModel(args->input, args->dropInvalid);
         const std::string label = args->input.empty() ? std::string("stripes") : args->input;
         // The threads that run (--threads limits them through a global control, not the arena).
         const int threads = int(std::min<std::size_t>(std::size_t(tbb::this_task_arena::max_concurrency()),

@@ -4,14 +4,14 @@
 #include "core/Progress.h"
 #include "core/AtomicFile.h"
 #include "io/GaussianIO.h"
-#include "samples/SampleModels.h"
+#include "demo/DemoModels.h"
 
 namespace splatwarp::cli {
 namespace {
 
 struct SampleArgs {
     std::string name, output;
-    SampleOptions options;
+    DemoModelOptions options;
 };
 
 const CommandRegistrar reg(10, [](CLI::App& app) {
@@ -19,14 +19,14 @@ const CommandRegistrar reg(10, [](CLI::App& app) {
     CLI::App* sub = app.add_subcommand("sample", "Generate a procedural sample model (stripes, ring) as graphdeco PLY");
     sub->add_option("name", args->name, "Sample name: stripes (4x1x1 bar, 8 colour bands, SH1) or ring (torus, SH0)")
         ->required()
-        ->check(CLI::IsMember(sampleNames()));
+        ->check(CLI::IsMember(demoModelNames()));
     sub->add_option("-o,--output", args->output, "Output .ply path")->required();
     sub->add_option("--count", args->options.count, "Number of Gaussians (default: stripes 20000, ring 16000)");
     sub->add_option("--seed", args->options.seed, "Random seed (deterministic output per seed)")->capture_default_str();
     sub->callback([args] {
         OutputSet outputs;
         outputs.checkTarget(args->output);
-        const GaussianCloud g = makeSample(args->name, args->options);
+        const GaussianCloud g = makeDemoModel(args->name, args->options);
         writePly(args->output, g);
         outputs.commit();
         progress(msg("wrote ", g.size(), " Gaussians (SH degree ", g.shDegree, ") to ", args->output));

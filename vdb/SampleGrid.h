@@ -13,7 +13,7 @@
 #include "core/SmallMath.h"
 #include "field/CellIndexGrid.h"
 #include "field/FeatureField.h"
-#include "field/GaussianKernel.h"
+#include "field/GaussianMath.h"
 #include "field/SampleSet.h"
 
 namespace splatwarp {
@@ -90,7 +90,7 @@ public:
     /// @brief The feature options the rest targets were evaluated with (cutoff, rest filter).
     const FeatureOptions& targetOptions() const;
     /// @brief The Int32 index grid converted to NanoVDB (the index of each cell of cellCoords(),
-    ///        background -1), for the GPU and other OpenVDB-free code (see field/CellTargetKernels.h).
+    ///        background -1), for the GPU and other OpenVDB-free code (see field/CellTargetMath.h).
     CellIndexGrid nanoIndexGrid() const;
 
     struct Impl;

@@ -16,7 +16,7 @@ namespace splatwarp {
 
 /// @brief What fastExpOf() needs of a lane type: a constant in every lane, a per-lane select
 ///        on a comparison, and 2^n from lanes holding integers n. Specialised for float here
-///        and for SIMD vectors where they are used (stage2/BlockKernels.cpp).
+///        and for SIMD vectors where they are used (stage2/BlockLoops.cpp).
 template <typename T>
 struct FastExpOps;
 

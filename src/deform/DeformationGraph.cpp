@@ -10,7 +10,7 @@
 
 #include "core/Error.h"
 #include "core/ParallelFor.h"
-#include "deform/SkinWeightKernel.h"
+#include "deform/SkinWeightMath.h"
 
 namespace splatwarp {
 

@@ -7,7 +7,7 @@
 
 #include "core/SmallMath.h"
 #include "deform/DeformationGraph.h"
-#include "deform/SkinningKernel.h"
+#include "deform/SkinningMath.h"
 
 namespace splatwarp {
 
@@ -29,7 +29,7 @@ Vec3d skinPoint(const DeformationGraph& graph, const NodeTransforms& transforms,
 Mat3d skinGradient(const DeformationGraph& graph, const NodeTransforms& transforms, const SkinWeights& weights,
                    std::size_t i);
 
-/// @brief The node transforms as affine maps A_j v + b_j, [J] (the layout of the skinning kernels).
+/// @brief The node transforms as affine maps A_j v + b_j, [J] (the layout of the CUDA skinning kernels).
 std::vector<NodeAffine> nodeAffines(const DeformationGraph& graph, const NodeTransforms& transforms);
 
 /// @brief The node transforms as affine maps A_j v + b_j (b_j = g_j + t_j - A_j g_j), precomputed

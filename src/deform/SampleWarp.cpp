@@ -5,7 +5,7 @@
 #include "core/Error.h"
 #include "core/ParallelFor.h"
 #include "deform/WarpPoints.h"
-#include "deform/WarpKernel.h"
+#include "deform/WarpMath.h"
 
 namespace splatwarp {
 

@@ -6,7 +6,7 @@
 #include "core/Error.h"
 #include "core/ParallelFor.h"
 #include "core/Progress.h"
-#include "deform/StageOneKernel.h"
+#include "deform/StageOneMath.h"
 
 namespace splatwarp {
 

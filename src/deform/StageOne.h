@@ -50,7 +50,7 @@ struct StageOneResult {
     Device device = Device::Cpu;       ///< where the update ran
 };
 
-struct StageOneParams; // deform/StageOneKernel.h
+struct StageOneParams; // deform/StageOneMath.h
 
 /// @brief The options and model extent as the per-Gaussian update takes them.
 StageOneParams stageOneParams(const StageOneOptions& options, double extent);

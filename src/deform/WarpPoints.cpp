@@ -4,7 +4,7 @@
 
 #include "core/Error.h"
 #include "core/ParallelFor.h"
-#include "deform/WarpKernel.h"
+#include "deform/WarpMath.h"
 
 namespace splatwarp {
 

@@ -2,7 +2,7 @@
 /// @file CellIndexGrid.h
 /// @brief The SampleGrid's cell index grid (cell coordinate -> cell index, background -1) as a
 ///        NanoVDB Int32 grid held in plain bytes, so the core library and the CUDA kernels can
-///        use it without OpenVDB (vdb/SampleGrid converts it; field/CellTargetKernels.h reads it).
+///        use it without OpenVDB (vdb/SampleGrid converts it; field/CellTargetMath.h reads it).
 #include <cstddef>
 #include <cstring>
 #include <vector>

@@ -2,7 +2,7 @@
 /// @file FeatureDevice.h
 /// @brief Rest sample targets on the chosen device: the CPU path (FeatureField.h) or the CUDA one
 ///        the kernels register at start-up (the core library cannot link them), which looks the
-///        Gaussians' cells up in the NanoVDB cell index grid (field/CellTargetKernels.h).
+///        Gaussians' cells up in the NanoVDB cell index grid (field/CellTargetMath.h).
 #include <cstddef>
 #include <cstdint>
 #include <vector>

@@ -6,7 +6,7 @@
 
 #include "core/Error.h"
 #include "core/ParallelFor.h"
-#include "field/CellTargetKernels.h"
+#include "field/CellTargetMath.h"
 
 namespace splatwarp {
 namespace {

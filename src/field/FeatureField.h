@@ -12,7 +12,7 @@
 #include "core/Device.h"
 #include "core/GaussianCloud.h"
 #include "field/GaussianBins.h"
-#include "field/GaussianKernel.h"
+#include "field/GaussianMath.h"
 #include "field/PreparedGaussian.h"
 #include "field/SampleSet.h"
 

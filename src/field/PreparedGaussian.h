@@ -10,7 +10,7 @@
 #include "core/GaussianCloud.h"
 #include "core/HostDevice.h"
 #include "core/SmallMath.h"
-#include "field/GaussianKernel.h"
+#include "field/GaussianMath.h"
 
 namespace splatwarp {
 
@@ -37,7 +37,7 @@ SPLATWARP_HOST_DEVICE Mat3<T> filteredCovariance(const Quat<T>& q, const Vec3<T>
     return gaussianCovariance(q, s) + filter;
 }
 
-/// @brief The kernel of one Gaussian for feature evaluation (float on the CPU path; double in
+/// @brief One Gaussian prepared for feature evaluation (float on the CPU path; double in
 ///        gradient tests).
 template <typename T>
 struct BasicPreparedGaussian {

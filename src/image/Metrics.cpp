@@ -20,7 +20,7 @@ int compareChannels(const Image& a, const Image& b)
     return std::min(3, std::min(a.channels, b.channels));
 }
 
-/// Separable 'valid' filtering of one plane (w x h) with a normalised 1D kernel.
+/// Separable 'valid' filtering of one plane (w x h) with a normalised 1D window.
 std::vector<double> filterValid(const std::vector<double>& plane, int w, int h, const std::vector<double>& k)
 {
     const int n = int(k.size()), ow = w - n + 1, oh = h - n + 1;
@@ -64,14 +64,14 @@ double ssim(const Image& a, const Image& b, const SsimOptions& o)
     if (a.width < o.window || a.height < o.window)
         throw InputError(msg("SSIM needs images of at least ", o.window, "x", o.window, " pixels, got ", a.width, "x",
                              a.height));
-    std::vector<double> kernel(std::size_t(o.window));
+    std::vector<double> window(std::size_t(o.window));
     double norm = 0;
     for (int i = 0; i < o.window; ++i) {
         const double d = i - (o.window - 1) / 2;
-        kernel[std::size_t(i)] = std::exp(-d * d / (2.0 * o.sigma * o.sigma));
-        norm += kernel[std::size_t(i)];
+        window[std::size_t(i)] = std::exp(-d * d / (2.0 * o.sigma * o.sigma));
+        norm += window[std::size_t(i)];
     }
-    for (double& k : kernel) k /= norm;
+    for (double& k : window) k /= norm;
     const double c1 = (o.k1 * o.dynamicRange) * (o.k1 * o.dynamicRange);
     const double c2 = (o.k2 * o.dynamicRange) * (o.k2 * o.dynamicRange);
     const int w = a.width, h = a.height;
@@ -88,9 +88,9 @@ double ssim(const Image& a, const Image& b, const SsimOptions& o)
                 pbb[i] = pb[i] * pb[i];
                 pab[i] = pa[i] * pb[i];
             }
-        const auto ma = filterValid(pa, w, h, kernel), mb = filterValid(pb, w, h, kernel);
-        const auto saa = filterValid(paa, w, h, kernel), sbb = filterValid(pbb, w, h, kernel),
-                   sab = filterValid(pab, w, h, kernel);
+        const auto ma = filterValid(pa, w, h, window), mb = filterValid(pb, w, h, window);
+        const auto saa = filterValid(paa, w, h, window), sbb = filterValid(pbb, w, h, window),
+                   sab = filterValid(pab, w, h, window);
         double sum = 0;
         for (std::size_t i = 0; i < ma.size(); ++i) {
             const double va = saa[i] - ma[i] * ma[i], vb = sbb[i] - mb[i] * mb[i], cov = sab[i] - ma[i] * mb[i];

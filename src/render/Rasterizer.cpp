@@ -9,7 +9,7 @@
 
 #include "core/Error.h"
 #include "core/ParallelFor.h"
-#include "field/GaussianKernel.h"
+#include "field/GaussianMath.h"
 
 namespace splatwarp {
 

@@ -7,7 +7,7 @@
 ///        (OpenCV axes: x right, y down, z forward). With cx = width/2 the image is symmetric.
 #include "core/HostDevice.h"
 #include "core/SmallMath.h"
-#include "field/GaussianKernel.h"
+#include "field/GaussianMath.h"
 #include "sh/SphericalHarmonics.h"
 
 namespace splatwarp {
@@ -31,7 +31,7 @@ constexpr float kSplatFrustumSlack = 1.3f;
 /// Edge of the square screen tiles that group splats for compositing.
 constexpr int kSplatTileSize = 16;
 
-/// @brief Camera data needed per Gaussian, in float (what a kernel would receive).
+/// @brief Camera data needed per Gaussian, in float (what a CUDA kernel receives).
 struct PinholeView {
     Mat3f rotation = Mat3f::identity(); ///< world-to-camera
     Vec3f translation;                  ///< x_cam = rotation * x_world + translation

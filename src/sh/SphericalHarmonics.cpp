@@ -4,7 +4,7 @@
 #include <cmath>
 
 #include "core/Error.h"
-#include "sh/ShRotationKernel.h"
+#include "sh/ShRotationMath.h"
 
 namespace splatwarp {
 

@@ -68,7 +68,7 @@ SPLATWARP_HOST_DEVICE Vec3<T> evalShColor(int degree, const C* coeffs, const Vec
 }
 
 /// @brief Band matrices that rotate SH coefficients by one rotation (built by buildShBands() in
-///        sh/ShRotationKernel.h): band l is (2l+1) x (2l+1) row-major; band 0 unused.
+///        sh/ShRotationMath.h): band l is (2l+1) x (2l+1) row-major; band 0 unused.
 struct ShBands {
     double band[4][49];
 };
@@ -92,7 +92,7 @@ private:
     template <typename T>
     void applyImpl(int degree, T* coeffs) const;
     int mDegree;
-    ShBands mBands; ///< built by buildShBands() (sh/ShRotationKernel.h)
+    ShBands mBands; ///< built by buildShBands() (sh/ShRotationMath.h)
 };
 
 /// @brief Rotate the SH of every Gaussian of a cloud by the same rotation (rigid motions, tests).

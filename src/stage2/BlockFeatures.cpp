@@ -3,7 +3,7 @@
 #include <cmath>
 
 #include "core/ParallelFor.h"
-#include "stage2/BlockKernels.h"
+#include "stage2/BlockLoops.h"
 #include "stage2/SampleBlocks.h"
 
 namespace splatwarp {

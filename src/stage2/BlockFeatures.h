@@ -1,7 +1,7 @@
 #pragma once
 /// @file BlockFeatures.h
 /// @brief F and O at points grouped by cell, with the Stage II block engine (SampleBlocks.h,
-///        BlockKernels.h): each Gaussian is listed only for the blocks its cutoff box and its
+///        BlockLoops.h): each Gaussian is listed only for the blocks its cutoff box and its
 ///        axis slabs meet, and the weights run vectorised over a block's points. The rest
 ///        targets of a sample grid use it (a cell's samples are one block). Same sums in the
 ///        same (ascending Gaussian) order per point as evaluateFeatures().

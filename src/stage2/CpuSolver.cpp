@@ -6,7 +6,7 @@
 #include "core/Error.h"
 #include "core/ParallelFor.h"
 #include "core/Progress.h"
-#include "stage2/BlockKernels.h"
+#include "stage2/BlockLoops.h"
 #include "stage2/SampleBlocks.h"
 #include "stage2/Coverage.h"
 #include "stage2/StageTwoSetup.h"
@@ -101,7 +101,7 @@ private:
     BlockCoverage mCoverage;
     std::vector<float> mParams, mGrad, mAdamM, mAdamV;      // [G, PER_G]
     std::vector<float> mKeptParams, mKeptM, mKeptV;       // saveIterate()
-    std::vector<PreparedGaussian> mKernels;                  // [G]
+    std::vector<PreparedGaussian> mPrepared;                  // [G]
     std::vector<ChunkBound> mBounds;                          // [G]
     std::vector<float> mBoxLo, mBoxHi;                        // [G,3]
     std::vector<CoverageSlabs> mSlabs;                        // [G] coverage slabs (the reach until the next rebuild)
@@ -137,7 +137,7 @@ CpuSolver::CpuSolver(const GaussianCloud& cloud, const SampleSet& samples, const
     mGrad.assign(n, 0.0f);
     mAdamM.assign(n, 0.0f);
     mAdamV.assign(n, 0.0f);
-    mKernels.resize(mG);
+    mPrepared.resize(mG);
     mBounds.resize(mG);
     mBoxLo.resize(3 * mG);
     mBoxHi.resize(3 * mG);
@@ -177,8 +177,8 @@ void CpuSolver::prepare()
     parallelFor(mG, 256, mOptions.threaded, [&](std::size_t k) {
         const GaussianParams<double> p = unpackParams(row(k));
         const Mat3d& filter = mSetup.filter[mSetup.moving[k]];
-        mKernels[k] = PreparedGaussian::from(prepareParams(p, filter, double(mOptions.cutoff)));
-        mBounds[k] = ChunkBound::of(mKernels[k]);
+        mPrepared[k] = PreparedGaussian::from(prepareParams(p, filter, double(mOptions.cutoff)));
+        mBounds[k] = ChunkBound::of(mPrepared[k]);
     });
 }
 
@@ -232,7 +232,7 @@ std::uint64_t CpuSolver::forwardBlock(std::size_t b)
     }
     const std::uint64_t e0 = mCoverage.blockOffsets()[b];
     const BlockGaussians gs{mCoverage.blockItems().data() + e0, std::size_t(mCoverage.blockOffsets()[b + 1] - e0),
-                            mKernels.data(), mBounds.data(), mParams.data() + kParamSh, std::size_t(mPerG)};
+                            mPrepared.data(), mBounds.data(), mParams.data() + kParamSh, std::size_t(mPerG)};
     // Per thread, reused: the kept chunks of the block's pairs and where each pair's start.
     thread_local std::vector<float> kept;
     thread_local std::vector<std::uint32_t> keptAt;

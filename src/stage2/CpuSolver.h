@@ -2,7 +2,7 @@
 /// @file CpuSolver.h
 /// @brief The CPU Stage II solver (oneTBB): samples in padded blocks (SampleBlocks.h), coverage
 ///        between blocks and Gaussians, the pair work vectorised over a block's samples
-///        (BlockKernels.h). Forward per block (each sample sums its Gaussians in ascending
+///        (BlockLoops.h). Forward per block (each sample sums its Gaussians in ascending
 ///        order), backward per Gaussian (its blocks in ascending order): deterministic for any
 ///        thread count.
 #include <memory>

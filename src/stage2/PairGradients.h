@@ -58,7 +58,7 @@ SPLATWARP_HOST_DEVICE Mat3<T> lowPassFilter(const float* f, T lambda, T spacing)
     return out;
 }
 
-/// @brief Kernel of a Gaussian from its raw parameters and filter.
+/// @brief The prepared form of a Gaussian (PreparedGaussian) from its raw parameters and filter.
 template <typename T>
 SPLATWARP_HOST_DEVICE BasicPreparedGaussian<T> prepareParams(const GaussianParams<T>& p, const Mat3<T>& filter, T cutoff)
 {

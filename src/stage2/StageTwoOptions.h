@@ -3,7 +3,7 @@
 /// @brief Every parameter of the Stage II optimiser with its documented default; shared by the
 ///        CLI, the JSON spec and the tests (paper Sec. 3.2).
 #include "core/Device.h"
-#include "field/GaussianKernel.h"
+#include "field/GaussianMath.h"
 
 namespace splatwarp {
 

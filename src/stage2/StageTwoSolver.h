@@ -24,7 +24,7 @@ public:
     virtual Device device() const = 0;
     /// @brief Counts known after set-up (samples used and skipped, moving Gaussians, scene extent).
     virtual void describe(StageTwoReport& report) const = 0;
-    /// @brief Prepare the Gaussians' kernels from the current parameters.
+    /// @brief Prepare the Gaussians (PreparedGaussian) from the current parameters.
     virtual void prepare() = 0;
     /// @brief Rebuild the coverage for the steps until the next scheduled rebuild.
     virtual void rebuildCoverage(int iteration) = 0;

@@ -26,7 +26,7 @@
 #include "render/Camera.h"
 #include "render/Rasterizer.h"
 #include "render/RenderDevice.h"
-#include "samples/SampleModels.h"
+#include "demo/DemoModels.h"
 
 using namespace splatwarp;
 
@@ -156,7 +156,7 @@ TEST(RasterizerCuda, InvalidInputThrowsInputError)
 TEST(RasterizerCuda, MatchesCpuOnStripes)
 {
     SPLATWARP_REQUIRE_GPU();
-    const GaussianCloud stripes = makeSample("stripes");
+    const GaussianCloud stripes = makeDemoModel("stripes");
     OrbitOptions o;
     o.views = 3;
     o.width = 160;

@@ -3,7 +3,7 @@
 //
 // Tolerances are A-PRIORI, not yet measured (written on a machine without a GPU; confirm and
 // tighten them on one). Both sides sum the same float terms in the same order (same contributing
-// set: each cell's Gaussians ascending) with the same source (field/CellTargetKernels.h), and
+// set: each cell's Gaussians ascending) with the same source (field/CellTargetMath.h), and
 // FeaturesCuda.cu is built with -fmad=false, so the only difference is expf: CUDA's expf is
 // within 2 ulp, glibc's within 1, so each alpha*G differs by <= ~3 ulp (~2e-7 relative) and a
 // sum of positive-weighted terms by the same relative amount in opacity; features (signed SH)
@@ -23,7 +23,7 @@
 #include "core/Device.h"
 #include "field/FeatureDevice.h"
 #include "field/FieldTestModels.h"
-#include "samples/SampleModels.h"
+#include "demo/DemoModels.h"
 
 using namespace splatwarp;
 
@@ -75,7 +75,7 @@ TEST(SampleTargetsCuda, MatchesCpuOnStripes)
     o.cells = 32;
     for (const int degree : {0, 3}) {
         SCOPED_TRACE(degree);
-        expectParity(withShDegree(makeSample("stripes"), degree), o);
+        expectParity(withShDegree(makeDemoModel("stripes"), degree), o);
     }
 }
 
@@ -114,13 +114,13 @@ TEST(SampleTargetsCuda, DispatchWithoutGpu)
     o.cells = 8;
     EXPECT_THROW(resolveDevice(Device::Cuda), InputError);
     o.device = resolveDevice(Device::Auto);
-    const SampleGrid g(makeSample("stripes"), o);
+    const SampleGrid g(makeDemoModel("stripes"), o);
     EXPECT_EQ(g.stats().device, Device::Cpu);
     std::vector<float> opacity(1);
     const float point[3] = {0.0f, 0.0f, 0.0f};
     FeatureOptions fo;
     fo.device = resolveDevice(Device::Auto);
-    EXPECT_EQ(evaluateFeaturesOn(makeSample("stripes"), point, 1, fo, nullptr, opacity.data()), Device::Cpu);
+    EXPECT_EQ(evaluateFeaturesOn(makeDemoModel("stripes"), point, 1, fo, nullptr, opacity.data()), Device::Cpu);
     registerSampleTargetsCuda(nullptr);
     registerFeaturesCuda(nullptr);
     registerCudaProbe(nullptr);

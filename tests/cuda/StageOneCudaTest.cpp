@@ -2,7 +2,7 @@
 // bent by samples/specs/bend.json. Skips with a message where no GPU is present.
 //
 // Tolerances are A-PRIORI, not yet measured (written on a machine without a GPU; confirm and
-// tighten them on one). Both sides run the same double-precision code (deform/StageOneKernel.h);
+// tighten them on one). Both sides run the same double-precision code (deform/StageOneMath.h);
 // nvcc contracts multiply-adds into FMAs and CUDA's exp/log/sqrt/cbrt are within 1-2 ulp of
 // glibc's, so intermediate values differ by ~1e-15 relative. The outputs are stored as float:
 // a value within 1e-15 of a float rounding boundary rounds the other way, so each output may
@@ -19,7 +19,7 @@
 #include "CudaTestSupport.h"
 #include "StageOneCuda.h"
 #include "deform/StageOneDevice.h"
-#include "samples/SampleModels.h"
+#include "demo/DemoModels.h"
 
 using namespace splatwarp;
 
@@ -31,7 +31,7 @@ constexpr double kAbsFloor = 1e-6;      // absolute floor for values near 0 (flo
 double tolerance(double ref) { return std::max(kUlpRel * std::abs(ref), kAbsFloor); }
 
 struct BendProblem {
-    GaussianCloud rest = makeSample("stripes");
+    GaussianCloud rest = makeDemoModel("stripes");
     Deformation d;
     StageOneRig rig;
     BendProblem()

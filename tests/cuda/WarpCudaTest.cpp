@@ -3,7 +3,7 @@
 //
 // Tolerances are A-PRIORI, not yet measured (written on a machine without a GPU; confirm on one).
 // The skin weights are the same (computed on the CPU for both). Skinning, the polar rotation,
-// the SH rotation and F_k run the same double code (deform/WarpKernel.h); nvcc's FMA contraction
+// the SH rotation and F_k run the same double code (deform/WarpMath.h); nvcc's FMA contraction
 // and CUDA's sqrt/cbrt change intermediates by ~1e-15 relative, so each float output may differ
 // by one float rounding (2^-23 relative; two ulps allowed). F_k divides by the corner spread
 // (Q Q^T)^-1, which amplifies a one-ulp difference of a warped corner position x by
@@ -19,7 +19,7 @@
 #include "SampleGrid.h"
 #include "WarpCuda.h"
 #include "deform/SampleWarp.h"
-#include "samples/SampleModels.h"
+#include "demo/DemoModels.h"
 
 using namespace splatwarp;
 
@@ -51,7 +51,7 @@ std::size_t countMismatches(const std::vector<float>& gpu, const std::vector<flo
 TEST(WarpCuda, PointsMatchCpu)
 {
     SPLATWARP_REQUIRE_GPU();
-    const GaussianCloud rest = makeSample("stripes");
+    const GaussianCloud rest = makeDemoModel("stripes");
     const Deformation d = bend(rest);
     // Random points over the model's bounding box (held-out points are like these).
     Vec3f lo, hi;
@@ -71,7 +71,7 @@ TEST(WarpCuda, PointsMatchCpu)
 TEST(WarpCuda, SamplesMatchCpu)
 {
     SPLATWARP_REQUIRE_GPU();
-    const GaussianCloud rest = makeSample("stripes", {3000, 5});
+    const GaussianCloud rest = makeDemoModel("stripes", {3000, 5});
     const Deformation d = bend(rest);
     SampleGridOptions o;
     o.cells = 24;
@@ -89,7 +89,7 @@ TEST(WarpCuda, SamplesMatchCpu)
 TEST(WarpCuda, SkinWeightsMatchCpuExceptExactTies)
 {
     SPLATWARP_REQUIRE_GPU();
-    const GaussianCloud rest = makeSample("stripes");
+    const GaussianCloud rest = makeDemoModel("stripes");
     const DeformationGraph graph = DeformationGraph::build(rest, GraphOptions{});
     std::mt19937 rng(5);
     std::uniform_real_distribution<float> u(-2.5f, 2.5f);

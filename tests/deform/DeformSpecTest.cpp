@@ -3,7 +3,7 @@
 #include "core/Error.h"
 #include "deform/Deformation.h"
 #include "deform/DeformSpec.h"
-#include "samples/SampleModels.h"
+#include "demo/DemoModels.h"
 
 using namespace splatwarp;
 
@@ -86,7 +86,7 @@ TEST(DeformSpec, ErrorsNameTheFileAndHandle)
 
 TEST(DeformSpec, EmptySelectionAndReassignment)
 {
-    const GaussianCloud rest = makeSample("stripes", SampleOptions{1000, 1});
+    const GaussianCloud rest = makeDemoModel("stripes", DemoModelOptions{1000, 1});
     const DeformationGraph g = DeformationGraph::build(rest, GraphOptions{32, 6, 0});
     const DeformSpec empty = parseDeformSpec(
         R"({"version":1,"units":"bbox","handles":[{"nodes":[0]},{"sphere":{"center":[5,5,5],"radius":0.01}}]})", "e.json");
@@ -111,7 +111,7 @@ TEST(DeformSpec, EmptySelectionAndReassignment)
 
 TEST(DeformSpec, BboxUnitsAndTargets)
 {
-    const GaussianCloud rest = makeSample("stripes", SampleOptions{1000, 1});
+    const GaussianCloud rest = makeDemoModel("stripes", DemoModelOptions{1000, 1});
     const DeformationGraph g = DeformationGraph::build(rest, GraphOptions{32, 6, 0});
     Vec3f lo, hi;
     centreBounds(rest, lo, hi);

@@ -8,7 +8,7 @@
 #include "core/Error.h"
 #include "deform/DeformationGraph.h"
 #include "deform/NodeTransforms.h"
-#include "samples/SampleModels.h"
+#include "demo/DemoModels.h"
 
 using namespace splatwarp;
 
@@ -140,7 +140,7 @@ TEST(DeformationGraph, DegenerateInputs)
 
 TEST(DeformationGraph, SkinningIdentityAndRigid)
 {
-    const GaussianCloud g = makeSample("stripes", SampleOptions{2000, 1});
+    const GaussianCloud g = makeDemoModel("stripes", DemoModelOptions{2000, 1});
     const DeformationGraph gr = DeformationGraph::build(g, GraphOptions{32, 8, 0});
     const SkinWeights w = gr.skinWeights(g.means.data(), g.size());
     NodeTransforms x = NodeTransforms::identity(gr.nodeCount());

@@ -6,7 +6,7 @@
 #include "deform/Deformation.h"
 #include "deform/EdSolver.h"
 #include "deform/EdEnergyReference.h"
-#include "samples/SampleModels.h"
+#include "demo/DemoModels.h"
 
 using namespace splatwarp;
 
@@ -14,7 +14,7 @@ namespace {
 
 const GaussianCloud& bar()
 {
-    static const GaussianCloud g = makeSample("stripes", SampleOptions{3000, 2});
+    static const GaussianCloud g = makeDemoModel("stripes", DemoModelOptions{3000, 2});
     return g;
 }
 

@@ -8,7 +8,7 @@
 #include "core/Device.h"
 #include "deform/StageOneDevice.h"
 #include "deform/WarpDevice.h"
-#include "samples/SampleModels.h"
+#include "demo/DemoModels.h"
 
 using namespace splatwarp;
 
@@ -70,7 +70,7 @@ struct FakeCuda {
 };
 
 struct Problem {
-    GaussianCloud rest = makeSample("stripes", SampleOptions{1500, 1});
+    GaussianCloud rest = makeDemoModel("stripes", DemoModelOptions{1500, 1});
     Deformation d;
     StageOneRig rig;
     Problem()

@@ -8,7 +8,7 @@
 
 #include "deform/StageOne.h"
 #include "deform/StageOneDevice.h"
-#include "samples/SampleModels.h"
+#include "demo/DemoModels.h"
 #include "sh/SphericalHarmonics.h"
 
 using namespace splatwarp;
@@ -46,7 +46,7 @@ void expectFinite(const GaussianCloud& g)
 
 TEST(StageOne, RigidMotionOfAllNodesMovesGaussiansRigidly)
 {
-    const GaussianCloud rest = makeSample("stripes", SampleOptions{2000, 4});
+    const GaussianCloud rest = makeDemoModel("stripes", DemoModelOptions{2000, 4});
     const DeformationGraph graph = DeformationGraph::build(rest, GraphOptions{48, 8, 0});
     const Mat3d r = quatToMatrix(Quatd{0.7, -0.2, 0.5, 0.4});
     const Vec3d tr(0.5, -2.0, 1.25);
@@ -80,7 +80,7 @@ TEST(StageOne, RigidMotionOfAllNodesMovesGaussiansRigidly)
 
 TEST(StageOne, BendKeepsStaticGaussiansBitExactAndSerialEqualsParallel)
 {
-    const GaussianCloud rest = makeSample("stripes", SampleOptions{3000, 5});
+    const GaussianCloud rest = makeDemoModel("stripes", DemoModelOptions{3000, 5});
     DeformSpec spec = bendSpec();
     spec.handles[0].boxMax.x = 0.4; // a fixed slab wide enough to hold Gaussians that see only fixed nodes
     const Deformation d = solveDeformation(rest, spec);
@@ -117,7 +117,7 @@ TEST(StageOne, BendKeepsStaticGaussiansBitExactAndSerialEqualsParallel)
 
 TEST(StageOne, FlatAndNearZeroScaleGaussiansStayFinite)
 {
-    GaussianCloud rest = makeSample("stripes", SampleOptions{1500, 6});
+    GaussianCloud rest = makeDemoModel("stripes", DemoModelOptions{1500, 6});
     for (std::size_t i = 0; i < rest.size(); i += 3) rest.logScales[3 * i + 2] = -40.0f;          // flat
     for (std::size_t i = 1; i < rest.size(); i += 7)
         for (int a = 0; a < 3; ++a) rest.logScales[3 * i + a] = -80.0f;                            // a point
@@ -136,7 +136,7 @@ TEST(StageOne, FlatAndNearZeroScaleGaussiansStayFinite)
 // relative error measured: 7.9e-8 (float storage), checked against kRigidTolerance.
 TEST(StageOne, NonRigidFieldMatchesNaiveSvdReference)
 {
-    const GaussianCloud rest = makeSample("stripes", SampleOptions{2000, 5});
+    const GaussianCloud rest = makeDemoModel("stripes", DemoModelOptions{2000, 5});
     const DeformationGraph graph = DeformationGraph::build(rest, GraphOptions{48, 8, 0});
     std::mt19937 rng(7);
     std::uniform_real_distribution<double> u(-1.0, 1.0);

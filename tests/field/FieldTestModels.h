@@ -8,7 +8,7 @@
 
 #include "core/GaussianCloud.h"
 #include "core/SmallMath.h"
-#include "field/GaussianKernel.h"
+#include "field/GaussianMath.h"
 
 namespace splatwarp::test {
 

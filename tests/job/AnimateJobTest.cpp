@@ -16,7 +16,7 @@
 #include "AnimateJob.h"
 #include "deform/AnimSpec.h"
 #include "io/GaussianIO.h"
-#include "samples/SampleModels.h"
+#include "demo/DemoModels.h"
 #include "support/TestSupport.h"
 
 using namespace splatwarp;
@@ -48,10 +48,10 @@ struct Fixture {
     std::string model, spec;
     Fixture()
     {
-        SampleOptions so;
+        DemoModelOptions so;
         so.count = 1500;
         model = dir.file("in.ply");
-        writePly(model, makeSample("stripes", so));
+        writePly(model, makeDemoModel("stripes", so));
         spec = dir.file("anim.json");
         writeText(spec, kAnim);
     }

@@ -6,7 +6,7 @@
 
 #include "DeformPipeline.h"
 #include "io/GaussianIO.h"
-#include "samples/SampleModels.h"
+#include "demo/DemoModels.h"
 #include "support/TestSupport.h"
 
 using namespace splatwarp;
@@ -19,9 +19,9 @@ const std::string kSpecs = std::string(SPLATWARP_SOURCE_DIR) + "/samples/specs/"
 /// A small stripes bar and a coarse grid, so a whole deform run takes ~2 s.
 DeformJobOptions smallJob(const TempDir& dir, const std::string& spec, int iterations)
 {
-    SampleOptions so;
+    DemoModelOptions so;
     so.count = 3000;
-    writePly(dir.file("in.ply"), makeSample("stripes", so));
+    writePly(dir.file("in.ply"), makeDemoModel("stripes", so));
     DeformJobOptions o;
     o.input = dir.file("in.ply");
     o.specPath = kSpecs + spec;

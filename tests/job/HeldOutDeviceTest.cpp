@@ -7,13 +7,13 @@
 
 #include "HeldOutEval.h"
 #include "deform/DeformSpec.h"
-#include "samples/SampleModels.h"
+#include "demo/DemoModels.h"
 
 using namespace splatwarp;
 
 TEST(HeldOutDevice, CpuAndAutoAgreeAndCudaIsRefusedWithoutCuda)
 {
-    const GaussianCloud rest = makeSample("stripes");
+    const GaussianCloud rest = makeDemoModel("stripes");
     SampleGridOptions go;
     go.cells = 10;
     const SampleGrid grid(rest, go);

@@ -8,7 +8,7 @@
 #include "Judge.h"
 #include "deform/DeformSpec.h"
 #include "field/PreparedGaussian.h"
-#include "samples/SampleModels.h"
+#include "demo/DemoModels.h"
 #include "../field/FieldTestModels.h"
 
 using namespace splatwarp;
@@ -19,9 +19,9 @@ const std::string kSpecs = std::string(SPLATWARP_SOURCE_DIR) + "/samples/specs/"
 
 GaussianCloud smallStripes()
 {
-    SampleOptions so;
+    DemoModelOptions so;
     so.count = 2000;
-    return makeSample("stripes", so);
+    return makeDemoModel("stripes", so);
 }
 
 } // namespace

@@ -5,7 +5,7 @@
 #include "core/Error.h"
 #include "render/Camera.h"
 #include "render/RenderTestUtil.h"
-#include "samples/SampleModels.h"
+#include "demo/DemoModels.h"
 #include "support/TestSupport.h"
 
 namespace splatwarp {

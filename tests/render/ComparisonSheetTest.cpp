@@ -4,7 +4,7 @@
 #include "image/BitmapFont.h"
 #include "render/ComparisonSheet.h"
 #include "render/RenderTestUtil.h"
-#include "samples/SampleModels.h"
+#include "demo/DemoModels.h"
 
 namespace splatwarp {
 namespace {

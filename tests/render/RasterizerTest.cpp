@@ -8,7 +8,7 @@
 #include "image/Metrics.h"
 #include "render/Rasterizer.h"
 #include "render/RenderTestUtil.h"
-#include "samples/SampleModels.h"
+#include "demo/DemoModels.h"
 #include "sh/SphericalHarmonics.h"
 
 namespace splatwarp {

@@ -7,7 +7,7 @@
 #include "core/AtomicFile.h"
 #include "image/ImageIO.h"
 #include "io/GaussianIO.h"
-#include "samples/SampleModels.h"
+#include "demo/DemoModels.h"
 #include "support/TestSupport.h"
 
 namespace splatwarp {
@@ -25,9 +25,9 @@ class RenderCliTest : public ::testing::Test {
 protected:
     void SetUp() override
     {
-        SampleOptions o;
+        DemoModelOptions o;
         o.count = 2000;
-        writePly(mDir.file("bar.ply"), makeSample("stripes", o));
+        writePly(mDir.file("bar.ply"), makeDemoModel("stripes", o));
     }
     std::string model() const { return mDir.file("bar.ply"); }
     test::TempDir mDir;

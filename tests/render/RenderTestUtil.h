@@ -4,16 +4,16 @@
 #include <vector>
 
 #include "render/Camera.h"
-#include "samples/SampleModels.h"
+#include "demo/DemoModels.h"
 
 namespace splatwarp::test {
 
 /// @brief A sample model (stripes, ring) with fewer Gaussians, for fast tests.
 inline GaussianCloud smallSample(const char* name, std::size_t count)
 {
-    SampleOptions o;
+    DemoModelOptions o;
     o.count = count;
-    return makeSample(name, o);
+    return makeDemoModel(name, o);
 }
 
 /// @brief `views` orbit cameras of width x height around a model (other options default).

@@ -7,7 +7,7 @@
 #include <cstdio>
 #include <random>
 
-#include "stage2/BlockKernels.h"
+#include "stage2/BlockLoops.h"
 #include "stage2/CpuSolver.h"
 #include "stage2/SampleBlocks.h"
 #include "stage2/Coverage.h"
@@ -43,8 +43,8 @@ Problem makeProblem(int degree, int n, std::uint32_t seed)
     return p;
 }
 
-/// Double-precision kernels of every Gaussian, prepared as Stage II does (same filters).
-std::vector<BasicPreparedGaussian<double>> doubleKernels(const Problem& p, const StageTwoSetup& st)
+/// Every Gaussian in double, prepared as Stage II does (same filters).
+std::vector<BasicPreparedGaussian<double>> doublePrepared(const Problem& p, const StageTwoSetup& st)
 {
     std::vector<BasicPreparedGaussian<double>> out(p.start.size());
     for (std::size_t i = 0; i < out.size(); ++i)
@@ -55,14 +55,14 @@ std::vector<BasicPreparedGaussian<double>> doubleKernels(const Problem& p, const
 /// F, O at the used samples: every pair, double.
 void referenceFeatures(const Problem& p, const StageTwoSetup& st, std::vector<double>& f, std::vector<double>& o)
 {
-    const auto kernels = doubleKernels(p, st);
+    const auto prepared = doublePrepared(p, st);
     const std::size_t stride = std::size_t(p.start.shStride()), s = st.used.size();
     f.assign(s * stride, 0.0);
     o.assign(s, 0.0);
     for (std::size_t j = 0; j < s; ++j) {
         const Vec3d x(st.x[3 * j], st.x[3 * j + 1], st.x[3 * j + 2]);
-        for (std::size_t i = 0; i < kernels.size(); ++i) {
-            const double w = kernels[i].weight(x - kernels[i].mean, double(p.options.cutoff));
+        for (std::size_t i = 0; i < prepared.size(); ++i) {
+            const double w = prepared[i].weight(x - prepared[i].mean, double(p.options.cutoff));
             o[j] += w;
             for (std::size_t c = 0; c < stride; ++c) f[j * stride + c] += w * double(p.start.shOf(i)[c]);
         }
@@ -72,7 +72,7 @@ void referenceFeatures(const Problem& p, const StageTwoSetup& st, std::vector<do
 /// Packed parameter gradients from the solver's own dE/dF, dE/dO: every pair, double.
 std::vector<double> referenceGradients(const Problem& p, const StageTwoSetup& st, const StageTwoProbe& probe)
 {
-    const auto kernels = doubleKernels(p, st);
+    const auto prepared = doublePrepared(p, st);
     const std::size_t stride = std::size_t(p.start.shStride()), perG = std::size_t(packedParamCount(int(stride)));
     std::vector<double> out(probe.moving.size() * perG, 0.0);
     for (std::size_t k = 0; k < probe.moving.size(); ++k) {
@@ -82,14 +82,14 @@ std::vector<double> referenceGradients(const Problem& p, const StageTwoSetup& st
         for (std::size_t j = 0; j < st.used.size(); ++j) {
             const Vec3d x(st.x[3 * j], st.x[3 * j + 1], st.x[3 * j + 2]);
             Vec3d ad;
-            const double w = kernels[i].weight(x - kernels[i].mean, double(p.options.cutoff), &ad);
+            const double w = prepared[i].weight(x - prepared[i].mean, double(p.options.cutoff), &ad);
             if (w == 0.0) continue;
             double gw = probe.gradO[j];
             for (std::size_t c = 0; c < stride; ++c) {
                 gw += double(probe.gradF[j * stride + c]) * double(p.start.shOf(i)[c]);
                 row[kParamSh + c] += w * double(probe.gradF[j * stride + c]);
             }
-            pairBackward<double>(gw, w, kernels[i].alpha, ad, acc);
+            pairBackward<double>(gw, w, prepared[i].alpha, ad, acc);
         }
         const GaussianParamGrad<double> g = paramBackward(gaussianParamsOf(p.start, i), acc);
         for (int a = 0; a < 3; ++a) row[kParamMean + a] = g.mean[a];
@@ -190,7 +190,7 @@ TEST(SampleBlocks, BoxMeetsSlabsIsASuperset)
     EXPECT_GT(inside, 100);
 }
 
-TEST(BlockKernels, ChunkTestsNeverSkipACountingLane)
+TEST(BlockLoops, ChunkTestsNeverSkipACountingLane)
 {
     // Random Gaussians (round to flat, near the origin and far from it, where p - m rounds most)
     // against a cell of n^3 samples near them: the block weights must count exactly the lanes

@@ -1,5 +1,5 @@
 // The NanoVDB cell index grid and the GPU sample-target algorithm run on the CPU: the
-// per-element functions of field/CellTargetKernels.h looped over host arrays in the GPU layout
+// per-element functions of field/CellTargetMath.h looped over host arrays in the GPU layout
 // (what kernels/FeaturesCuda.cu launches) against SampleGrid's CPU targets. Both sum the same
 // float terms in the same order, so they must agree bit for bit.
 #include <gtest/gtest.h>
@@ -10,10 +10,10 @@
 
 #include "SampleGrid.h"
 #include "vdb/CellLookup.h"
-#include "field/CellTargetKernels.h"
+#include "field/CellTargetMath.h"
 #include "field/FeatureField.h"
 #include "field/FieldTestModels.h"
-#include "samples/SampleModels.h"
+#include "demo/DemoModels.h"
 
 using namespace splatwarp;
 
@@ -129,7 +129,7 @@ TEST(CellIndexGrid, NanoLookupsEqualOpenVdbOnStripes)
 {
     SampleGridOptions o;
     o.cells = 24;
-    expectSameLookups(SampleGrid(makeSample("stripes"), o));
+    expectSameLookups(SampleGrid(makeDemoModel("stripes"), o));
 }
 
 TEST(CellIndexGrid, NanoLookupsEqualOpenVdbOnRandomCloud)
@@ -153,7 +153,7 @@ TEST(CellIndexGrid, CellListTargetsEqualCpuOnStripes)
 {
     SampleGridOptions o;
     o.cells = 24;
-    expectSameTargets(makeSample("stripes"), o);
+    expectSameTargets(makeDemoModel("stripes"), o);
 }
 
 TEST(CellIndexGrid, CellListTargetsEqualCpuOnRandomCloudDegree0And3)

@@ -8,8 +8,8 @@
 #include "SampleGrid.h"
 #include "vdb/CellLookup.h"
 #include "core/Error.h"
-#include "field/GaussianKernel.h"
-#include "samples/SampleModels.h"
+#include "field/GaussianMath.h"
+#include "demo/DemoModels.h"
 #include "sh/SphericalHarmonics.h"
 
 using namespace splatwarp;
@@ -93,7 +93,7 @@ TEST(SampleGrid, MassMatchesClosedFormForSeparatedGaussians)
 
 TEST(SampleGrid, EveryExtentLiesInActiveCellsAndGaussianCellHoldsTheCentre)
 {
-    const GaussianCloud g = makeSample("stripes", {1500, 3});
+    const GaussianCloud g = makeDemoModel("stripes", {1500, 3});
     SampleGridOptions o;
     o.cells = 24;
     const SampleGrid grid(g, o);
@@ -122,7 +122,7 @@ TEST(SampleGrid, EveryExtentLiesInActiveCellsAndGaussianCellHoldsTheCentre)
 
 TEST(SampleGrid, SamplesSitOnTheCellCentredSubLattice)
 {
-    const GaussianCloud g = makeSample("stripes", {500, 1});
+    const GaussianCloud g = makeDemoModel("stripes", {500, 1});
     SampleGridOptions o;
     o.cells = 8;
     o.samplesPerAxis = 3;
@@ -146,7 +146,7 @@ TEST(SampleGrid, SamplesSitOnTheCellCentredSubLattice)
 
 TEST(SampleGrid, CellSkipMatchesNaiveNeighbourhoodTest)
 {
-    for (const GaussianCloud& g : {needleCloud(), makeSample("stripes", {800, 2})}) {
+    for (const GaussianCloud& g : {needleCloud(), makeDemoModel("stripes", {800, 2})}) {
         SampleGridOptions o;
         o.cells = 20;
         const SampleGrid grid(g, o);
@@ -181,7 +181,7 @@ TEST(SampleGrid, CellSkipMatchesNaiveNeighbourhoodTest)
 
 TEST(SampleGrid, SerialAndThreadedAgreeExactly)
 {
-    const GaussianCloud g = makeSample("stripes", {2000, 4});
+    const GaussianCloud g = makeDemoModel("stripes", {2000, 4});
     SampleGridOptions o;
     o.cells = 16;
     const SampleGrid a(g, o);
@@ -197,7 +197,7 @@ TEST(SampleGrid, SerialAndThreadedAgreeExactly)
 
 TEST(SampleGrid, CellSizeFollowsCellsOrExplicitSizeAndBadOptionsThrow)
 {
-    const GaussianCloud g = makeSample("stripes", {300, 5});
+    const GaussianCloud g = makeDemoModel("stripes", {300, 5});
     SampleGridOptions o;
     o.cellSize = 0.25f;
     EXPECT_FLOAT_EQ(SampleGrid(g, o).samples().cellSize, 0.25f);

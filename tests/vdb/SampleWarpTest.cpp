@@ -6,7 +6,7 @@
 #include "deform/SampleWarp.h"
 #include "core/Polar.h"
 #include "deform/DeformSpec.h"
-#include "samples/SampleModels.h"
+#include "demo/DemoModels.h"
 #include "sh/SphericalHarmonics.h"
 
 using namespace splatwarp;
@@ -36,7 +36,7 @@ SampleGrid smallGrid()
 {
     SampleGridOptions o;
     o.cells = 12;
-    return SampleGrid(makeSample("stripes", {1200, 9}), o);
+    return SampleGrid(makeDemoModel("stripes", {1200, 9}), o);
 }
 
 /// Worst deviations of a warped sample set from the rigid motion x -> r x + t of its rest set
@@ -71,7 +71,7 @@ TEST(SampleWarp, RigidMotionWarpsExactlyAndRotatesTargets)
 {
     SampleGrid grid = smallGrid();
     const SampleSet rest = grid.samples();
-    const DeformationGraph graph = DeformationGraph::build(makeSample("stripes", {1200, 9}), GraphOptions{32, 8, 0});
+    const DeformationGraph graph = DeformationGraph::build(makeDemoModel("stripes", {1200, 9}), GraphOptions{32, 8, 0});
     const Mat3d r = rotationAbout(Vec3d(0.3, -1.0, 0.5), 1.1);
     const Vec3d t(0.4, -2.0, 1.5);
     SampleSet& set = grid.samples();
@@ -92,7 +92,7 @@ TEST(SampleWarp, AffineMotionGivesThatGradientAndItsPolarRotation)
 {
     SampleGrid grid = smallGrid();
     const SampleSet rest = grid.samples();
-    const DeformationGraph graph = DeformationGraph::build(makeSample("stripes", {1200, 9}), GraphOptions{16, 6, 0});
+    const DeformationGraph graph = DeformationGraph::build(makeDemoModel("stripes", {1200, 9}), GraphOptions{16, 6, 0});
     Mat3d m = rotationAbout(Vec3d(1, 1, 0), 0.7);
     m.m[0][1] += 0.4; // shear
     m.m[2][2] *= 1.5; // stretch
@@ -130,7 +130,7 @@ TEST(SampleWarp, PolarRotationIsProperForReflections)
 
 TEST(SampleWarp, RigidSpecWarpsRigidly)
 {
-    const GaussianCloud cloud = makeSample("stripes", {1500, 3});
+    const GaussianCloud cloud = makeDemoModel("stripes", {1500, 3});
     SampleGridOptions o;
     o.cells = 12;
     SampleGrid grid(cloud, o);

@@ -12,7 +12,7 @@
 #include "VdbExport.h"
 #include "core/Error.h"
 #include "io/GaussianIO.h"
-#include "samples/SampleModels.h"
+#include "demo/DemoModels.h"
 #include "sh/SphericalHarmonics.h"
 #include "support/TestSupport.h"
 #include "support/VdbFileReader.h"
@@ -54,7 +54,7 @@ SampleGrid smallGrid(const GaussianCloud& g)
 TEST(VdbExport, RoundTripOfEveryGrid)
 {
     test::TempDir dir;
-    const GaussianCloud cloud = makeSample("stripes", {800, 6});
+    const GaussianCloud cloud = makeDemoModel("stripes", {800, 6});
     SampleGrid grid = smallGrid(cloud);
     // A rotation about x: stretch must come back as 1.
     const DeformationGraph graph = DeformationGraph::build(cloud, GraphOptions{16, 6, 0});
@@ -138,7 +138,7 @@ TEST(VdbExport, RoundTripOfEveryGrid)
 TEST(VdbExport, HalfFloatsAndMissingFolder)
 {
     test::TempDir dir;
-    const SampleGrid grid = smallGrid(makeSample("stripes", {400, 2}));
+    const SampleGrid grid = smallGrid(makeDemoModel("stripes", {400, 2}));
     VdbExportOptions eo;
     eo.half = true;
     writeSampleGridVdb(dir.file("half.vdb"), grid, eo);
@@ -160,7 +160,7 @@ TEST(VdbExport, HalfFloatsAndMissingFolder)
 TEST(VdbExport, CliToVdbAndExternalTools)
 {
     test::TempDir dir;
-    writePly(dir.file("in.ply"), makeSample("stripes", {600, 4}));
+    writePly(dir.file("in.ply"), makeDemoModel("stripes", {600, 4}));
     ASSERT_EQ(test::runCli("-q to-vdb " + dir.file("in.ply") + " -o " + dir.file("out.vdb") + " --cells 12 --sh-grids"), 0);
     const VdbFileData data = readVdbFile(dir.file("out.vdb"));
     EXPECT_NE(data.find("sh_3"), nullptr);
@@ -201,7 +201,7 @@ TEST(VdbExport, CliToVdbAndExternalTools)
 TEST(VdbExport, SerialAndThreadedWriteTheSameFile)
 {
     test::TempDir dir;
-    const SampleGrid grid = smallGrid(makeSample("stripes", {700, 8}));
+    const SampleGrid grid = smallGrid(makeDemoModel("stripes", {700, 8}));
     VdbExportOptions eo;
     eo.shGrids = true;
     writeSampleGridVdb(dir.file("a.vdb"), grid, eo);

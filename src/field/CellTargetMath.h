@@ -1,5 +1,5 @@
 #pragma once
-/// @file CellTargetKernels.h
+/// @file CellTargetMath.h
 /// @brief Per-element functions of the rest-target evaluation through the cell index grid, in
 ///        the GPU data layout (plain pointers): the CUDA kernels (kernels/FeaturesCuda.cu) are thin
 ///        wrappers around them, the CPU feature loop shares accumulateFeatures(), and CPU tests

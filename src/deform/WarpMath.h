@@ -1,5 +1,5 @@
 #pragma once
-/// @file WarpKernel.h
+/// @file WarpMath.h
 /// @brief Per-element warping on raw arrays, host/device (one source of truth for the CPU
 ///        warpPoints()/warpSamples() and the CUDA warping kernels): one skinned point with the
 ///        polar rotation of its local gradient, the target SH rotation of one sample, and the
@@ -10,8 +10,8 @@
 #include "core/HostDevice.h"
 #include "core/Polar.h"
 #include "core/SmallMath.h"
-#include "deform/SkinningKernel.h"
-#include "sh/ShRotationKernel.h"
+#include "deform/SkinningMath.h"
+#include "sh/ShRotationMath.h"
 
 namespace splatwarp {
 

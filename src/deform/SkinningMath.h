@@ -1,5 +1,5 @@
 #pragma once
-/// @file SkinningKernel.h
+/// @file SkinningMath.h
 /// @brief Embedded-deformation skinning of one point on raw arrays, host/device: the one
 ///        implementation behind AffineSkinning (CPU) and the CUDA skinning kernels.
 #include <cstddef>

@@ -1,4 +1,4 @@
-#include "samples/SampleModels.h"
+#include "demo/DemoModels.h"
 
 #include <cmath>
 #include <random>
@@ -47,7 +47,7 @@ void setColour(GaussianCloud& g, std::size_t i, const Vec3d& rgb)
 const double kPalette[8][3] = {{0.90, 0.20, 0.15}, {0.95, 0.85, 0.20}, {0.20, 0.65, 0.30}, {0.15, 0.40, 0.85},
                                {0.95, 0.95, 0.95}, {0.55, 0.25, 0.70}, {0.95, 0.55, 0.10}, {0.10, 0.10, 0.12}};
 
-GaussianCloud makeStripes(const SampleOptions& o)
+GaussianCloud makeStripes(const DemoModelOptions& o)
 {
     const std::size_t n = o.count ? o.count : 20000;
     const double lx = 4.0, ly = 1.0, lz = 1.0;
@@ -89,7 +89,7 @@ GaussianCloud makeStripes(const SampleOptions& o)
     return g;
 }
 
-GaussianCloud makeRing(const SampleOptions& o)
+GaussianCloud makeRing(const DemoModelOptions& o)
 {
     const std::size_t n = o.count ? o.count : 16000;
     const double bigR = 1.0, smallR = 0.3;
@@ -119,9 +119,9 @@ GaussianCloud makeRing(const SampleOptions& o)
 
 } // namespace
 
-std::vector<std::string> sampleNames() { return {"stripes", "ring"}; }
+std::vector<std::string> demoModelNames() { return {"stripes", "ring"}; }
 
-GaussianCloud makeSample(const std::string& name, const SampleOptions& options)
+GaussianCloud makeDemoModel(const std::string& name, const DemoModelOptions& options)
 {
     if (name == "stripes") return makeStripes(options);
     if (name == "ring") return makeRing(options);

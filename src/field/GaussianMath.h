@@ -1,5 +1,5 @@
 #pragma once
-/// @file GaussianKernel.h
+/// @file GaussianMath.h
 /// @brief Per-Gaussian maths shared by every path (CPU features, Stage II, CUDA, rendering):
 ///        covariance, the opacity-aware extent and the cutoff test. One source of truth.
 #include "core/HostDevice.h"

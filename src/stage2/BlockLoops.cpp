@@ -1,4 +1,4 @@
-#include "stage2/BlockKernels.h"
+#include "stage2/BlockLoops.h"
 
 #include <cmath>
 #include <cstring>
@@ -214,7 +214,7 @@ SPLATWARP_SIMD_CLONES std::uint64_t blockFeatures(const BlockGaussians& gs, cons
     VecI counted = {};
     for (std::size_t i = 0; i < gs.n; ++i) {
         const std::uint32_t k = gs.items[i];
-        forwardPair<false>(gs.kernels[k], gs.bounds[k], b, rows, cutoff, gs.sh + k * gs.shPitch, stride, f, o, nullptr, counted);
+        forwardPair<false>(gs.prepared[k], gs.bounds[k], b, rows, cutoff, gs.sh + k * gs.shPitch, stride, f, o, nullptr, counted);
     }
     return laneTotal(counted);
 }
@@ -228,7 +228,7 @@ SPLATWARP_SIMD_CLONES std::uint64_t blockForward(const BlockGaussians& gs, const
     for (std::size_t i = 0; i < gs.n; ++i) {
         const std::uint32_t k = gs.items[i];
         keptAt[i] = used;
-        const unsigned c = forwardPair<true>(gs.kernels[k], gs.bounds[k], b, rows, cutoff, gs.sh + k * gs.shPitch, stride, f, o,
+        const unsigned c = forwardPair<true>(gs.prepared[k], gs.bounds[k], b, rows, cutoff, gs.sh + k * gs.shPitch, stride, f, o,
                                              kept + used, counted);
         chunks[i] = std::uint8_t(c);
         used += std::uint32_t(__builtin_popcount(c)) * kKeptChunkFloats;
@@ -281,7 +281,7 @@ SPLATWARP_SIMD_CLONES void blockBackward(const BlockGaussians& gs, int lanes, co
     for (std::size_t i = 0; i < gs.n; ++i) {
         if (chunks[i] == 0) continue;
         const std::uint32_t k = gs.items[i];
-        backwardPair(kept + keptAt[i], chunks[i], lanes, gF, gO, gs.sh + k * gs.shPitch, stride, gs.kernels[k].alpha,
+        backwardPair(kept + keptAt[i], chunks[i], lanes, gF, gO, gs.sh + k * gs.shPitch, stride, gs.prepared[k].alpha,
                      partials + i * pitch);
     }
 }

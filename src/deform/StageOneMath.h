@@ -1,5 +1,5 @@
 #pragma once
-/// @file StageOneKernel.h
+/// @file StageOneMath.h
 /// @brief The Stage I per-Gaussian update on raw arrays in the GPU layout, host/device: the one
 ///        implementation behind applyStageOneCpu() (CPU) and the CUDA Stage I (kernels/StageOneCuda).
 #include <cstddef>
@@ -8,8 +8,8 @@
 #include "core/HostDevice.h"
 #include "core/Polar.h"
 #include "core/SmallMath.h"
-#include "deform/SkinningKernel.h"
-#include "sh/ShRotationKernel.h"
+#include "deform/SkinningMath.h"
+#include "sh/ShRotationMath.h"
 
 namespace splatwarp {
 

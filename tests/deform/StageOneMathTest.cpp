@@ -1,4 +1,4 @@
-// The Stage I per-Gaussian update (deform/StageOneKernel.h, GPU layout, also run by the CUDA
+// The Stage I per-Gaussian update (deform/StageOneMath.h, GPU layout, also run by the CUDA
 // kernel) against the plain reference path: skinPoint() per endpoint, the least-squares M
 // with its 3x3 inverse, the Jacobi polar decomposition and ShRotation, all in double.
 #include <gtest/gtest.h>
@@ -9,9 +9,9 @@
 
 #include "core/Polar.h"
 #include "deform/StageOne.h"
-#include "deform/StageOneKernel.h"
-#include "samples/SampleModels.h"
-#include "sh/ShRotationKernel.h"
+#include "deform/StageOneMath.h"
+#include "demo/DemoModels.h"
+#include "sh/ShRotationMath.h"
 
 using namespace splatwarp;
 
@@ -27,9 +27,9 @@ double relErr(double a, double b) { return std::abs(a - b) / std::max(1.0, std::
 
 } // namespace
 
-TEST(StageOneKernel, UpdateMatchesPlainReferenceOnBend)
+TEST(StageOneMath, UpdateMatchesPlainReferenceOnBend)
 {
-    const GaussianCloud rest = makeSample("stripes", SampleOptions{3000, 3});
+    const GaussianCloud rest = makeDemoModel("stripes", DemoModelOptions{3000, 3});
     DeformSpec spec = loadDeformSpec(std::string(SPLATWARP_SOURCE_DIR) + "/samples/specs/bend.json");
     spec.graph.nodes = 64;
     const Deformation d = solveDeformation(rest, spec);
@@ -86,9 +86,9 @@ TEST(StageOneKernel, UpdateMatchesPlainReferenceOnBend)
     EXPECT_LT(worst, kFloatTolerance);
 }
 
-TEST(StageOneKernel, AffineSkinningMatchesSkinPointInGpuLayout)
+TEST(StageOneMath, AffineSkinningMatchesSkinPointInGpuLayout)
 {
-    const GaussianCloud rest = makeSample("stripes", SampleOptions{500, 0});
+    const GaussianCloud rest = makeDemoModel("stripes", DemoModelOptions{500, 0});
     const DeformationGraph graph = DeformationGraph::build(rest, GraphOptions{32, 6, 0});
     std::mt19937 rng(7);
     std::uniform_real_distribution<double> u(-0.3, 0.3);
@@ -117,7 +117,7 @@ TEST(StageOneKernel, AffineSkinningMatchesSkinPointInGpuLayout)
     EXPECT_LT(worst, 1e-13);
 }
 
-TEST(ShRotationKernel, TablesArePlainDataAndRotateLikeShRotation)
+TEST(ShRotationMath, TablesArePlainDataAndRotateLikeShRotation)
 {
     // A byte copy of the tables (what the GPU gets) rotates exactly like ShRotation.
     ShRotationTables copy;

@@ -1,5 +1,5 @@
 #pragma once
-/// @file SkinWeightKernel.h
+/// @file SkinWeightMath.h
 /// @brief Skin weights of one point, host/device: the weight formula of
 ///        DeformationGraph::skinWeights() (one source of truth for the CPU and the GPU) and a
 ///        brute-force k-nearest search over the J graph nodes for the GPU (J is a few hundred).

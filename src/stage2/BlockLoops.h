@@ -1,5 +1,5 @@
 #pragma once
-/// @file BlockKernels.h
+/// @file BlockLoops.h
 /// @brief Stage II pair work of one Gaussian over one sample block (SampleBlocks.h), written as
 ///        plain loops over kSimdLanes-wide chunks that the compiler vectorises, built for AVX2
 ///        and the baseline with runtime dispatch (core/Simd.h). Per lane they do exactly what
@@ -43,7 +43,7 @@ struct ChunkBound {
 struct BlockGaussians {
     const std::uint32_t* items = nullptr; ///< [n] Gaussian indices
     std::size_t n = 0;
-    const PreparedGaussian* kernels = nullptr; ///< indexed by Gaussian
+    const PreparedGaussian* prepared = nullptr; ///< indexed by Gaussian
     const ChunkBound* bounds = nullptr;        ///< indexed by Gaussian
     const float* sh = nullptr;                 ///< SH coefficients of Gaussian k at sh + k * shPitch
     std::size_t shPitch = 0;

@@ -1,4 +1,4 @@
-// The brute-force skin weights of the GPU (deform/SkinWeightKernel.h), run here as a host loop
+// The brute-force skin weights of the GPU (deform/SkinWeightMath.h), run here as a host loop
 // over flat arrays in the GPU layout, against DeformationGraph::skinWeights (nanoflann).
 #include <gtest/gtest.h>
 
@@ -6,8 +6,8 @@
 #include <random>
 
 #include "deform/DeformationGraph.h"
-#include "deform/SkinWeightKernel.h"
-#include "samples/SampleModels.h"
+#include "deform/SkinWeightMath.h"
+#include "demo/DemoModels.h"
 
 using namespace splatwarp;
 
@@ -30,9 +30,9 @@ SkinWeights bruteWeights(const DeformationGraph& graph, const std::vector<float>
 
 } // namespace
 
-TEST(SkinWeightKernel, BruteForceMatchesNanoflann)
+TEST(SkinWeightMath, BruteForceMatchesNanoflann)
 {
-    const GaussianCloud rest = makeSample("stripes", SampleOptions{4000, 2});
+    const GaussianCloud rest = makeDemoModel("stripes", DemoModelOptions{4000, 2});
     for (int k : {1, 4, 8}) {
         const DeformationGraph graph = DeformationGraph::build(rest, GraphOptions{96, k, 0});
         std::mt19937 rng(11);
@@ -50,7 +50,7 @@ TEST(SkinWeightKernel, BruteForceMatchesNanoflann)
     }
 }
 
-TEST(SkinWeightKernel, DegenerateCasesAndTies)
+TEST(SkinWeightMath, DegenerateCasesAndTies)
 {
     // Two nodes, k 8: d_{k+1} is twice the farther node's distance (the documented fallback).
     const DeformationGraph two = DeformationGraph::fromNodes({Vec3d(0, 0, 0), Vec3d(1, 0, 0)}, 8);

@@ -1,5 +1,5 @@
 #pragma once
-/// @file ShRotationKernel.h
+/// @file ShRotationMath.h
 /// @brief SH rotation as plain data and host/device functions (one source of truth for
 ///        ShRotation on the CPU and the CUDA kernels): host-computed projection tables, the band
 ///        matrices of a rotation built from them, and their application to [K,3] coefficients.
