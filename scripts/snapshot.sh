@@ -9,8 +9,9 @@ set -euo pipefail
 [ $# -eq 2 ] || { echo "usage: $0 SPLATWARP_BINARY OUT_DIR" >&2; exit 2; }
 sw=$(realpath "$1"); dest=$2
 cd "$(dirname "$0")/.."
-# Outputs embed their paths (VDB metadata "source"): run in one fixed folder, then move.
-o=$(realpath -m out/snapshot-work); rm -rf "$o" "$dest"; mkdir -p "$o"
+# Outputs embed their paths (VDB metadata "source"): every snapshot runs in the same absolute
+# folder, whichever checkout or binary it comes from, then moves.
+o=/tmp/splatwarp-snapshot; rm -rf "$o" "$dest"; mkdir -p "$o"
 s=samples/specs
 run() { "$sw" -q "$@" > /dev/null; }
 run sample stripes -o "$o/stripes.ply"
@@ -38,6 +39,7 @@ fi
      *.vdb) echo "$(tail -c +58 "$f" | md5sum | cut -c1-32)  $f (after the header UUID)" ;;
      *) md5sum "$f" ;;
    esac
- done > md5.txt)
+ done > ../splatwarp-snapshot.md5)
+mv "$o.md5" "$o/md5.txt"
 mv "$o" "$dest"
 echo "snapshot: $(wc -l < "$dest/md5.txt") outputs listed in $dest/md5.txt"
