@@ -2,7 +2,6 @@
 
 #include <cmath>
 
-#include "fit/Extinction.h"
 #include "fit/MomentInit.h"
 #include "fit/VolumeFit.h"
 #include "fit/OneGaussian.h"
@@ -64,22 +63,6 @@ TEST(MomentInit, ZeroVoxelsDoNotUseTheBudget)
     MomentInitOptions o;
     o.gaussians = 500;
     EXPECT_EQ(initFromMoments(v, o).size(), 500u);
-}
-
-TEST(Extinction, RoundTripAndOpticalDepth)
-{
-    GaussianCloud g;
-    g.resize(2, 0);
-    g.logScales = {std::log(0.5f), std::log(0.5f), std::log(0.5f), std::log(0.1f), std::log(0.2f), std::log(0.4f)};
-    g.opacities = {-1.0f, 0.5f};
-    const GaussianCloud fitted = g;
-    const double scale = 3.0;
-    // Sphere: tau = rho sqrt(2 pi) s, the integral of rho exp(-t^2 / 2 s^2) along the ray.
-    EXPECT_NEAR(centreOpticalDepth(g, 0, scale), fitted.alpha(0) * scale * std::sqrt(2 * M_PI) * 0.5, 1e-6);
-    extinctionToOpacity(g, scale);
-    EXPECT_NEAR(g.alpha(0), 1.0 - std::exp(-centreOpticalDepth(fitted, 0, scale)), 1e-6);
-    opacityToExtinction(g, scale);
-    for (std::size_t i = 0; i < 2; ++i) EXPECT_NEAR(g.alpha(i), fitted.alpha(i), 1e-5);
 }
 
 TEST(VolumeFit, PruneAndSplit)
