@@ -357,9 +357,9 @@ void Volume::worldBounds(Vec3d& lo, Vec3d& hi) const
     lo = Vec3d(1e300, 1e300, 1e300);
     hi = Vec3d(-1e300, -1e300, -1e300);
     for (int corner = 0; corner < 8; ++corner) {
-        const openvdb::Vec3d index((corner & 1 ? box.max().x() + 0.5 : box.min().x() - 0.5),
-                                   (corner & 2 ? box.max().y() + 0.5 : box.min().y() - 0.5),
-                                   (corner & 4 ? box.max().z() + 0.5 : box.min().z() - 0.5));
+        const openvdb::Vec3d index((corner & 1 ? box.max().x() + 1.0 : box.min().x() - 1.0),
+                                   (corner & 2 ? box.max().y() + 1.0 : box.min().y() - 1.0),
+                                   (corner & 4 ? box.max().z() + 1.0 : box.min().z() - 1.0));
         const openvdb::Vec3d p = mImpl->density->indexToWorld(index);
         for (int a = 0; a < 3; ++a) {
             lo[a] = std::min(lo[a], p[a]);

@@ -59,7 +59,9 @@ public:
     SampleSet sampleSet(int band, int perAxis = 1) const;
     /// @brief Held-out points: uniform in the voxels of sampleSet(band) (continuous positions).
     std::vector<float> heldOutPoints(std::size_t count, std::uint32_t seed, int band) const;
-    /// @brief World bounds of the active voxels (voxel boxes included).
+    /// @brief World bounds of the trilinear field: the active voxels' centres plus one voxel (the
+    ///        interpolation ramps to zero at the next, inactive voxel centre, half a voxel beyond
+    ///        the voxel boxes).
     void worldBounds(Vec3d& lo, Vec3d& hi) const;
 
     struct Impl;
