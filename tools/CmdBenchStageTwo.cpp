@@ -30,6 +30,7 @@ SampleSet benchSamples(const GaussianCloud& rest, const GaussianCloud& target, i
     go.cutoff = o.cutoff;
     go.lambdaLpf = o.lowPassFilter ? o.lambdaLpf : 0.0f;
     go.threaded = o.threaded;
+    go.device = o.device; // the grid's targets and the turned model's below run where Stage II runs
     const SampleGrid grid(rest, go);
     gaussianCell = grid.gaussianCell();
     SampleSet s = grid.samples();
