@@ -18,6 +18,7 @@
 #include "render/Camera.h"
 #include "fit/OneGaussian.h"
 #include "render/Rasterizer.h"
+#include "support/SlabVolume.h"
 #include "support/TestSupport.h"
 
 namespace splatwarp {
@@ -116,19 +117,14 @@ TEST(FromVdb, RoundTripOfAGeneratedModel)
 // fit/Extinction.h): one view-independent opacity per flat fitted Gaussian.
 TEST(FromVdb, ExtinctionSlabMatchesAnalyticTransmittance)
 {
-    const double s = 0.05, sigma = 2.0;
-    DenseGrid d;
-    d.voxelSize = s;
-    d.dims[0] = d.dims[1] = 32;
-    d.dims[2] = 10; // L = 0.5: sigma L = 1
-    d.values.assign(std::size_t(32 * 32 * 10), float(sigma));
+    const double s = test::kSlabVoxel, sigma = test::kSlabSigma; // 10 voxels thick: sigma L = 1
     TempDir dir;
-    writeDenseGrids(dir.file("slab.vdb"), {d});
-    const Volume volume = readVolume(dir.file("slab.vdb"));
+    const Volume volume = test::slabVolume(dir);
     // Look from far away at the slab's centre along z, x, (1,0,1), (1,1,1).
-    const Vec3d c(15.5 * s, 15.5 * s, 4.5 * s);
+    const Vec3d c = test::slabCentre();
     const Vec3d dirs[4] = {Vec3d(0, 0, 1), Vec3d(1, 0, 0), Vec3d(1, 0, 1), Vec3d(1, 1, 1)};
-    const double path[4] = {10 * s, 32 * s, 10 * s * std::sqrt(2.0), 10 * s * std::sqrt(3.0)};
+    const double L = test::kSlabThickness * s;
+    const double path[4] = {L, test::kSlabSide * s, L * std::sqrt(2.0), L * std::sqrt(3.0)};
     // Measured |splat - exact| (this rule; the geometric-mean rule before it: 0.118 / 0.013 / 0.078 /
     // 0.077 at the default scale, 0.070 / 0.022 / 0.065 / 0.070 at the maximum).
     const double tolDefault[4] = {0.008, 0.005, 0.023, 0.038}, tolMax[4] = {0.008, 0.015, 0.028, 0.044};
@@ -325,18 +321,6 @@ void volumeViews(const std::string& rel, const std::string& name)
     }
 }
 
-/// A uniform slab (32 x 32 x 10 voxels of sigma 2, sigma L = 1), as in the test above.
-Volume slabVolume(const TempDir& dir)
-{
-    DenseGrid d;
-    d.voxelSize = 0.05;
-    d.dims[0] = d.dims[1] = 32;
-    d.dims[2] = 10;
-    d.values.assign(std::size_t(32 * 32 * 10), 2.0f);
-    writeDenseGrids(dir.file("slab.vdb"), {d});
-    return readVolume(dir.file("slab.vdb"));
-}
-
 /// Line integral of the fitted field sum rho_i G_i along c + t d, by a naive sum over t.
 double naiveFieldDepth(const GaussianCloud& g, double scale, const Vec3d& c, const Vec3d& d)
 {
@@ -364,7 +348,7 @@ double naiveFieldDepth(const GaussianCloud& g, double scale, const Vec3d& c, con
 /// ray-marched volume, along z, x, (1,0,1), (1,1,1).
 void slabRules(const Volume& volume, double densityScale)
 {
-    const Vec3d c(15.5 * 0.05, 15.5 * 0.05, 4.5 * 0.05);
+    const Vec3d c = test::slabCentre();
     const Vec3d dirs[4] = {Vec3d(0, 0, 1), Vec3d(1, 0, 0), Vec3d(1, 0, 1), Vec3d(1, 1, 1)};
     FromVdbOptions o = defaultFromVdbOptions();
     o.fitting.iterations = 60;
@@ -401,9 +385,9 @@ void slabRules(const Volume& volume, double densityScale)
 TEST(FromVdb, DISABLED_ExtinctionRuleMeasurement)
 {
     TempDir dir;
-    const Volume slab = rules::slabVolume(dir);
+    const Volume slab = test::slabVolume(dir);
     rules::slabRules(slab, 0.0);
-    rules::slabRules(slab, 2.0);
+    rules::slabRules(slab, test::kSlabSigma); // the density scale at its maximum
     rules::volumeViews("volumes/smoke.vdb", "smoke");
     rules::volumeViews("volumes/wdas_cloud_sixteenth.vdb", "wdas");
 }

@@ -7,6 +7,7 @@
 
 #include "Volume.h"
 #include "render/RayMarcher.h"
+#include "support/SlabVolume.h"
 #include "support/TestSupport.h"
 
 namespace splatwarp {
@@ -38,32 +39,26 @@ TEST(VolumeBounds, HoldTheTrilinearRampPastTheActiveVoxels)
     }
 }
 
-// A slab of extinction sigma, 10 voxels thick (sigma L = 1), seen straight through its centre.
+// The uniform slab (support/SlabVolume.h, sigma L = 1) seen straight through its centre.
 TEST(VolumeBounds, RayMarchedSlabTransmitsExactly)
 {
-    const double s = 0.05, sigma = 2.0;
-    DenseGrid d;
-    d.voxelSize = s;
-    d.dims[0] = d.dims[1] = 32;
-    d.dims[2] = 10;
-    d.values.assign(std::size_t(32 * 32 * 10), float(sigma));
+    const double s = test::kSlabVoxel, sigma = test::kSlabSigma;
     test::TempDir dir;
-    writeDenseGrids(dir.file("slab.vdb"), {d});
-    const Volume volume = readVolume(dir.file("slab.vdb"));
+    const Volume volume = test::slabVolume(dir);
     const VolumeLookup lookup = [&](const float* p, std::size_t m, float* sig, float* rgb) {
         volume.sample(p, m, sig, nullptr);
         for (std::size_t k = 0; k < 3 * m; ++k) rgb[k] = 1.0f;
     };
     Vec3d lo, hi;
     volume.worldBounds(lo, hi);
-    const Vec3d c(15.5 * s, 15.5 * s, 4.5 * s);
+    const Vec3d c = test::slabCentre();
     const Camera cam = Camera::lookAt(c + Vec3d(0, 0, 40.0), c, Vec3d(0, 1, 0), 0.5, 32, 32);
     RayMarchOptions o;
     o.step = 0.5 * s;
     const Image image = rayMarch(lookup, lo, hi, cam, o);
     const double transmittance = 1.0 - image.at(16, 16, 3);
     // Measured 0.377 with the bounds at the voxel boxes (the ramps cut); exact now up to float sums.
-    EXPECT_NEAR(transmittance, std::exp(-sigma * 10 * s), 1e-4);
+    EXPECT_NEAR(transmittance, std::exp(-sigma * test::kSlabThickness * s), 1e-4);
 }
 
 } // namespace
