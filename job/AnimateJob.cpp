@@ -2,7 +2,10 @@
 
 #include <cstdio>
 #include <filesystem>
+#include <optional>
+#include <set>
 
+#include "WarmStart.h"
 #include "ZipWriter.h"
 #include "core/AtomicFile.h"
 #include "core/Error.h"
@@ -92,6 +95,54 @@ std::string frameSummary(const json& entry)
     return s;
 }
 
+/// Runs frames through runDeformFrame(), with --warm-start's carried correction: an odd frame
+/// (startsWarm) starts Stage II from the frame before's correction, which is the last frame run
+/// or, when that was another one (a resumed frame, another shard's, one before --frames), is
+/// recomputed first without writing anything; so a frame's bytes equal a one-process run's.
+class FrameRunner {
+public:
+    FrameRunner(DeformRest& rest, const AnimSpec& anim, const DeformJobOptions& o, bool warmStart)
+        : mRest(rest), mAnim(anim), mOptions(o), mWarm(warmStart && !o.stage1Only)
+    {
+    }
+    /// Frame f's report; `written` receives the model written.
+    json run(int f, const FrameOutputs& out, GaussianCloud& written)
+    {
+        if (!mWarm) return runDeformFrame(mRest, frameSpec(mAnim, f), mOptions, out, &written);
+        const std::optional<StageTwoCorrection> previous = startsWarm(f) ? correctionBefore(f) : std::nullopt;
+        GaussianCloud stage1;
+        const StageTwoStart start = [&](const StageOneResult& s1, GaussianCloud& model) {
+            if (previous) applyCorrection(*previous, s1.moving, model);
+            stage1 = s1.deformed;
+        };
+        mLast.reset();
+        const json report = runDeformFrame(mRest, frameSpec(mAnim, f), mOptions, out, &written, start);
+        // A rigid frame skips Stage II (start is not called): nothing to carry.
+        mLast = Carried{f, stage1.empty() ? std::nullopt : std::optional(stageTwoCorrection(stage1, written))};
+        return report;
+    }
+
+private:
+    std::optional<StageTwoCorrection> correctionBefore(int f)
+    {
+        if (!mLast || mLast->frame != f - 1) {
+            GaussianCloud unused;
+            run(f - 1, FrameOutputs{}, unused);
+        }
+        return mLast->correction;
+    }
+
+    struct Carried {
+        int frame;
+        std::optional<StageTwoCorrection> correction;
+    };
+    DeformRest& mRest;
+    const AnimSpec& mAnim;
+    const DeformJobOptions& mOptions;
+    const bool mWarm;
+    std::optional<Carried> mLast; ///< the last frame run and its correction
+};
+
 } // namespace
 
 std::string frameFile(const std::string& kind, int frame)
@@ -148,7 +199,13 @@ SequenceResult runAnimateJob(const AnimateJobOptions& options)
     run.dir = o.outDir;
     run.shard = options.shard;
     for (int f = options.first; f <= last; ++f) run.items.push_back(f);
-    const json settings = settingsJson(o);
+    json settings = settingsJson(o);
+    if (options.warmStart) { // frames in pairs, shards over contiguous ranges of pairs
+        settings["warmStart"] = kWarmChain;
+        const std::vector<int> mine = warmShardFrames(run.items, options.shard);
+        run.owns = [mine = std::set<int>(mine.begin(), mine.end())](int f) { return mine.count(f) > 0; };
+    }
+    FrameRunner frames(*rest, anim, o, options.warmStart);
     run.settingsHash = fnv1a64(specText + "\n" + o.input + "\n" + settings.dump());
     run.header = {{"tool", "splatwarp"}, {"version", SPLATWARP_VERSION_STRING}, {"command", "animate"},
                   {"input", o.input}, {"spec", o.specPath}, {"specHash", fnv1a64(specText)},
@@ -164,7 +221,7 @@ SequenceResult runAnimateJob(const AnimateJobOptions& options)
         else add(out.deformed, "deformed");
         if (o.writeVdb && !o.stage1Only) add(out.vdb, "vdb");
         GaussianCloud frame;
-        const json report = runDeformFrame(*rest, frameSpec(anim, f), o, out, &frame);
+        const json report = frames.run(f, out, frame);
         if (o.render) {
             std::string png;
             add(png, "preview");

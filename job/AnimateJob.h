@@ -21,6 +21,7 @@ struct AnimateJobOptions {
     Shard shard;
     bool zip = false;          ///< sequence.zip of the frame PLYs (when this run holds every frame)
     int previewSize = 160;     ///< pixels of a --render preview (square)
+    bool warmStart = false;    ///< odd frames' Stage II starts from the frame before's fit (job/WarmStart.h)
 };
 
 /// @brief Run this shard's frames; the result counts done, resumed and failed frames.

@@ -154,7 +154,7 @@ GaussianCloud skipStageTwo(DeformRest& rest, const Deformation& deformation, con
 
 /// Stage II on a warped copy of the rest samples, with the held-out errors; returns the fitted model.
 GaussianCloud stageTwo(DeformRest& rest, const Deformation& deformation, const StageOneResult& stage1,
-                       const DeformJobOptions& o, nlohmann::json& report)
+                       const DeformJobOptions& o, const StageTwoStart& start, nlohmann::json& report)
 {
     if (rigidMotionOf(deformation)) return skipStageTwo(rest, deformation, stage1, o, report);
     Stopwatch clock;
@@ -172,6 +172,7 @@ GaussianCloud stageTwo(DeformRest& rest, const Deformation& deformation, const S
     }
 
     GaussianCloud fitted = stage1.deformed;
+    if (start) start(stage1, fitted);
     nlohmann::json curve = nlohmann::json::array();
     auto onEval = [&](int iteration, const GaussianCloud& current) {
         const FieldErrorReport e = errors.judge->fieldError(current);
@@ -259,7 +260,7 @@ std::unique_ptr<DeformRest> prepareDeformRest(const DeformJobOptions& o, const G
 }
 
 nlohmann::json runDeformFrame(DeformRest& rest, const DeformSpec& spec, const DeformJobOptions& o, const FrameOutputs& out,
-                              GaussianCloud* written)
+                              GaussianCloud* written, const StageTwoStart& start)
 {
     Stopwatch total, clock;
     Deformation deformation = solveDeformation(rest.graph, rest.model, spec, o.ed);
@@ -282,11 +283,13 @@ nlohmann::json runDeformFrame(DeformRest& rest, const DeformSpec& spec, const De
     }
     if (!o.stage1Only) {
         report["timingsMs"]["sampleGrid"] = rest.sampleGridMs;
-        const GaussianCloud fitted = runStage("Stage II", [&] { return stageTwo(rest, deformation, stage1, o, report); });
-        clock.reset();
-        writePly(out.deformed, fitted);
-        writeMs += clock.ms();
-        report["outputs"]["deformed"] = out.deformed;
+        const GaussianCloud fitted = runStage("Stage II", [&] { return stageTwo(rest, deformation, stage1, o, start, report); });
+        if (!out.deformed.empty()) {
+            clock.reset();
+            writePly(out.deformed, fitted);
+            writeMs += clock.ms();
+            report["outputs"]["deformed"] = out.deformed;
+        }
         writeExtras(rest, stage1.deformed, fitted, o, out, report);
         if (written) *written = fitted;
     } else if (written) {

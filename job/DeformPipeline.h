@@ -5,6 +5,7 @@
 ///        Split into a rest side computed once (DeformRest) and a per-spec part (runDeformFrame)
 ///        so an animation reuses the rest side for every frame with the bytes of `deform`.
 #include <cstdint>
+#include <functional>
 #include <memory>
 #include <optional>
 #include <string>
@@ -80,12 +81,17 @@ struct FrameOutputs {
     std::string baseline, deformed, vdb, compare, report;
 };
 
+/// @brief Changes Stage II's starting model `start` (a copy of stage1.deformed) before the fit.
+using StageTwoStart = std::function<void(const StageOneResult& stage1, GaussianCloud& start)>;
+
 /// @brief Solve the spec from the rest pose, run Stage I, warp a copy of the rest samples, run
 ///        Stage II, evaluate and write the outputs; returns the report (written to out.report
 ///        when set). The bytes of every output depend on the rest side and the spec only.
 ///        `written` (optional) receives the last model written (Stage II, or Stage I with stage1Only).
+///        `start` (optional) changes Stage II's starting model, a copy of Stage I's (animate's warm
+///        start); the bytes then depend on it too. Not called when Stage II is skipped (a rigid spec).
 nlohmann::json runDeformFrame(DeformRest& rest, const DeformSpec& spec, const DeformJobOptions& options,
-                              const FrameOutputs& out, GaussianCloud* written = nullptr);
+                              const FrameOutputs& out, GaussianCloud* written = nullptr, const StageTwoStart& start = {});
 
 /// @brief Run the job and write its outputs; returns the report that was written to report.json.
 /// @throws InputError / IoError with a message naming the file and the problem.

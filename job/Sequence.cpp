@@ -142,7 +142,7 @@ SequenceResult runSequence(const SequenceRun& run, const ItemRunner& runItem, co
     result.manifest = (fs::path(run.dir) / manifestName(run.shard)).string();
     std::vector<int> mine;
     for (int item : run.items)
-        if (run.shard.contains(item)) mine.push_back(item);
+        if (run.owns ? run.owns(item) : run.shard.contains(item)) mine.push_back(item);
     const std::map<int, json> finished = finishedEntries(run);
     // A run over other frames with the same settings (--frames) adds to the manifest it finds.
     std::map<int, json> entries;

@@ -22,6 +22,8 @@ struct SequenceRun {
     std::string settingsHash;     ///< entries written under another hash are never reused
     Shard shard;
     std::vector<int> items;       ///< every item of the run, in order; this shard takes its share
+    /// This shard's items, when not those with item mod N = I (animate --warm-start: contiguous ranges).
+    std::function<bool(int item)> owns;
 };
 
 /// @brief Runs one item; returns its entry: "files" (paths relative to dir, written atomically)

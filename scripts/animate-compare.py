@@ -41,4 +41,5 @@ def main():
                   f"change from previous {d:.5f}, {e.get('ms', 0) / 1000:.1f} s")
 
 
-main()
+if __name__ == "__main__":
+    main()

@@ -129,11 +129,58 @@ TEST(AnimateJob, ResumeRedoesOnlyFramesWhoseFilesOrEntriesAreMissing)
     ASSERT_EQ(runCli(msg("-q animate ", fx.model, " --spec ", fx.spec, " -o ", fx.dir.file("out"), " ", kFlags,
                          " --frames 1-1 --boundary-weight 5"), fx.dir.file("changed.log")), 0);
     EXPECT_NE(readBytes(fx.dir.file("changed.log")).find("1 done, 0 resumed"), std::string::npos);
-    for (const char* flag : {"--stall-tolerance 0.5", "--max-mean-step 0.2", "--drop-invalid"}) {
+    for (const char* flag : {"--stall-tolerance 0.5", "--max-mean-step 0.2", "--drop-invalid", "--warm-start"}) {
         ASSERT_EQ(runCli(msg("-q animate ", fx.model, " --spec ", fx.spec, " -o ", fx.dir.file("out"), " ", kFlags,
                              " --frames 2-2 ", flag), fx.dir.file("flag.log")), 0);
         EXPECT_NE(readBytes(fx.dir.file("flag.log")).find("1 done, 0 resumed"), std::string::npos) << flag;
     }
+}
+
+TEST(AnimateJob, WarmStartKeepsItsBytesWhateverTheShardsTheRangeOrAResume)
+{
+    Fixture fx;
+    // Four frames that all bend (frame 0 too, so the pair (0, 1) has a fit to carry).
+    std::string four = std::string(kAnim).replace(std::string(kAnim).find("\"frames\":3"), 10, "\"frames\":4");
+    four.replace(four.find("{\"frame\":0}"), 11, R"({"frame":0,"rotate":{"axis":[0,0,1],"degrees":20}})");
+    four.replace(four.find("\"frame\":2,"), 10, "\"frame\":3,");
+    const std::string spec = fx.dir.file("anim4.json");
+    writeText(spec, four);
+    auto animate = [&](const std::string& out, const std::string& extra) {
+        return runCli(msg("-q animate ", fx.model, " --spec ", spec, " -o ", fx.dir.file(out), " ", kFlags, " ", extra),
+                      fx.dir.file(out + ".log"));
+    };
+    ASSERT_EQ(animate("cold", ""), 0) << readBytes(fx.dir.file("cold.log"));
+    ASSERT_EQ(animate("warm", "--warm-start"), 0) << readBytes(fx.dir.file("warm.log"));
+    // Even frames start cold (deform's bytes), odd ones from the even frame's fit.
+    for (int f : {0, 2}) EXPECT_TRUE(fx.frame("warm", f) == fx.frame("cold", f)) << f;
+    for (int f : {1, 3}) EXPECT_FALSE(fx.frame("warm", f) == fx.frame("cold", f)) << f;
+    const json whole = readJson(fx.dir.file("warm/manifest.json"));
+    EXPECT_EQ(whole["settings"]["warmStart"], 2);
+    EXPECT_NE(whole["settingsHash"], readJson(fx.dir.file("cold/manifest.json"))["settingsHash"]);
+
+    // Two shards take contiguous pairs; merged, every frame equals the one-process run.
+    ASSERT_EQ(animate("sharded", "--warm-start --shard 1/2"), 0);
+    ASSERT_EQ(animate("sharded", "--warm-start --shard 0/2"), 0);
+    EXPECT_EQ(readJson(fx.dir.file("sharded/manifest.shard-0.json"))["entries"].size(), 2u);
+    EXPECT_EQ(readJson(fx.dir.file("sharded/manifest.shard-1.json"))["entries"][0]["frame"], 2);
+    EXPECT_EQ(runCli(msg("-q animate --merge ", fx.dir.file("sharded"))), 0);
+    for (int f = 0; f < 4; ++f) EXPECT_TRUE(fx.frame("sharded", f) == fx.frame("warm", f)) << f;
+
+    // A range starting at an odd frame recomputes the frame before without writing it.
+    ASSERT_EQ(animate("range", "--warm-start --frames 3-3"), 0);
+    EXPECT_TRUE(fx.frame("range", 3) == fx.frame("warm", 3));
+    EXPECT_FALSE(fs::exists(fx.dir.file("range/") + frameFile("deformed", 2)));
+
+    // Resume: an odd frame killed before its entry was written is redone from its resumed predecessor.
+    json m = whole;
+    m["entries"].erase(3);
+    writeText(fx.dir.file("warm/manifest.json"), m.dump());
+    fs::remove(fx.dir.file("warm/") + frameFile("deformed", 3));
+    ASSERT_EQ(animate("warm", "--warm-start"), 0);
+    EXPECT_NE(readBytes(fx.dir.file("warm.log")).find("1 done, 3 resumed, 0 failed"), std::string::npos)
+        << readBytes(fx.dir.file("warm.log"));
+    EXPECT_TRUE(fx.frame("warm", 3) == fx.frame("sharded", 3));
+    EXPECT_EQ(animate("excl", "--warm-start --stage1-only"), 2);
 }
 
 namespace {
