@@ -15,6 +15,11 @@ _spec.loader.exec_module(_compare)
 floats, change = _compare.floats, _compare.change
 
 
+def rel(a, b):
+    """a / b - 1 (0 where both are 0: frames where nothing moves)."""
+    return a / b - 1 if b else (0.0 if a == 0 else float("inf"))
+
+
 def load(run):
     manifest = json.load(open(os.path.join(run, "manifest.json")))
     frames = sorted(e["frame"] for e in manifest["entries"])
@@ -40,18 +45,18 @@ def main():
     for run in sys.argv[2:]:
         frames, errors, cpu, changes, stops = load(run)
         print(f"{run}: CPU {cpu:.1f} s ({cpu / cold[2]:.2f} of cold); Stage II (stopped at, kept): {stops}")
-        rel = []
+        worst = []
         for f in frames:
             o, c = errors[f]["opacity"], cold[1][f]["opacity"]
             if f != frames[0]:
-                rel.append(o / c - 1)
-            print(f"  frame {f}: opacity {o:.4f} (cold {c:.4f}, {100 * (o / c - 1):+.1f}%), colour {errors[f]['color']:.4f} "
+                worst.append(rel(o, c))
+            print(f"  frame {f}: opacity {o:.4f} (cold {c:.4f}, {100 * rel(o, c):+.1f}%), colour {errors[f]['color']:.4f} "
                   f"(cold {cold[1][f]['color']:.4f}), change {changes.get(f, float('nan')):.5f} (cold {cold[3].get(f, float('nan')):.5f})")
         warm = frames[1:]
         mo = sum(errors[f]["opacity"] for f in warm) / len(warm)
         mc = sum(cold[1][f]["opacity"] for f in warm) / len(warm)
-        print(f"  frames {warm[0]}-{warm[-1]}: mean opacity {mo:.4f} vs cold {mc:.4f} ({100 * (mo / mc - 1):+.2f}%), "
-              f"worst frame {100 * max(rel):+.1f}%, change sum {sum(changes.values()):.5f} vs cold {sum(cold[3].values()):.5f}")
+        print(f"  frames {warm[0]}-{warm[-1]}: mean opacity {mo:.4f} vs cold {mc:.4f} ({100 * rel(mo, mc):+.2f}%), "
+              f"worst frame {100 * max(worst):+.1f}%, change sum {sum(changes.values()):.5f} vs cold {sum(cold[3].values()):.5f}")
 
 
 main()
