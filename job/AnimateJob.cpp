@@ -127,7 +127,11 @@ private:
     {
         if (!mLast || mLast->frame != f - 1) {
             GaussianCloud unused;
-            run(f - 1, FrameOutputs{}, unused);
+            try {
+                run(f - 1, FrameOutputs{}, unused);
+            } catch (const std::exception& e) {
+                throw Error(msg("frame ", f - 1, " (recomputed for the warm start of frame ", f, "): ", e.what()));
+            }
         }
         return mLast->correction;
     }

@@ -1,8 +1,9 @@
 #pragma once
 /// @file Shard.h
 /// @brief Which frames (or jobs) one process of a sharded run takes: item f belongs to shard I of N
-///        when f mod N = I. From --shard I/N or the scheduler's environment (Slurm job arrays,
-///        Kubernetes Indexed Jobs); the result says which.
+///        when f mod N = I (`animate --warm-start`: contiguous ranges instead, job/WarmStart.h).
+///        From --shard I/N or the scheduler's environment (Slurm job arrays, Kubernetes Indexed
+///        Jobs); the result says which.
 #include <functional>
 #include <string>
 
