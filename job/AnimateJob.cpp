@@ -36,6 +36,7 @@ json settingsJson(const DeformJobOptions& o)
             {"iterations", o.stage2.iterations},
             {"boundaryWeight", o.stage2.boundaryWeight},
             {"lowPassFilter", o.stage2.lowPassFilter},
+            {"coverageSteps", o.stage2.coverageSteps},
             {"rebuildEvery", o.stage2.rebuildEvery},
             {"stallTolerance", o.stage2.stallTolerance},
             {"maxMeanStep", o.stage2.maxMeanStep},

@@ -53,7 +53,7 @@ nlohmann::json stageTwoJson(const StageTwoReport& r, const SampleGrid& grid, con
             {"sceneExtent", r.sceneExtent},
             {"parameters",
              {{"iterations", o.iterations}, {"lambdaOpacity", o.lambdaOpacity}, {"boundaryWeight", o.boundaryWeight},
-              {"lowPassFilter", o.lowPassFilter}, {"lambdaLpf", o.lambdaLpf}, {"rebuildEvery", o.rebuildEvery},
+              {"lowPassFilter", o.lowPassFilter}, {"lambdaLpf", o.lambdaLpf}, {"coverageSteps", o.coverageSteps}, {"rebuildEvery", o.rebuildEvery},
               {"cutoff", o.cutoff}, {"rejectSteps", o.rejectSteps}, {"stallStop", o.stallStop},
               {"keepBest", o.keepBest}}},
             {"timingsMs",

@@ -130,11 +130,11 @@ FromVdbOptions defaultFromVdbOptions()
     // engine defaults 0.094 / 0.115; boundary weight 2 instead of 99 (a band sample outweighed 100
     // active ones and pinned the splats' skirts inside) 0.082 / ~0.10; with scale rate 2e-2 and
     // position rate 1e-3 0.070 / 0.099. Larger rates grow the coverage boxes (their reach is
-    // rebuildEvery steps), so the coverage is rebuilt every 5 steps: smoke CPU 110 s -> 65 s.
+    // coverageSteps steps), so they reach 5 steps (rebuilt every 5 then): smoke CPU 110 s -> 65 s.
     s2.boundaryWeight = 2.0f;
     s2.lrLogScale = 2e-2f;
     s2.lrPositionStart = 1e-3f;
-    s2.rebuildEvery = 5;
+    s2.coverageSteps = 5;
     // Step rejection and the bounded mean step guard a fitted model against climbing; from the
     // moments they hold the fit back (smoke, 45 iterations: 0.105 with both, 0.108 with the
     // rejection only, 0.084 with neither; the best iterate is still kept).

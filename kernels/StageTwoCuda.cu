@@ -618,7 +618,7 @@ void Solver::upload(const GaussianCloud& cloud, const SampleSet& samples)
 void Solver::coverage(int iteration)
 {
     const cudaStream_t st = stream();
-    const int steps = std::max(1, std::min(mOptions.rebuildEvery, mOptions.iterations - iteration));
+    const int steps = coverageReachSteps(mOptions, iteration);
     const double move = double(steps) * double(stageTwoPositionRate(mOptions, iteration, mSetup.sceneExtent));
     launch("boxKernel", boxKernel, mG, st, mG, mPerG, (const float*)mParams.data(), (const double*)mFilter.data(), steps,
            move, mOptions, mBoxLo.data(), mBoxHi.data(), mSlabs.data());

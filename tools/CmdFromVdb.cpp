@@ -67,10 +67,7 @@ void addFitOptions(CLI::App* sub, FromVdbArgs& a)
     sub->add_option("--lr-opacity", s2.lrOpacity, "Logit-opacity learning rate")->capture_default_str();
     sub->add_option("--lr-sh", s2.lrSh, "SH learning rate")->capture_default_str();
     sub->add_option("--lr-rotation", s2.lrRotation, "Quaternion learning rate")->capture_default_str();
-    sub->add_option("--rebuild-every", s2.rebuildEvery,
-                    "Rebuild the coverage every this many iterations (its boxes grow with the learning rates times this)")
-        ->capture_default_str()
-        ->check(inRange(1, 1000));
+    addCoverageOptions(sub, s2);
     addMaxMeanStepOption(sub, s2);
     sub->add_option("--reject-steps", s2.rejectSteps,
                     "Undo a step that raises the training energy and retry at half the rates (true/false)")

@@ -44,9 +44,7 @@ inline void addDeformOptions(CLI::App* sub, DeformArgs& args)
         ->check(inRange(0.0, 1.0));
     addMaxMeanStepOption(sub, job.stage2);
     sub->add_flag("--no-lpf", args.noLpf, "Turn off the adaptive anisotropic low-pass filter");
-    sub->add_option("--rebuild-every", job.stage2.rebuildEvery, "Rebuild the Gaussian-sample coverage every K iterations")
-        ->capture_default_str()
-        ->check(positive());
+    addCoverageOptions(sub, job.stage2);
     sub->add_option("--eval-every", job.evalEvery, "Record the held-out field error every K Stage II iterations in the report")
         ->check(nonNegative());
     sub->add_option("--eval-points", job.heldOut.points, "Held-out points for the field errors")->capture_default_str()->check(positive());

@@ -1,7 +1,8 @@
 #pragma once
 /// @file SharedArgs.h
 /// @brief Flags that several commands take, each declared once: `--device` (every command that
-///        computes on a device) and `--max-mean-step` (every command that runs Stage II).
+///        computes on a device), `--max-mean-step` and the coverage flags (every command that runs
+///        Stage II).
 #include <string>
 
 #include "Command.h"
@@ -31,6 +32,21 @@ inline void addMaxMeanStepOption(CLI::App* sub, StageTwoOptions& stageTwo)
                     "Longest Stage II step of a Gaussian's centre, in its own standard deviations (0: unbounded)")
         ->capture_default_str()
         ->check(nonNegative());
+}
+
+/// @brief `--coverage-steps` and `--rebuild-every` into the Stage II options (defaults: theirs).
+inline void addCoverageOptions(CLI::App* sub, StageTwoOptions& stageTwo)
+{
+    sub->add_option("--coverage-steps", stageTwo.coverageSteps,
+                    "Stage II coverage (which Gaussians may touch which samples) holds what a Gaussian can reach in "
+                    "this many steps; rebuilt when one leaves it. Speed only: results are the same")
+        ->capture_default_str()
+        ->check(CLI::Range(1, 1000));
+    sub->add_option("--rebuild-every", stageTwo.rebuildEvery,
+                    "Also rebuild the Stage II coverage every K iterations (0: only when a Gaussian leaves it). Speed "
+                    "only: results are the same")
+        ->capture_default_str()
+        ->check(CLI::Range(0, 1000000));
 }
 
 } // namespace splatwarp::cli

@@ -44,6 +44,13 @@ struct StageTwoReach {
     double move = 0;    ///< per-axis mean motion
 };
 
+/// @brief How many steps a coverage built at `iteration` is sized for (never past the last step).
+SPLATWARP_HOST_DEVICE int coverageReachSteps(const StageTwoOptions& o, int iteration)
+{
+    const int left = o.iterations - iteration;
+    return left < o.coverageSteps ? (left > 1 ? left : 1) : o.coverageSteps;
+}
+
 /// @brief The reach of one moving Gaussian (see StageTwoReach).
 SPLATWARP_HOST_DEVICE StageTwoReach stageTwoReach(GaussianParams<double> p, const Mat3d& filter, int steps, double move,
                                                   const StageTwoOptions& o)

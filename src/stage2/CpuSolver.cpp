@@ -187,7 +187,7 @@ void CpuSolver::rebuildCoverage(int iteration)
     PhaseClock clock(mTimes.coverage);
     // Each box holds what `steps` Adam steps can reach (each step moves a parameter by about its
     // learning rate), plus a relative margin; see stageTwoReach().
-    const int steps = std::max(1, std::min(mOptions.rebuildEvery, mOptions.iterations - iteration));
+    const int steps = coverageReachSteps(mOptions, iteration);
     const double move = double(steps) * double(stageTwoPositionRate(mOptions, iteration, mSetup.sceneExtent));
     parallelFor(mG, 256, mOptions.threaded, [&](std::size_t k) {
         const GaussianParams<double> p = unpackParams(row(k));

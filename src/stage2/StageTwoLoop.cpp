@@ -97,12 +97,13 @@ private:
     float mRateScale = 1.0f;
 };
 
-/// Coverage for this iteration: the scheduled rebuild, or a forced one when a Gaussian left the
-/// reach its coverage was built for (the learning-rate bound is an estimate; Adam can step
-/// further), so a missed pair never silently changes the result.
+/// Coverage for this iteration: built at the start, rebuilt when a Gaussian has left the reach
+/// it was built for (so a missed pair never silently changes the result) or on the optional
+/// schedule. Gaussians move far less than the learning-rate bound assumes: on the demo a reach of
+/// 10 steps held for all 100 iterations.
 void updateCoverage(StageTwoSolver& solver, const StageTwoOptions& o, int it, StageTwoReport& report)
 {
-    const bool scheduled = (it < o.iterations && it % o.rebuildEvery == 0) || it == 0;
+    const bool scheduled = it == 0 || (o.rebuildEvery > 0 && it < o.iterations && it % o.rebuildEvery == 0);
     if (!scheduled && solver.coverageHolds()) return;
     solver.rebuildCoverage(it);
     ++report.coverageRebuilds;

@@ -13,10 +13,16 @@ struct StageTwoOptions {
     float boundaryWeight = 99.0f;  ///< lambda2: extra weight where O* = 0 (keeps Gaussians out of empty space)
     bool lowPassFilter = true;     ///< adaptive anisotropic low-pass filter (--no-lpf turns it off)
     float lambdaLpf = 0.2f;        ///< filter strength: Sigma' += lambdaLpf * spacing^2 * F_k F_k^T (Mip-Splatting's 3D filter value)
-    int rebuildEvery = 10;         ///< rebuild the coverage (which Gaussians touch which samples) every this many steps
-    /// Coverage boxes are the extents a Gaussian can reach before the next rebuild (each Adam
-    /// step changes a parameter by about its learning rate) grown by this extra fraction, so
-    /// Gaussians growing, turning or moving between rebuilds keep their samples.
+    /// The coverage (which Gaussians can touch which samples) holds what a Gaussian can reach in
+    /// this many Adam steps (each changes a parameter by about its learning rate); it is rebuilt
+    /// when a Gaussian has left it (checked every iteration), so this trades list length (forward
+    /// time) against rebuilds and never changes a result.
+    int coverageSteps = 10;
+    /// Also rebuild every this many steps (0: only when a Gaussian has left its coverage). The
+    /// results are the same bits either way (tests/stage2/StageTwoTest.cpp).
+    int rebuildEvery = 0;
+    /// The coverage reach is grown by this extra fraction, so Gaussians growing, turning or
+    /// moving keep their samples.
     float coveragePad = 0.1f;
     float cutoff = kDefaultCutoff; ///< a pair counts only where alpha*G >= cutoff
 

@@ -38,8 +38,8 @@ void validateStageTwo(const GaussianCloud& cloud, const SampleSet& s, const std:
     for (std::size_t i = 0; i < gaussianCell.size(); ++i)
         if (gaussianCell[i] >= std::int32_t(c))
             throw InputError(msg("Stage II: Gaussian ", i, " has cell ", gaussianCell[i], " outside 0..", c - 1));
-    if (o.iterations < 0 || o.rebuildEvery < 1 || !(o.cutoff > 0.0f) || o.lambdaLpf < 0.0f)
-        throw InputError("Stage II: iterations must be >= 0, rebuildEvery >= 1, cutoff > 0, lambdaLpf >= 0");
+    if (o.iterations < 0 || o.coverageSteps < 1 || o.rebuildEvery < 0 || !(o.cutoff > 0.0f) || o.lambdaLpf < 0.0f)
+        throw InputError("Stage II: iterations must be >= 0, coverageSteps >= 1, rebuildEvery >= 0, cutoff > 0, lambdaLpf >= 0");
 }
 
 namespace {

@@ -171,7 +171,7 @@ TEST(StageTwoCuda, CoverageMatchesCpu)
     ASSERT_EQ(probe.used, st.used);
     ASSERT_EQ(probe.moving, st.moving);
     const std::size_t g = st.moving.size();
-    const int steps = std::min(p.options.rebuildEvery, p.options.iterations);
+    const int steps = coverageReachSteps(p.options, 0);
     const double move = double(steps) * double(stageTwoPositionRate(p.options, 0, st.sceneExtent));
     for (std::size_t k = 0; k < g; ++k) {
         float lo[3], hi[3];

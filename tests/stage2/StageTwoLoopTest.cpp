@@ -95,6 +95,20 @@ TEST(StageTwoLoop, RebuildsWhenCoverageStopsHolding)
     EXPECT_EQ(cloud.opacities, std::vector<float>{4.0f});
 }
 
+TEST(StageTwoLoop, WithoutAScheduleRebuildsOnlyWhenCoverageStopsHolding)
+{
+    ScriptedSolver s({5, 4, 3, 2, 1, 0.5, 0.25});
+    GaussianCloud cloud;
+    StageTwoReport r = runStageTwoLoop(s, cloud, options(6, 0));
+    EXPECT_EQ(s.rebuilds, (std::vector<int>{0}));
+    EXPECT_EQ(r.coverageForcedRebuilds, 0);
+    ScriptedSolver t({5, 4, 3, 2, 1, 0.5, 0.25});
+    t.holds = false;
+    r = runStageTwoLoop(t, cloud, options(6, 0));
+    EXPECT_EQ(t.rebuilds, (std::vector<int>{0, 1, 2, 3, 4, 5, 6}));
+    EXPECT_EQ(r.coverageForcedRebuilds, 6);
+}
+
 TEST(StageTwoLoop, NonFiniteStartIsAnInputError)
 {
     ScriptedSolver s({std::numeric_limits<double>::quiet_NaN(), 1.0});

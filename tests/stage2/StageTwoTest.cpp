@@ -93,22 +93,31 @@ TEST(StageTwo, AtTheOptimumEveryStepIsRejectedAndTheModelKept)
     EXPECT_GT(q.energies.back().total, r.bestEnergy);
 }
 
-TEST(StageTwo, RebuildEveryStepMatchesEveryTen)
+TEST(StageTwo, CoverageScheduleNeverChangesResults)
 {
     StageTwoOptions o;
     o.iterations = 30;
     Problem p = makeProblem(o);
-    GaussianCloud a = p.start, b = p.start;
-    const StageTwoReport ra = optimiseStageTwo(a, p.samples, p.moving, p.cells, o);
-    o.rebuildEvery = 1;
-    const StageTwoReport rb = optimiseStageTwo(b, p.samples, p.moving, p.cells, o);
+    GaussianCloud a = p.start, b = p.start, c = p.start;
+    const StageTwoReport ra = optimiseStageTwo(a, p.samples, p.moving, p.cells, o); // rebuilt when left
+    StageTwoOptions every = o;
+    every.rebuildEvery = 1;
+    const StageTwoReport rb = optimiseStageTwo(b, p.samples, p.moving, p.cells, every);
+    StageTwoOptions tight = o;
+    tight.coverageSteps = 1; // the smallest reach: Gaussians leave it, forced rebuilds
+    const StageTwoReport rc = optimiseStageTwo(c, p.samples, p.moving, p.cells, tight);
     EXPECT_EQ(rb.coverageRebuilds, 30);
-    EXPECT_EQ(ra.coverageRebuilds, 3);
+    EXPECT_LT(ra.coverageRebuilds, rb.coverageRebuilds);
+    EXPECT_EQ(ra.coverageRebuilds - ra.coverageForcedRebuilds, 1); // only the first is not forced
+    EXPECT_GT(rc.coverageForcedRebuilds, 0);
     // The coverage is a superset of the counted pairs either way and each sample sums its
     // counted pairs in ascending order, so no pair lost between rebuilds means equal results.
     EXPECT_EQ(ra.pairsPerIteration, rb.pairsPerIteration);
+    EXPECT_EQ(ra.pairsPerIteration, rc.pairsPerIteration);
     EXPECT_TRUE(sameCloud(a, b));
-    EXPECT_NEAR(ra.energies.back().total, rb.energies.back().total, 1e-6 * ra.energies.back().total);
+    EXPECT_TRUE(sameCloud(a, c));
+    EXPECT_EQ(ra.energies.back().total, rb.energies.back().total);
+    EXPECT_EQ(ra.energies.back().total, rc.energies.back().total);
 }
 
 TEST(StageTwo, StaticGaussiansBitExact)
