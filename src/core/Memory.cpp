@@ -3,6 +3,8 @@
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
+#include <new>
+#include <sys/mman.h>
 #include <unistd.h>
 
 namespace splatwarp {
@@ -12,6 +14,24 @@ std::size_t physicalMemoryBytes()
     const long pages = ::sysconf(_SC_PHYS_PAGES), pageSize = ::sysconf(_SC_PAGE_SIZE);
     return pages > 0 && pageSize > 0 ? std::size_t(pages) * std::size_t(pageSize) : 0;
 }
+
+void* allocateLarge(std::size_t bytes)
+{
+    constexpr std::size_t kHuge = std::size_t(2) << 20;
+    if (bytes < 2 * kHuge) {
+        if (void* p = std::malloc(bytes > 0 ? bytes : 1)) return p;
+        throw std::bad_alloc();
+    }
+    const std::size_t rounded = (bytes + kHuge - 1) / kHuge * kHuge;
+    void* p = std::aligned_alloc(kHuge, rounded);
+    if (!p) throw std::bad_alloc();
+#ifdef MADV_HUGEPAGE
+    ::madvise(p, rounded, MADV_HUGEPAGE); // advice only: without huge pages it is an ordinary buffer
+#endif
+    return p;
+}
+
+void freeLarge(void* p) noexcept { std::free(p); }
 
 std::size_t defaultMemoryBudget() { return physicalMemoryBytes() / 4 * 3; }
 

@@ -4,6 +4,7 @@
 #include <cstring>
 
 #include "core/Error.h"
+#include "core/Memory.h"
 #include "core/ParallelFor.h"
 #include "core/Progress.h"
 #include "stage2/BlockLoops.h"
@@ -29,9 +30,9 @@ private:
 /// Rows of `stride` floats per used sample (rowOf(j)) in the block layout: [stride][lanes] per
 /// block, padding lanes 0.
 template <typename RowOf>
-std::vector<float> toSlots(const SampleBlocks& blocks, std::size_t stride, const RowOf& rowOf)
+BigVector<float> toSlots(const SampleBlocks& blocks, std::size_t stride, const RowOf& rowOf)
 {
-    std::vector<float> out(blocks.slots() * stride, 0.0f);
+    BigVector<float> out(blocks.slots() * stride, 0.0f);
     for (std::size_t b = 0; b < blocks.count(); ++b) {
         const std::size_t lanes = std::size_t(blocks.lanesOf(b));
         float* dst = out.data() + std::size_t(blocks.slot[b]) * stride;
@@ -107,12 +108,12 @@ private:
     std::vector<CoverageSlabs> mSlabs;                        // [G] coverage slabs (the reach until the next rebuild)
     std::vector<std::uint8_t> mHolds;                         // [G]
     // Per padded slot, [stride][lanes] or [lanes] per block (padding 0): static F and O, targets, dE/dF and dE/dO.
-    std::vector<float> mStaticF, mStaticO, mTargetF, mTargetO, mGF, mGO;
+    BigVector<float> mStaticF, mStaticO, mTargetF, mTargetO, mGF, mGO;
     std::vector<std::uint8_t> mStaticBlock; // [B] whether any static F or O of the block is not zero
     std::vector<double> mBlockEnergy; // [B,3] each block's loss terms summed in sample order
     std::vector<std::uint64_t> mBlockPairs; // [B] counted pairs of the last forward pass
-    std::vector<std::uint8_t> mPairChunks;  // [block-major coverage entries] counting chunks of the last forward pass
-    std::vector<float> mPartials;           // [block-major coverage entries, kPartial + stride] backward sums of each pair
+    BigVector<std::uint8_t> mPairChunks; // [block-major coverage entries] counting chunks of the last forward pass
+    BigVector<float> mPartials;          // [block-major coverage entries, kPartial + stride] backward sums of each counting pair
     std::vector<float>*mFeaturesOut = nullptr, *mOpacityOut = nullptr;
     StageTwoPhaseTimes mTimes;
 };

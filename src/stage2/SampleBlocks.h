@@ -9,7 +9,9 @@
 #include <cstdint>
 #include <vector>
 
+#include "core/Memory.h"
 #include "core/Simd.h"
+#include "field/GaussianBins.h"
 #include "stage2/Coverage.h"
 
 namespace splatwarp {
@@ -41,6 +43,23 @@ struct SampleBlocks {
     static SampleBlocks build(const float* x, const std::int32_t* cell, std::size_t s);
 };
 
+/// @brief The blocks of a SampleBlocks binned by their centres, for finding the blocks a box meets.
+class BlockIndex {
+public:
+    BlockIndex() = default;
+    explicit BlockIndex(const SampleBlocks& blocks);
+    std::size_t cells() const { return mBins.cellCount(); }
+
+    /// @brief The blocks whose bounds meet the box [lo, hi] and (when given) the slabs, into out
+    ///        (in no particular order); `candidates` is scratch. An empty box meets none.
+    void blocksMeeting(const SampleBlocks& blocks, const float* lo, const float* hi, const CoverageSlabs* slabs,
+                       std::vector<std::uint32_t>& candidates, std::vector<std::uint32_t>& out) const;
+
+private:
+    GaussianBins mBins;      ///< block centres as points
+    float mGrow[3] = {0, 0, 0}; ///< largest block half size per axis
+};
+
 /// @brief Which blocks each moving Gaussian may touch, and the reverse, both lists ascending so
 ///        every sum runs in a fixed order for any thread count.
 class BlockCoverage {
@@ -50,22 +69,24 @@ public:
     void build(const SampleBlocks& blocks, const float* lo, const float* hi, const CoverageSlabs* slabs, std::size_t g,
                bool threaded);
 
-    std::uint64_t pairCount() const { return mGaussianItems.size(); }
-    /// @brief Blocks of Gaussian k: gaussianItems()[gaussianOffsets()[k] .. gaussianOffsets()[k+1]).
+    std::uint64_t pairCount() const { return mBlockItems.size(); }
+    /// @brief Pairs of Gaussian k: blockEntryOf()[gaussianOffsets()[k] .. gaussianOffsets()[k+1]).
     const std::vector<std::uint64_t>& gaussianOffsets() const { return mGaussianOffsets; }
-    const std::vector<std::uint32_t>& gaussianItems() const { return mGaussianItems; }
     /// @brief Gaussians of block b, ascending.
     const std::vector<std::uint64_t>& blockOffsets() const { return mBlockOffsets; }
-    const std::vector<std::uint32_t>& blockItems() const { return mBlockItems; }
-    /// @brief For each entry of gaussianItems(), the index of the same (block, Gaussian) pair in blockItems().
-    const std::vector<std::uint32_t>& blockEntryOf() const { return mBlockEntryOf; }
+    const BigVector<std::uint32_t>& blockItems() const { return mBlockItems; }
+    /// @brief Per Gaussian, its pairs' entries in blockItems(), in ascending block order.
+    const BigVector<std::uint32_t>& blockEntryOf() const { return mBlockEntryOf; }
 
 private:
-    void flatten(std::size_t nb, std::size_t g);
+    void flatten(std::size_t nb, std::size_t g, bool threaded);
 
-    std::vector<std::vector<std::uint32_t>> mLists; ///< per block, reused between rebuilds
+    BlockIndex mIndex; ///< of the blocks last built for (they do not move within a run)
+    const SampleBlocks* mIndexed = nullptr;
+    std::size_t mIndexedCount = 0;
+    std::vector<std::vector<std::uint32_t>> mPerGaussian; ///< per Gaussian its blocks, reused between rebuilds
     std::vector<std::uint64_t> mGaussianOffsets, mBlockOffsets;
-    std::vector<std::uint32_t> mGaussianItems, mBlockItems, mBlockEntryOf;
+    BigVector<std::uint32_t> mBlockItems, mBlockEntryOf;
 };
 
 /// @brief Whether the box [lo, hi] can hold a point inside all three slabs (conservative: the
