@@ -84,6 +84,7 @@ public:
 private:
     const float* row(std::size_t k) const { return mParams.data() + k * std::size_t(mPerG); }
     BlockPoints pointsOf(std::size_t b) const;
+    void evaluateStatic(const GaussianCloud& cloud, const std::vector<std::uint8_t>& moving);
     std::uint64_t forwardBlock(std::size_t b);
     void keepOutputs(std::size_t b, const float* f, const float* o);
     void backwardGaussian(std::size_t k);
@@ -123,7 +124,7 @@ CpuSolver::CpuSolver(const GaussianCloud& cloud, const SampleSet& samples, const
     : mSamples(samples), mOptions(options)
 {
     Stopwatch watch;
-    mSetup = setupStageTwo(cloud, samples, moving, gaussianCell, options);
+    mSetup = setupStageTwo(cloud, samples, moving, gaussianCell, options, false);
     mStride = cloud.shStride();
     if (mStride > kMaxShStride) throw InputError(msg("Stage II: unsupported SH stride ", mStride));
     mPerG = packedParamCount(mStride);
@@ -145,15 +146,7 @@ CpuSolver::CpuSolver(const GaussianCloud& cloud, const SampleSet& samples, const
     mSlabs.resize(mG);
     mHolds.resize(mG);
     const std::size_t stride = std::size_t(mStride);
-    mStaticF = toSlots(mBlocks, stride, [&](std::size_t j) { return &mSetup.fStatic[j * stride]; });
-    mStaticO = toSlots(mBlocks, 1, [&](std::size_t j) { return &mSetup.oStatic[j]; });
-    mStaticBlock.assign(mBlocks.count(), 0);
-    for (std::size_t b = 0; b < mBlocks.count(); ++b) {
-        const std::size_t s0 = mBlocks.slot[b], s1 = mBlocks.slot[b + 1];
-        const auto nonZero = [](float v) { return v != 0.0f; };
-        mStaticBlock[b] = std::any_of(&mStaticO[s0], &mStaticO[0] + s1, nonZero) ||
-                          std::any_of(&mStaticF[s0 * stride], &mStaticF[0] + s1 * stride, nonZero);
-    }
+    evaluateStatic(cloud, moving);
     mTargetF = toSlots(mBlocks, stride, [&](std::size_t j) { return &samples.targetF[mSetup.used[j] * stride]; });
     mTargetO = toSlots(mBlocks, 1, [&](std::size_t j) { return &samples.targetO[mSetup.used[j]]; });
     mGF.assign(mBlocks.slots() * stride, 0.0f);
@@ -161,6 +154,42 @@ CpuSolver::CpuSolver(const GaussianCloud& cloud, const SampleSet& samples, const
     mBlockEnergy.assign(3 * mBlocks.count(), 0.0);
     mBlockPairs.resize(mBlocks.count());
     mSetupMs = watch.ms();
+}
+
+void CpuSolver::evaluateStatic(const GaussianCloud& cloud, const std::vector<std::uint8_t>& moving)
+{
+    // The static Gaussians' fixed F and O, straight into the block layout with the block engine:
+    // listed, in ascending order, only for the blocks they reach (the coverage of a Gaussian that
+    // takes no step), so the same sums as the per-sample evaluation (setupStageTwo) in far less
+    // time (demo: 1,323 static Gaussians against 942,464 samples).
+    const std::size_t n = cloud.size(), stride = std::size_t(mStride), nb = mBlocks.count();
+    std::vector<PreparedGaussian> prepared(n);
+    std::vector<ChunkBound> bounds(n);
+    std::vector<float> lo(3 * n, 1.0f), hi(3 * n, 0.0f); // moving: empty boxes, never listed
+    std::vector<CoverageSlabs> slabs(n);
+    parallelFor(n, 1024, mOptions.threaded, [&](std::size_t i) {
+        if (moving[i]) return;
+        const GaussianParams<double> p = gaussianParamsOf(cloud, i);
+        prepared[i] = PreparedGaussian::from(prepareParams(p, mSetup.filter[i], double(mOptions.cutoff)));
+        bounds[i] = ChunkBound::of(prepared[i]);
+        stageTwoCoverageBox(p, mSetup.filter[i], 0, 0.0, mOptions, &lo[3 * i], &hi[3 * i]);
+        stageTwoCoverageSlabs(p, mSetup.filter[i], 0, 0.0, mOptions, slabs[i]);
+    });
+    BlockCoverage coverage;
+    coverage.build(mBlocks, lo.data(), hi.data(), slabs.data(), n, mOptions.threaded);
+    mStaticF.assign(mBlocks.slots() * stride, 0.0f);
+    mStaticO.assign(mBlocks.slots(), 0.0f);
+    mStaticBlock.assign(nb, 0);
+    parallelFor(nb, 16, mOptions.threaded, [&](std::size_t b) {
+        const std::uint64_t e0 = coverage.blockOffsets()[b];
+        const BlockGaussians gs{coverage.blockItems().data() + e0, std::size_t(coverage.blockOffsets()[b + 1] - e0),
+                                prepared.data(), bounds.data(), cloud.sh.data(), stride};
+        if (gs.n == 0) return;
+        const std::size_t s0 = mBlocks.slot[b];
+        float* f = &mStaticF[s0 * stride];
+        float* o = &mStaticO[s0];
+        mStaticBlock[b] = blockFeatures(gs, pointsOf(b), mOptions.cutoff, mStride, f, o) > 0;
+    });
 }
 
 void CpuSolver::describe(StageTwoReport& r) const

@@ -102,7 +102,7 @@ void evaluateStaticContribution(const GaussianCloud& cloud, const std::vector<st
 
 StageTwoSetup setupStageTwo(const GaussianCloud& cloud, const SampleSet& samples,
                             const std::vector<std::uint8_t>& moving, const std::vector<std::int32_t>& gaussianCell,
-                            const StageTwoOptions& options)
+                            const StageTwoOptions& options, bool staticContribution)
 {
     validateStageTwo(cloud, samples, moving, gaussianCell, options);
     StageTwoSetup st;
@@ -110,7 +110,7 @@ StageTwoSetup setupStageTwo(const GaussianCloud& cloud, const SampleSet& samples
     st.filter = lowPassFilters(samples, gaussianCell, options);
     for (std::size_t i = 0; i < cloud.size(); ++i)
         if (moving[i]) st.moving.push_back(std::uint32_t(i));
-    evaluateStaticContribution(cloud, moving, options, st);
+    if (staticContribution) evaluateStaticContribution(cloud, moving, options, st);
     return st;
 }
 

@@ -31,10 +31,11 @@ void validateStageTwo(const GaussianCloud& cloud, const SampleSet& samples, cons
                       const std::vector<std::int32_t>& gaussianCell, const StageTwoOptions& options);
 
 /// @brief Validate, then select the samples, the moving Gaussians and the filters, and evaluate
-///        the static Gaussians' contribution once (CPU, oneTBB when options.threaded).
+///        the static Gaussians' contribution once (CPU, oneTBB when options.threaded; left empty
+///        without `staticContribution`: the CPU solver evaluates it in its blocks).
 StageTwoSetup setupStageTwo(const GaussianCloud& cloud, const SampleSet& samples,
                             const std::vector<std::uint8_t>& moving, const std::vector<std::int32_t>& gaussianCell,
-                            const StageTwoOptions& options);
+                            const StageTwoOptions& options, bool staticContribution = true);
 
 /// @brief Raw parameters (SH excluded) of Gaussian i of a cloud, in double.
 GaussianParams<double> gaussianParamsOf(const GaussianCloud& cloud, std::size_t i);

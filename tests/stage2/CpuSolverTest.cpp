@@ -103,6 +103,23 @@ std::vector<double> referenceGradients(const Problem& p, const StageTwoSetup& st
 
 } // namespace
 
+TEST(CpuSolver, StaticContributionInBlocksIsThePerSampleOne)
+{
+    // The solver evaluates the static Gaussians in its blocks; setupStageTwo() per sample. Same
+    // pairs, same ascending order: the same bits. Every Gaussian static, so F and O are theirs alone.
+    for (int degree : {0, 2}) {
+        Problem p = makeProblem(degree, 3, 300u + std::uint32_t(degree));
+        p.moving.assign(p.start.size(), 0);
+        const StageTwoSetup st = setupStageTwo(p.start, p.samples, p.moving, p.cells, p.options);
+        const StageTwoProbe probe = probeCpuStageTwo(p.start, p.samples, p.moving, p.cells, p.options);
+        ASSERT_EQ(probe.used, st.used);
+        ASSERT_EQ(probe.features.size(), st.fStatic.size());
+        EXPECT_GT(std::count_if(st.oStatic.begin(), st.oStatic.end(), [](float v) { return v > 0.0f; }), 100);
+        EXPECT_EQ(probe.features, st.fStatic);
+        EXPECT_EQ(probe.opacity, st.oStatic);
+    }
+}
+
 TEST(CpuSolver, ProbeMatchesDoubleReference)
 {
     for (int n : {2, 3, 4})
