@@ -73,12 +73,8 @@ public:
     void writeTo(GaussianCloud& cloud) const override;
     StageTwoPhaseTimes times() const override { return mTimes; }
 
-    /// Features per used sample of the last forward pass, for probes (off unless asked).
-    void keepFeatures(std::vector<float>* f, std::vector<float>* o)
-    {
-        mFeaturesOut = f;
-        mOpacityOut = o;
-    }
+    /// F, O, dE/dF and dE/dO per used sample of the last forward pass into a probe (off unless asked).
+    void keepSamples(StageTwoProbe* probe) { mProbe = probe; }
     void probeInto(StageTwoProbe& p) const;
 
 private:
@@ -86,7 +82,7 @@ private:
     BlockPoints pointsOf(std::size_t b) const;
     void evaluateStatic(const GaussianCloud& cloud, const std::vector<std::uint8_t>& moving);
     std::uint64_t forwardBlock(std::size_t b);
-    void keepOutputs(std::size_t b, const float* f, const float* o);
+    void keepOutputs(std::size_t b, const float* f, const float* o, const float* gF, const float* gO);
     void backwardGaussian(std::size_t k);
     std::size_t partialStride() const { return kPartial + std::size_t(mStride); }
 
@@ -108,14 +104,14 @@ private:
     std::vector<float> mBoxLo, mBoxHi;                        // [G,3]
     std::vector<CoverageSlabs> mSlabs;                        // [G] coverage slabs (the reach until the next rebuild)
     std::vector<std::uint8_t> mHolds;                         // [G]
-    // Per padded slot, [stride][lanes] or [lanes] per block (padding 0): static F and O, targets, dE/dF and dE/dO.
-    BigVector<float> mStaticF, mStaticO, mTargetF, mTargetO, mGF, mGO;
+    // Per padded slot, [stride][lanes] or [lanes] per block (padding 0): static F and O, targets.
+    BigVector<float> mStaticF, mStaticO, mTargetF, mTargetO;
     std::vector<std::uint8_t> mStaticBlock; // [B] whether any static F or O of the block is not zero
     std::vector<double> mBlockEnergy; // [B,3] each block's loss terms summed in sample order
     std::vector<std::uint64_t> mBlockPairs; // [B] counted pairs of the last forward pass
     BigVector<std::uint8_t> mPairChunks; // [block-major coverage entries] counting chunks of the last forward pass
     BigVector<float> mPartials;          // [block-major coverage entries, kPartial + stride] backward sums of each counting pair
-    std::vector<float>*mFeaturesOut = nullptr, *mOpacityOut = nullptr;
+    StageTwoProbe* mProbe = nullptr;
     StageTwoPhaseTimes mTimes;
 };
 
@@ -149,8 +145,6 @@ CpuSolver::CpuSolver(const GaussianCloud& cloud, const SampleSet& samples, const
     evaluateStatic(cloud, moving);
     mTargetF = toSlots(mBlocks, stride, [&](std::size_t j) { return &samples.targetF[mSetup.used[j] * stride]; });
     mTargetO = toSlots(mBlocks, 1, [&](std::size_t j) { return &samples.targetO[mSetup.used[j]]; });
-    mGF.assign(mBlocks.slots() * stride, 0.0f);
-    mGO.assign(mBlocks.slots(), 0.0f);
     mBlockEnergy.assign(3 * mBlocks.count(), 0.0);
     mBlockPairs.resize(mBlocks.count());
     mSetupMs = watch.ms();
@@ -252,7 +246,9 @@ std::uint64_t CpuSolver::forwardBlock(std::size_t b)
     const std::size_t stride = std::size_t(mStride), s0 = mBlocks.slot[b];
     const BlockPoints pts = pointsOf(b);
     const std::size_t lanes = std::size_t(pts.lanes);
+    // F, O, dE/dF, dE/dO of the block stay here, in cache, from the forward sums to the backward ones.
     alignas(32) float f[kMaxShStride * kMaxBlockSamples], o[kMaxBlockSamples], terms[3 * kMaxBlockSamples];
+    alignas(32) float gF[kMaxShStride * kMaxBlockSamples], gO[kMaxBlockSamples];
     if (mStaticBlock[b]) {
         std::memcpy(f, &mStaticF[s0 * stride], lanes * stride * sizeof(float));
         std::memcpy(o, &mStaticO[s0], lanes * sizeof(float));
@@ -272,35 +268,42 @@ std::uint64_t CpuSolver::forwardBlock(std::size_t b)
     const std::uint64_t pairs =
         blockForward(gs, pts, mOptions.cutoff, mStride, f, o, mPairChunks.data() + e0, kept.data(), keptAt.data());
     blockLoss(f, o, &mTargetF[s0 * stride], &mTargetO[s0], pts.lanes, pts.samples, mStride, mOptions.lambdaOpacity,
-              mOptions.boundaryWeight, &mGF[s0 * stride], &mGO[s0], terms);
+              mOptions.boundaryWeight, gF, gO, terms);
     for (int a = 0; a < 3; ++a) {
         double sum = 0;
         for (std::size_t t = 0; t < std::size_t(pts.samples); ++t) sum += double(terms[std::size_t(a) * lanes + t]);
         mBlockEnergy[3 * b + std::size_t(a)] = sum;
     }
-    if (mFeaturesOut || mOpacityOut) keepOutputs(b, f, o);
-    blockBackward(gs, pts.lanes, mPairChunks.data() + e0, kept.data(), keptAt.data(), &mGF[s0 * stride], &mGO[s0], mStride,
+    if (mProbe) keepOutputs(b, f, o, gF, gO);
+    blockBackward(gs, pts.lanes, mPairChunks.data() + e0, kept.data(), keptAt.data(), gF, gO, mStride,
                   mPartials.data() + e0 * partialStride());
     return pairs;
 }
 
-/// F and O of a block's samples for probes.
-void CpuSolver::keepOutputs(std::size_t b, const float* f, const float* o)
+/// F, O, dE/dF and dE/dO of a block's samples for probes.
+void CpuSolver::keepOutputs(std::size_t b, const float* f, const float* o, const float* gF, const float* gO)
 {
     const std::size_t stride = std::size_t(mStride), lanes = std::size_t(mBlocks.lanesOf(b));
     for (std::size_t t = 0; t < std::size_t(mBlocks.samplesOf(b)); ++t) {
         const std::size_t j = mBlocks.first[b] + t;
-        if (mFeaturesOut)
-            for (std::size_t c = 0; c < stride; ++c) (*mFeaturesOut)[j * stride + c] = f[c * lanes + t];
-        if (mOpacityOut) (*mOpacityOut)[j] = o[t];
+        for (std::size_t c = 0; c < stride; ++c) {
+            mProbe->features[j * stride + c] = f[c * lanes + t];
+            mProbe->gradF[j * stride + c] = gF[c * lanes + t];
+        }
+        mProbe->opacity[j] = o[t];
+        mProbe->gradO[j] = gO[t];
     }
 }
 
 StageTwoEnergy CpuSolver::forward(int iteration, std::uint64_t& pairs)
 {
     PhaseClock clock(mTimes.forward);
-    if (mFeaturesOut) mFeaturesOut->assign(mS * std::size_t(mStride), 0.0f);
-    if (mOpacityOut) mOpacityOut->assign(mS, 0.0f);
+    if (mProbe) {
+        mProbe->features.assign(mS * std::size_t(mStride), 0.0f);
+        mProbe->gradF.assign(mS * std::size_t(mStride), 0.0f);
+        mProbe->opacity.assign(mS, 0.0f);
+        mProbe->gradO.assign(mS, 0.0f);
+    }
     mPairChunks.resize(mCoverage.pairCount());
     mPartials.resize(mCoverage.pairCount() * partialStride());
     parallelFor(mBlocks.count(), 4, mOptions.threaded, [&](std::size_t b) { mBlockPairs[b] = forwardBlock(b); });
@@ -364,16 +367,6 @@ void CpuSolver::probeInto(StageTwoProbe& p) const
     p.used = mSetup.used;
     p.moving = mSetup.moving;
     p.grad = mGrad;
-    const std::size_t stride = std::size_t(mStride);
-    p.gradF.assign(mS * stride, 0.0f);
-    p.gradO.assign(mS, 0.0f);
-    for (std::size_t b = 0; b < mBlocks.count(); ++b)
-        for (int t = 0; t < mBlocks.samplesOf(b); ++t) {
-            const std::size_t j = mBlocks.first[b] + std::size_t(t), s0 = mBlocks.slot[b];
-            const std::size_t lanes = std::size_t(mBlocks.lanesOf(b));
-            p.gradO[j] = mGO[s0 + std::size_t(t)];
-            for (std::size_t c = 0; c < stride; ++c) p.gradF[j * stride + c] = mGF[s0 * stride + c * lanes + std::size_t(t)];
-        }
 }
 
 } // namespace
@@ -393,7 +386,7 @@ StageTwoProbe probeCpuStageTwo(const GaussianCloud& cloud, const SampleSet& samp
     o.iterations = std::max(o.iterations, 1); // the coverage boxes of a run that takes steps
     CpuSolver solver(cloud, samples, moving, gaussianCell, o);
     StageTwoProbe p;
-    solver.keepFeatures(&p.features, &p.opacity);
+    solver.keepSamples(&p);
     solver.prepare();
     solver.rebuildCoverage(0);
     p.energy = solver.forward(0, p.pairs);
