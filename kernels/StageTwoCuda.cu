@@ -369,7 +369,7 @@ public:
         mTimer.end();
     }
 
-    void rebuildCoverage(int iteration) override
+    void rebuildCoverage(int iteration, bool) override // always whole: the per-sample lists are rebuilt by sorting
     {
         mTimer.begin(PhaseTimer::Coverage);
         coverage(iteration);
@@ -690,7 +690,7 @@ StageTwoCudaProbe probeStageTwoCuda(const GaussianCloud& cloud, const SampleSet&
     const std::size_t s = p.used.size();
     DeviceBuffer<float> features(s * std::size_t(solver.stride()), "probe features"), opacity(s, "probe opacity");
     solver.prepare();
-    solver.rebuildCoverage(0);
+    solver.rebuildCoverage(0, false);
     solver.forwardInto(features.data(), opacity.data());
     solver.backward();
     p.energy = solver.forward(0, p.pairs); // the same pass again, for its energy (deterministic)

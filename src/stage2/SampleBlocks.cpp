@@ -151,32 +151,36 @@ void BlockIndex::blocksMeeting(const SampleBlocks& blocks, const float* lo, cons
 }
 
 void BlockCoverage::build(const SampleBlocks& blocks, const float* lo, const float* hi, const CoverageSlabs* slabs,
-                          std::size_t g, bool threaded)
+                          std::size_t g, bool threaded, const std::uint8_t* keep)
 {
     // Gaussian-major: each Gaussian asks the block index (built once: blocks never move) for the
     // blocks its box and slabs meet. The per-block search it replaces tested ~8 scattered
     // Gaussians per pair kept (donut: 47 M candidates for 7 M pairs).
     if (mIndexed != &blocks || mIndexedCount != blocks.count()) {
+        keep = nullptr; // nothing of another set of blocks can be kept
         mIndex = BlockIndex(blocks);
         mIndexed = &blocks;
         mIndexedCount = blocks.count();
     }
+    if (mPerGaussian.size() != g) keep = nullptr;
     mPerGaussian.resize(g);
     parallelForRange(g, 64, threaded, [&](std::size_t k0, std::size_t k1) {
         std::vector<std::uint32_t> candidates;
-        for (std::size_t k = k0; k < k1; ++k)
+        for (std::size_t k = k0; k < k1; ++k) {
+            if (keep && keep[k]) continue;
             mIndex.blocksMeeting(blocks, lo + 3 * k, hi + 3 * k, slabs ? slabs + k : nullptr, candidates, mPerGaussian[k]);
+            std::sort(mPerGaussian[k].begin(), mPerGaussian[k].end());
+        }
     });
     flatten(blocks.count(), g, threaded);
 }
 
 void BlockCoverage::flatten(std::size_t nb, std::size_t g, bool threaded)
 {
-    // Each Gaussian's blocks ascending; then the block-major lists by a counting sort over
+    // Each Gaussian's blocks ascend (build()); the block-major lists come by a counting sort over
     // kRanges ranges of Gaussians at once (each range's entries after the earlier ranges' in
     // every block), so each block's Gaussians ascend whatever the thread count.
     constexpr std::size_t kRanges = 8;
-    parallelFor(g, 64, threaded, [&](std::size_t k) { std::sort(mPerGaussian[k].begin(), mPerGaussian[k].end()); });
     mGaussianOffsets.assign(g + 1, 0);
     for (std::size_t k = 0; k < g; ++k) mGaussianOffsets[k + 1] = mGaussianOffsets[k] + mPerGaussian[k].size();
     const std::uint64_t pairs = mGaussianOffsets[g];

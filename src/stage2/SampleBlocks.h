@@ -66,8 +66,10 @@ class BlockCoverage {
 public:
     /// @param lo,hi  [g,3] padded coverage boxes (empty, hi < lo: nothing)
     /// @param slabs  [g] coverage slabs (a block must also meet all three)
+    /// @param keep   [g] or null: where set, the Gaussian keeps its blocks of the last build (of
+    ///               the same blocks and g)
     void build(const SampleBlocks& blocks, const float* lo, const float* hi, const CoverageSlabs* slabs, std::size_t g,
-               bool threaded);
+               bool threaded, const std::uint8_t* keep = nullptr);
 
     std::uint64_t pairCount() const { return mBlockItems.size(); }
     /// @brief Pairs of Gaussian k: blockEntryOf()[gaussianOffsets()[k] .. gaussianOffsets()[k+1]).

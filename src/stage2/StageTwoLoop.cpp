@@ -105,7 +105,7 @@ void updateCoverage(StageTwoSolver& solver, const StageTwoOptions& o, int it, St
 {
     const bool scheduled = it == 0 || (o.rebuildEvery > 0 && it < o.iterations && it % o.rebuildEvery == 0);
     if (!scheduled && solver.coverageHolds()) return;
-    solver.rebuildCoverage(it);
+    solver.rebuildCoverage(it, !scheduled);
     ++report.coverageRebuilds;
     if (!scheduled) ++report.coverageForcedRebuilds;
 }

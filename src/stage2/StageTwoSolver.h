@@ -26,8 +26,10 @@ public:
     virtual void describe(StageTwoReport& report) const = 0;
     /// @brief Prepare the Gaussians (PreparedGaussian) from the current parameters.
     virtual void prepare() = 0;
-    /// @brief Rebuild the coverage for the steps until the next scheduled rebuild.
-    virtual void rebuildCoverage(int iteration) = 0;
+    /// @brief Build the coverage for the next coverageReachSteps() steps. onlyEscaped: called
+    ///        because coverageHolds() was false; a solver may then rebuild only the Gaussians that
+    ///        left theirs (the others' still holds every pair they can count).
+    virtual void rebuildCoverage(int iteration, bool onlyEscaped) = 0;
     /// @brief Whether every moving Gaussian still lies inside the reach its coverage was built for
     ///        (stageTwoCoverageHolds), so no counted pair can be missing.
     virtual bool coverageHolds() = 0;

@@ -20,7 +20,7 @@ public:
     Device device() const override { return Device::Cpu; }
     void describe(StageTwoReport& r) const override { r.movingGaussians = 1; }
     void prepare() override {}
-    void rebuildCoverage(int iteration) override { rebuilds.push_back(iteration); }
+    void rebuildCoverage(int iteration, bool) override { rebuilds.push_back(iteration); }
     bool coverageHolds() override { return holds; }
     std::uint64_t coveragePairs() const override { return 0; }
     StageTwoEnergy forward(int iteration, std::uint64_t& pairs) override
