@@ -368,7 +368,9 @@ TEST(StageTwoCuda, NothingMoving)
 }
 
 // The holds check runs on the GPU too: coverage built for a reach smaller than the Gaussians
-// (negative pad) fails it at once, so both devices rebuild at every unscheduled iteration.
+// (negative pad) fails it at once. The GPU then rebuilds all at the first reach, the CPU only the
+// Gaussians that left, each reaching twice as far: the GPU never rebuilds less often, and the
+// results agree (the coverage is a superset of the counted pairs either way).
 TEST(StageTwoCuda, CoverageEscapeForcesRebuildsAsOnTheCpu)
 {
     SPLATWARP_REQUIRE_GPU();
@@ -379,8 +381,10 @@ TEST(StageTwoCuda, CoverageEscapeForcesRebuildsAsOnTheCpu)
     const StageTwoReport rc = optimiseStageTwo(a, p.samples, p.moving, p.cells, p.options);
     const StageTwoReport rg = cuda::optimiseStageTwoCuda(b, p.samples, p.moving, p.cells, p.options);
     EXPECT_GT(rc.coverageForcedRebuilds, 0);
-    EXPECT_EQ(rg.coverageForcedRebuilds, rc.coverageForcedRebuilds);
-    EXPECT_EQ(rg.coverageRebuilds, rc.coverageRebuilds);
+    EXPECT_GE(rg.coverageForcedRebuilds, rc.coverageForcedRebuilds);
+    ASSERT_EQ(rg.energies.size(), rc.energies.size());
+    for (std::size_t e = 0; e < rc.energies.size(); ++e)
+        EXPECT_NEAR(rg.energies[e].total, rc.energies[e].total, kEnergyRel100 * rc.energies[e].total) << "entry " << e;
 }
 
 // A NaN in a moving Gaussian: the start energy is not finite, an InputError on both devices, and
