@@ -101,6 +101,12 @@ std::string frameSummary(const json& entry)
 /// or, when that was another one (a resumed frame, another shard's, one before --frames), is
 /// recomputed first without writing anything; so a frame's bytes equal a one-process run's.
 class FrameRunner {
+    struct Carried {
+        int frame;
+        std::optional<StageTwoCorrection> correction; ///< none when Stage II was skipped (rigid) or kept Stage I's model
+        double fitEnergy = 0;                         ///< its Stage II's training energy
+    };
+
 public:
     FrameRunner(DeformRest& rest, const AnimSpec& anim, const DeformJobOptions& o, bool warmStart)
         : mRest(rest), mAnim(anim), mOptions(o), mWarm(warmStart && !o.stage1Only)
@@ -110,21 +116,35 @@ public:
     json run(int f, const FrameOutputs& out, GaussianCloud& written)
     {
         if (!mWarm) return runDeformFrame(mRest, frameSpec(mAnim, f), mOptions, out, &written);
-        const std::optional<StageTwoCorrection> previous = startsWarm(f) ? correctionBefore(f) : std::nullopt;
+        const std::optional<Carried> previous = startsWarm(f) ? carriedBefore(f) : std::nullopt;
         GaussianCloud stage1;
-        const StageTwoStart start = [&](const StageOneResult& s1, GaussianCloud& model) {
-            if (previous) applyCorrection(*previous, s1.moving, model);
+        StageTwoStart start;
+        start.change = [&](const StageOneResult& s1, GaussianCloud& model) {
+            if (previous && previous->correction) applyCorrection(*previous->correction, s1.moving, model);
             stage1 = s1.deformed;
         };
+        if (previous && previous->correction)
+            start.rejects = [&](const StageTwoReport& fit) {
+                return !fit.energies.empty() && rejectsWarmStart(fit.energies.front().total, previous->fitEnergy);
+            };
         mLast.reset();
-        const json report = runDeformFrame(mRest, frameSpec(mAnim, f), mOptions, out, &written, start);
-        // A rigid frame skips Stage II (start is not called): nothing to carry.
-        mLast = Carried{f, stage1.empty() ? std::nullopt : std::optional(stageTwoCorrection(stage1, written))};
+        json report = runDeformFrame(mRest, frameSpec(mAnim, f), mOptions, out, &written, start);
+        if (stage1.empty()) { // a rigid frame skips Stage II (start is not called): nothing to carry
+            mLast = Carried{f, std::nullopt, 0.0};
+            return report;
+        }
+        json& s2 = report["stage2"];
+        if (!(previous && previous->correction)) s2["start"] = "cold";
+        else s2["warmLimit"] = kWarmEnergyLimit * previous->fitEnergy;
+        // A fit that kept its Stage I model (iteration 0) carries nothing but rounding: its odd frame starts cold.
+        if (s2.value("bestIteration", 0) == 0) mLast = Carried{f, std::nullopt, 0.0};
+        else mLast = Carried{f, stageTwoCorrection(stage1, written), s2.value("bestEnergy", 0.0)};
         return report;
     }
 
 private:
-    std::optional<StageTwoCorrection> correctionBefore(int f)
+    /// The frame before f as run by this process, run again (nothing written) when it was not the last.
+    std::optional<Carried> carriedBefore(int f)
     {
         if (!mLast || mLast->frame != f - 1) {
             GaussianCloud unused;
@@ -134,13 +154,9 @@ private:
                 throw Error(msg("frame ", f - 1, " (recomputed for the warm start of frame ", f, "): ", e.what()));
             }
         }
-        return mLast->correction;
+        return mLast;
     }
 
-    struct Carried {
-        int frame;
-        std::optional<StageTwoCorrection> correction;
-    };
     DeformRest& mRest;
     const AnimSpec& mAnim;
     const DeformJobOptions& mOptions;
@@ -239,6 +255,13 @@ SequenceResult runAnimateJob(const AnimateJobOptions& options)
             entry["field_error"]["stage1"] = report["stage1"]["field_error"];
         if (report.contains("stage2") && report["stage2"].contains("field_error"))
             entry["field_error"]["stage2"] = report["stage2"]["field_error"];
+        if (report.contains("stage2") && report["stage2"].contains("start")) { // --warm-start: which start, and why
+            const json& s2 = report["stage2"];
+            entry["start"] = s2["start"];
+            if (s2.contains("warmLimit"))
+                entry["warmStart"] = {{"energy", s2.value("warmEnergy", s2["energies"][0]["total"].get<double>())},
+                                      {"limit", s2["warmLimit"]}};
+        }
         return entry;
     };
     SequenceResult result = runSequence(run, runFrame, frameSummary);

@@ -172,7 +172,7 @@ GaussianCloud stageTwo(DeformRest& rest, const Deformation& deformation, const S
     }
 
     GaussianCloud fitted = stage1.deformed;
-    if (start) start(stage1, fitted);
+    if (start.change) start.change(stage1, fitted);
     nlohmann::json curve = nlohmann::json::array();
     auto onEval = [&](int iteration, const GaussianCloud& current) {
         const FieldErrorReport e = errors.judge->fieldError(current);
@@ -181,15 +181,30 @@ GaussianCloud stageTwo(DeformRest& rest, const Deformation& deformation, const S
         curve.push_back(j);
         progress(msg("Stage II iteration ", iteration, ": judged opacity error ", e.opacity));
     };
-    progress(msg("Stage II: ", o.stage2.iterations, " iterations on ", stage1.movingCount, " moving Gaussians"));
     StageTwoOptions s2 = o.stage2;
     s2.device = rest.device;
-    const StageTwoReport r2 = runStageTwo(fitted, samples, stage1.moving, rest.grid->gaussianCell(), s2,
-                                          o.evalEvery > 0 ? std::function<void(int, const GaussianCloud&)>(onEval)
-                                                          : std::function<void(int, const GaussianCloud&)>(),
-                                          o.evalEvery);
+    auto fit = [&] {
+        progress(msg("Stage II: ", o.stage2.iterations, " iterations on ", stage1.movingCount, " moving Gaussians"));
+        curve = nlohmann::json::array();
+        return runStageTwo(fitted, samples, stage1.moving, rest.grid->gaussianCell(), s2,
+                           o.evalEvery > 0 ? std::function<void(int, const GaussianCloud&)>(onEval)
+                                           : std::function<void(int, const GaussianCloud&)>(),
+                           o.evalEvery);
+    };
+    StageTwoReport r2 = fit();
+    std::optional<double> rejectedStart; // the warm start's energy when the frame went back to the cold start
+    double rejectedMs = 0;
+    if (start.change && start.rejects && start.rejects(r2)) {
+        rejectedMs = r2.msTotal;
+        rejectedStart = r2.energies.empty() ? 0.0 : r2.energies.front().total;
+        progress(msg("Stage II: the warm start (energy ", *rejectedStart, ") is rejected; fitting from the Stage I model"));
+        fitted = stage1.deformed;
+        r2 = fit();
+    }
     report["stage2"] = stageTwoJson(r2, *rest.grid, o.stage2);
-    report["timingsMs"]["stage2"] = r2.msTotal;
+    report["timingsMs"]["stage2"] = r2.msTotal + rejectedMs;
+    if (start.change) report["stage2"]["start"] = rejectedStart ? "cold" : "warm";
+    if (rejectedStart) report["stage2"]["warmEnergy"] = *rejectedStart;
     if (o.evalEvery > 0) report["stage2"]["eval_curve"] = curve;
     if (errors.judge) errors.record(fitted, "Stage II", report["stage2"]);
     return fitted;

@@ -19,6 +19,7 @@
 #include "deform/StageOne.h"
 #include "deform/StageOneDevice.h"
 #include "io/GaussianIO.h"
+#include "stage2/StageTwo.h"
 #include "stage2/StageTwoOptions.h"
 
 namespace splatwarp {
@@ -81,15 +82,23 @@ struct FrameOutputs {
     std::string baseline, deformed, vdb, compare, report;
 };
 
-/// @brief Changes Stage II's starting model `start` (a copy of stage1.deformed) before the fit.
-using StageTwoStart = std::function<void(const StageOneResult& stage1, GaussianCloud& start)>;
+/// @brief Another start for Stage II than Stage I's model (animate's warm start), with a check
+///        that can send the frame back to the cold start after seeing the fit.
+struct StageTwoStart {
+    /// Changes Stage II's starting model `start` (a copy of stage1.deformed) before the fit.
+    std::function<void(const StageOneResult& stage1, GaussianCloud& start)> change;
+    /// Sees the fit from the changed start; true: fit again from stage1.deformed and keep that fit.
+    /// The report's "stage2" then says "start": "cold" and gives the rejected start's "warmEnergy".
+    std::function<bool(const StageTwoReport& fit)> rejects;
+};
 
 /// @brief Solve the spec from the rest pose, run Stage I, warp a copy of the rest samples, run
 ///        Stage II, evaluate and write the outputs; returns the report (written to out.report
 ///        when set). The bytes of every output depend on the rest side and the spec only.
 ///        `written` (optional) receives the last model written (Stage II, or Stage I with stage1Only).
 ///        `start` (optional) changes Stage II's starting model, a copy of Stage I's (animate's warm
-///        start); the bytes then depend on it too. Not called when Stage II is skipped (a rigid spec).
+///        start; report "stage2" "start": "warm" or "cold"); the bytes then depend on it too. Not
+///        called when Stage II is skipped (a rigid spec).
 nlohmann::json runDeformFrame(DeformRest& rest, const DeformSpec& spec, const DeformJobOptions& options,
                               const FrameOutputs& out, GaussianCloud* written = nullptr, const StageTwoStart& start = {});
 

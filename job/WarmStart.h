@@ -3,7 +3,8 @@
 /// @brief Stage II warm start for `animate --warm-start`: frames run in pairs (2k, 2k+1); the even
 ///        frame starts Stage II at its Stage I model as `deform` does, the odd frame at its Stage I
 ///        model plus the even frame's Stage II correction (fitted minus Stage I, per parameter; a
-///        relative rotation for the quaternions). Measured on the stripes bend in
+///        relative rotation for the quaternions), unless that start is far worse than the even frame's
+///        fit (rejectsWarmStart: then it starts cold too). Measured on the stripes bend in
 ///        docs/animation-study.md: longer chains drift (each warm frame keeps the last one's local
 ///        optimum), pairs do not.
 #include <cstdint>
@@ -20,6 +21,16 @@ constexpr int kWarmChain = 2;
 /// @brief Whether frame f starts from frame f-1's correction (absolute frame numbers, so a frame's
 ///        bytes never depend on --frames, the shard or a resume).
 inline bool startsWarm(int frame) { return frame % kWarmChain != 0; }
+
+/// @brief An odd frame goes back to the cold start when its warm start's training energy exceeds
+///        this many times the even frame's fitted energy. On the stripes bend (docs/animation-study.md)
+///        the ratio was 2.08 on frame 7 (judged error +9.8% against cold) and 1.01-1.21 on frames
+///        17-23 (-0.5% to -5%); Stage I energies there are 4-7x the fitted ones.
+constexpr double kWarmEnergyLimit = 1.5;
+
+/// @brief Whether a warm start of training energy `warmStart` is rejected after a frame before
+///        fitted to `previousFit` (ties and below: kept).
+inline bool rejectsWarmStart(double warmStart, double previousFit) { return !(warmStart <= kWarmEnergyLimit * previousFit); }
 
 /// @brief What Stage II changed on each Gaussian of one frame (zero where it did not move).
 struct StageTwoCorrection {

@@ -3,10 +3,14 @@
 #include <cmath>
 #include <set>
 
+#include "DeformPipeline.h"
 #include "WarmStart.h"
 #include "demo/DemoModels.h"
+#include "io/GaussianIO.h"
+#include "support/TestSupport.h"
 
 using namespace splatwarp;
+using namespace splatwarp::test;
 
 TEST(WarmStart, ACorrectionCarriedOntoItsOwnStageOneModelGivesTheFit)
 {
@@ -74,4 +78,70 @@ TEST(WarmStart, OddFramesStartWarmAndShardsTakeContiguousRangesOfWholePairs)
     for (int i = 0; i < 6; ++i)
         for (int f : warmShardFrames(range, shard(i, 6))) EXPECT_TRUE(all.insert(f).second) << f;
     EXPECT_EQ(all.size(), range.size());
+}
+
+TEST(WarmStart, AStartFarAboveTheFrameBeforesFitIsRejectedTiesAreKept)
+{
+    EXPECT_FALSE(rejectsWarmStart(kWarmEnergyLimit * 100.0, 100.0));
+    EXPECT_FALSE(rejectsWarmStart(50.0, 100.0));
+    EXPECT_TRUE(rejectsWarmStart(kWarmEnergyLimit * 100.0 * 1.0001, 100.0));
+    EXPECT_TRUE(rejectsWarmStart(std::nan(""), 100.0));
+}
+
+namespace {
+
+/// A small stripes bar bent by the sample spec, few iterations (about a second a fit).
+DeformJobOptions smallBend(const TempDir& dir)
+{
+    DemoModelOptions so;
+    so.count = 1500;
+    writePly(dir.file("in.ply"), makeDemoModel("stripes", so));
+    DeformJobOptions o;
+    o.input = dir.file("in.ply");
+    o.specPath = std::string(SPLATWARP_SOURCE_DIR) + "/samples/specs/bend.json";
+    o.nodes = 48;
+    o.grid.cells = 12;
+    o.stage2.iterations = 3;
+    o.heldOut.points = 3000;
+    return o;
+}
+
+/// Where a frame writes only its fitted model.
+FrameOutputs fittedTo(const std::string& path)
+{
+    FrameOutputs out;
+    out.deformed = path;
+    return out;
+}
+
+} // namespace
+
+TEST(WarmStart, AWarmStartWorseThanTheLimitFallsBackToTheColdStartsBytes)
+{
+    TempDir dir;
+    const DeformJobOptions o = smallBend(dir);
+    std::unique_ptr<DeformRest> rest = prepareDeformRest(o, graphOptionsOf(loadDeformSpec(o.specPath), o));
+    const DeformSpec spec = loadDeformSpec(o.specPath);
+    const nlohmann::json coldReport = runDeformFrame(*rest, spec, o, fittedTo(dir.file("cold.ply")));
+    ASSERT_FALSE(coldReport["stage2"].contains("start")); // deform's report is unchanged
+    const double coldFit = coldReport["stage2"]["bestEnergy"].get<double>();
+    // A correction made deliberately wrong: every moving Gaussian's opacity logit pushed far up.
+    auto rejectsLikeAnimate = [&](const StageTwoReport& fit) {
+        return rejectsWarmStart(fit.energies.front().total, coldFit);
+    };
+    StageTwoStart wrong{[](const StageOneResult& s1, GaussianCloud& m) {
+                            for (std::size_t i = 0; i < m.size(); ++i)
+                                if (s1.moving[i]) m.opacities[i] += 6.0f;
+                        },
+                        rejectsLikeAnimate};
+    const nlohmann::json r = runDeformFrame(*rest, spec, o, fittedTo(dir.file("fellBack.ply")), nullptr, wrong);
+    EXPECT_EQ(r["stage2"]["start"], "cold");
+    EXPECT_GT(r["stage2"]["warmEnergy"].get<double>(), kWarmEnergyLimit * coldFit);
+    EXPECT_EQ(fileBytes(dir.file("fellBack.ply")), fileBytes(dir.file("cold.ply")));
+    // A start that is not rejected is fitted once and reported as the warm one.
+    StageTwoStart same{[](const StageOneResult&, GaussianCloud&) {}, [](const StageTwoReport&) { return false; }};
+    const nlohmann::json k = runDeformFrame(*rest, spec, o, fittedTo(dir.file("kept.ply")), nullptr, same);
+    EXPECT_EQ(k["stage2"]["start"], "warm");
+    EXPECT_FALSE(k["stage2"].contains("warmEnergy"));
+    EXPECT_EQ(fileBytes(dir.file("kept.ply")), fileBytes(dir.file("cold.ply")));
 }
