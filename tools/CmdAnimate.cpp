@@ -60,8 +60,9 @@ const CommandRegistrar reg(35, [](CLI::App& app) {
     sub->add_flag("--render", job.render, "Also write preview/frame.0000.png ... and preview/strip.png (all frames side by side)");
     sub->add_flag("--warm-start", args->warmStart,
                   "Frames in pairs (2k, 2k+1): Stage II of each odd frame starts from the even frame's fit carried onto its "
-                  "Stage I model (even frames stay equal to deform); on the 24-frame stripes bend 1.69x less CPU per frame, "
-                  "mean judged error 1.4% lower, frame 7 +10% (docs/animation-study.md). Shards then take contiguous ranges of pairs; a frame whose "
+                  "Stage I model (even frames stay equal to deform), unless that start's training energy is over 1.9x the even "
+                  "frame's fit: then it starts cold too (the manifest says which start each frame used). Less CPU per frame, "
+                  "measured in docs/animation-study.md. Shards then take contiguous ranges of pairs; a frame whose "
                   "predecessor was not computed in this run recomputes it (not written)")
         ->excludes(sub->get_option("--stage1-only"));
     sub->add_flag("--zip", args->zip, "Also write sequence.zip of the frame PLYs (by a whole run, or by --merge)");
