@@ -223,6 +223,7 @@ SequenceResult runAnimateJob(const AnimateJobOptions& options)
     json settings = settingsJson(o);
     if (options.warmStart) { // frames in pairs, shards over contiguous ranges of pairs
         settings["warmStart"] = kWarmChain;
+        settings["warmLimit"] = kWarmEnergyLimit; // changes which start odd frames use, so their bytes
         const std::vector<int> mine = warmShardFrames(run.items, options.shard);
         run.owns = [mine = std::set<int>(mine.begin(), mine.end())](int f) { return mine.count(f) > 0; };
     }
