@@ -165,11 +165,14 @@ void BlockCoverage::build(const SampleBlocks& blocks, const float* lo, const flo
     if (mPerGaussian.size() != g) keep = nullptr;
     mPerGaussian.resize(g);
     parallelForRange(g, 64, threaded, [&](std::size_t k0, std::size_t k1) {
-        std::vector<std::uint32_t> candidates;
+        // Found into scratch, then copied: one allocation of the right size per Gaussian (growing
+        // 42k lists by push_back cost the donut's first build ~10 reallocations each).
+        std::vector<std::uint32_t> candidates, found;
         for (std::size_t k = k0; k < k1; ++k) {
             if (keep && keep[k]) continue;
-            mIndex.blocksMeeting(blocks, lo + 3 * k, hi + 3 * k, slabs ? slabs + k : nullptr, candidates, mPerGaussian[k]);
-            std::sort(mPerGaussian[k].begin(), mPerGaussian[k].end());
+            mIndex.blocksMeeting(blocks, lo + 3 * k, hi + 3 * k, slabs ? slabs + k : nullptr, candidates, found);
+            std::sort(found.begin(), found.end());
+            mPerGaussian[k].assign(found.begin(), found.end());
         }
     });
     flatten(blocks.count(), g, threaded);
