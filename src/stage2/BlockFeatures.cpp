@@ -48,8 +48,8 @@ FeatureStats evaluateBlockFeatures(const GaussianCloud& cloud, const float* poin
         slabs[i] = preparedSlabs(cloud, i, prepared[i], double(options.filterVariance));
     });
     const SampleBlocks blocks = SampleBlocks::build(points, cell, m);
-    BlockCoverage coverage;
-    coverage.build(blocks, lo.data(), hi.data(), slabs.data(), n, options.threaded);
+    BlockCoverage coverage(blocks);
+    coverage.build(lo.data(), hi.data(), slabs.data(), n, options.threaded);
     const int stride = cloud.shStride();
     std::vector<std::uint64_t> tested(blocks.count()), counted(blocks.count());
     parallelFor(blocks.count(), 4, options.threaded, [&](std::size_t b) {

@@ -131,6 +131,7 @@ CpuSolver::CpuSolver(const GaussianCloud& cloud, const SampleSet& samples, const
     std::vector<std::int32_t> cells(mS);
     for (std::size_t j = 0; j < mS; ++j) cells[j] = samples.sampleCell[mSetup.used[j]];
     mBlocks = SampleBlocks::build(mSetup.x.data(), cells.data(), mS);
+    mCoverage = BlockCoverage(mBlocks);
     const std::size_t n = mG * std::size_t(mPerG);
     mParams.resize(n);
     for (std::size_t k = 0; k < mG; ++k) packGaussian(cloud, mSetup.moving[k], mParams.data() + k * std::size_t(mPerG));
@@ -172,8 +173,8 @@ void CpuSolver::evaluateStatic(const GaussianCloud& cloud, const std::vector<std
         stageTwoCoverageBox(p, mSetup.filter[i], 0, 0.0, mOptions, &lo[3 * i], &hi[3 * i]);
         stageTwoCoverageSlabs(p, mSetup.filter[i], 0, 0.0, mOptions, slabs[i]);
     });
-    BlockCoverage coverage;
-    coverage.build(mBlocks, lo.data(), hi.data(), slabs.data(), n, mOptions.threaded);
+    BlockCoverage coverage(mBlocks);
+    coverage.build(lo.data(), hi.data(), slabs.data(), n, mOptions.threaded);
     mStaticF.assign(mBlocks.slots() * stride, 0.0f);
     mStaticO.assign(mBlocks.slots(), 0.0f);
     mStaticBlock.assign(nb, 0);
@@ -230,7 +231,7 @@ void CpuSolver::rebuildCoverage(int iteration, bool onlyEscaped)
         stageTwoCoverageBox(p, filter, steps, move, mOptions, &mBoxLo[3 * k], &mBoxHi[3 * k]);
         stageTwoCoverageSlabs(p, filter, steps, move, mOptions, mSlabs[k]);
     });
-    mCoverage.build(mBlocks, mBoxLo.data(), mBoxHi.data(), mSlabs.data(), mG, mOptions.threaded, keep);
+    mCoverage.build(mBoxLo.data(), mBoxHi.data(), mSlabs.data(), mG, mOptions.threaded, keep);
 }
 
 bool CpuSolver::coverageHolds()

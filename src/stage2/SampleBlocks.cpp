@@ -150,18 +150,14 @@ void BlockIndex::blocksMeeting(const SampleBlocks& blocks, const float* lo, cons
     }
 }
 
-void BlockCoverage::build(const SampleBlocks& blocks, const float* lo, const float* hi, const CoverageSlabs* slabs,
-                          std::size_t g, bool threaded, const std::uint8_t* keep)
+void BlockCoverage::build(const float* lo, const float* hi, const CoverageSlabs* slabs, std::size_t g, bool threaded,
+                          const std::uint8_t* keep)
 {
     // Gaussian-major: each Gaussian asks the block index (built once: blocks never move) for the
     // blocks its box and slabs meet. The per-block search it replaces tested ~8 scattered
     // Gaussians per pair kept (donut: 47 M candidates for 7 M pairs).
-    if (mIndexed != &blocks || mIndexedCount != blocks.count()) {
-        keep = nullptr; // nothing of another set of blocks can be kept
-        mIndex = BlockIndex(blocks);
-        mIndexed = &blocks;
-        mIndexedCount = blocks.count();
-    }
+    if (!mBlocks) throw Error("BlockCoverage::build without blocks");
+    const SampleBlocks& blocks = *mBlocks;
     if (mPerGaussian.size() != g) keep = nullptr;
     mPerGaussian.resize(g);
     parallelForRange(g, 64, threaded, [&](std::size_t k0, std::size_t k1) {

@@ -64,12 +64,17 @@ private:
 ///        every sum runs in a fixed order for any thread count.
 class BlockCoverage {
 public:
+    BlockCoverage() = default;
+    /// @brief Coverage over these blocks (kept by reference: they must outlive it and never
+    ///        move, as within a Stage II run); their centres are indexed once, here.
+    explicit BlockCoverage(const SampleBlocks& blocks) : mBlocks(&blocks), mIndex(blocks) {}
+
     /// @param lo,hi  [g,3] padded coverage boxes (empty, hi < lo: nothing)
     /// @param slabs  [g] coverage slabs (a block must also meet all three)
     /// @param keep   [g] or null: where set, the Gaussian keeps its blocks of the last build (of
-    ///               the same blocks and g)
-    void build(const SampleBlocks& blocks, const float* lo, const float* hi, const CoverageSlabs* slabs, std::size_t g,
-               bool threaded, const std::uint8_t* keep = nullptr);
+    ///               the same g)
+    void build(const float* lo, const float* hi, const CoverageSlabs* slabs, std::size_t g, bool threaded,
+               const std::uint8_t* keep = nullptr);
 
     std::uint64_t pairCount() const { return mBlockItems.size(); }
     /// @brief Pairs of Gaussian k: blockEntryOf()[gaussianOffsets()[k] .. gaussianOffsets()[k+1]).
@@ -83,9 +88,8 @@ public:
 private:
     void flatten(std::size_t nb, std::size_t g, bool threaded);
 
-    BlockIndex mIndex; ///< of the blocks last built for (they do not move within a run)
-    const SampleBlocks* mIndexed = nullptr;
-    std::size_t mIndexedCount = 0;
+    const SampleBlocks* mBlocks = nullptr;
+    BlockIndex mIndex; ///< of *mBlocks
     std::vector<std::vector<std::uint32_t>> mPerGaussian; ///< per Gaussian its blocks, reused between rebuilds
     std::vector<std::uint64_t> mGaussianOffsets, mBlockOffsets;
     BigVector<std::uint32_t> mBlockItems, mBlockEntryOf;
