@@ -198,6 +198,29 @@ int writeFrameSpecs(const AnimateJobOptions& options)
     return last - options.first + 1;
 }
 
+namespace {
+
+/// A frame's manifest entry from its deform report: files, timings, field errors and, with
+/// --warm-start, which start it used and why.
+json manifestEntry(const json& report, const json& files)
+{
+    json entry = {{"files", files}, {"timingsMs", report["timingsMs"]}};
+    if (report.contains("stage1") && report["stage1"].contains("field_error"))
+        entry["field_error"]["stage1"] = report["stage1"]["field_error"];
+    if (report.contains("stage2") && report["stage2"].contains("field_error"))
+        entry["field_error"]["stage2"] = report["stage2"]["field_error"];
+    if (report.contains("stage2") && report["stage2"].contains("start")) {
+        const json& s2 = report["stage2"];
+        entry["start"] = s2["start"];
+        if (s2.contains("warmLimit"))
+            entry["warmStart"] = {{"energy", s2.value("warmEnergy", s2["energies"][0]["total"].get<double>())},
+                                  {"limit", s2["warmLimit"]}};
+    }
+    return entry;
+}
+
+} // namespace
+
 SequenceResult runAnimateJob(const AnimateJobOptions& options)
 {
     const DeformJobOptions& o = options.deform;
@@ -251,19 +274,7 @@ SequenceResult runAnimateJob(const AnimateJobOptions& options)
             render.device = rest->device;
             writePng(png, renderGaussiansOn(frame, camera, render));
         }
-        json entry = {{"files", files}, {"timingsMs", report["timingsMs"]}};
-        if (report.contains("stage1") && report["stage1"].contains("field_error"))
-            entry["field_error"]["stage1"] = report["stage1"]["field_error"];
-        if (report.contains("stage2") && report["stage2"].contains("field_error"))
-            entry["field_error"]["stage2"] = report["stage2"]["field_error"];
-        if (report.contains("stage2") && report["stage2"].contains("start")) { // --warm-start: which start, and why
-            const json& s2 = report["stage2"];
-            entry["start"] = s2["start"];
-            if (s2.contains("warmLimit"))
-                entry["warmStart"] = {{"energy", s2.value("warmEnergy", s2["energies"][0]["total"].get<double>())},
-                                      {"limit", s2["warmLimit"]}};
-        }
-        return entry;
+        return manifestEntry(report, files);
     };
     SequenceResult result = runSequence(run, runFrame, frameSummary);
     if (options.shard.whole() && result.failed == 0) finishSequence(o.outDir, run.items, options.zip, o.stage1Only);
