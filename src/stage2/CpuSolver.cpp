@@ -165,13 +165,17 @@ void CpuSolver::evaluateStatic(const GaussianCloud& cloud, const std::vector<std
     std::vector<ChunkBound> bounds(n);
     std::vector<float> lo(3 * n, 1.0f), hi(3 * n, 0.0f); // moving: empty boxes, never listed
     std::vector<CoverageSlabs> slabs(n);
+    // Nothing checks a static Gaussian's coverage later (it never moves), so its margin is never
+    // below the default's, whatever a test sets for the moving ones (a negative pad forces escapes).
+    StageTwoOptions o = mOptions;
+    o.coveragePad = std::max(o.coveragePad, StageTwoOptions().coveragePad);
     parallelFor(n, 1024, mOptions.threaded, [&](std::size_t i) {
         if (moving[i]) return;
         const GaussianParams<double> p = gaussianParamsOf(cloud, i);
         prepared[i] = PreparedGaussian::from(prepareParams(p, mSetup.filter[i], double(mOptions.cutoff)));
         bounds[i] = ChunkBound::of(prepared[i]);
-        stageTwoCoverageBox(p, mSetup.filter[i], 0, 0.0, mOptions, &lo[3 * i], &hi[3 * i]);
-        stageTwoCoverageSlabs(p, mSetup.filter[i], 0, 0.0, mOptions, slabs[i]);
+        stageTwoCoverageBox(p, mSetup.filter[i], 0, 0.0, o, &lo[3 * i], &hi[3 * i]);
+        stageTwoCoverageSlabs(p, mSetup.filter[i], 0, 0.0, o, slabs[i]);
     });
     BlockCoverage coverage(mBlocks);
     coverage.build(lo.data(), hi.data(), slabs.data(), n, mOptions.threaded);
