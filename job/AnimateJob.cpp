@@ -85,6 +85,25 @@ void finishSequence(const std::string& dir, const json& items, bool zip, bool st
     writeZip((fs::path(dir) / "sequence.zip").string(), dir, files);
 }
 
+/// A frame's manifest entry from its deform report: files, timings, field errors and, with
+/// --warm-start, which start it used and why.
+json manifestEntry(const json& report, const json& files)
+{
+    json entry = {{"files", files}, {"timingsMs", report["timingsMs"]}};
+    if (report.contains("stage1") && report["stage1"].contains("field_error"))
+        entry["field_error"]["stage1"] = report["stage1"]["field_error"];
+    if (report.contains("stage2") && report["stage2"].contains("field_error"))
+        entry["field_error"]["stage2"] = report["stage2"]["field_error"];
+    if (report.contains("stage2") && report["stage2"].contains("start")) {
+        const json& s2 = report["stage2"];
+        entry["start"] = s2["start"];
+        if (s2.contains("warmLimit"))
+            entry["warmStart"] = {{"energy", s2.value("warmEnergy", s2["energies"][0]["total"].get<double>())},
+                                  {"limit", s2["warmLimit"]}};
+    }
+    return entry;
+}
+
 std::string frameSummary(const json& entry)
 {
     if (!entry.contains("field_error") || !entry["field_error"].contains("stage2")) return "written";
@@ -198,28 +217,6 @@ int writeFrameSpecs(const AnimateJobOptions& options)
     return last - options.first + 1;
 }
 
-namespace {
-
-/// A frame's manifest entry from its deform report: files, timings, field errors and, with
-/// --warm-start, which start it used and why.
-json manifestEntry(const json& report, const json& files)
-{
-    json entry = {{"files", files}, {"timingsMs", report["timingsMs"]}};
-    if (report.contains("stage1") && report["stage1"].contains("field_error"))
-        entry["field_error"]["stage1"] = report["stage1"]["field_error"];
-    if (report.contains("stage2") && report["stage2"].contains("field_error"))
-        entry["field_error"]["stage2"] = report["stage2"]["field_error"];
-    if (report.contains("stage2") && report["stage2"].contains("start")) {
-        const json& s2 = report["stage2"];
-        entry["start"] = s2["start"];
-        if (s2.contains("warmLimit"))
-            entry["warmStart"] = {{"energy", s2.value("warmEnergy", s2["energies"][0]["total"].get<double>())},
-                                  {"limit", s2["warmLimit"]}};
-    }
-    return entry;
-}
-
-} // namespace
 
 SequenceResult runAnimateJob(const AnimateJobOptions& options)
 {

@@ -41,12 +41,12 @@ inline void addCoverageOptions(CLI::App* sub, StageTwoOptions& stageTwo)
                     "Stage II coverage (which Gaussians may touch which samples) holds what a Gaussian can reach in "
                     "this many steps; rebuilt when one leaves it. Speed only: results are the same")
         ->capture_default_str()
-        ->check(CLI::Range(1, 1000));
+        ->check(inRange(1, 1000));
     sub->add_option("--rebuild-every", stageTwo.rebuildEvery,
                     "Also rebuild the Stage II coverage every K iterations (0: only when a Gaussian leaves it). Speed "
                     "only: results are the same")
         ->capture_default_str()
-        ->check(CLI::Range(0, 1000000));
+        ->check(inRange(0, 1000000));
 }
 
 } // namespace splatwarp::cli

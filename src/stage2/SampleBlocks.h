@@ -48,7 +48,6 @@ class BlockIndex {
 public:
     BlockIndex() = default;
     explicit BlockIndex(const SampleBlocks& blocks);
-    std::size_t cells() const { return mBins.cellCount(); }
 
     /// @brief The blocks whose bounds meet the box [lo, hi] and (when given) the slabs, into out
     ///        (in no particular order); `candidates` is scratch. An empty box meets none.
