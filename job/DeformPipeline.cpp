@@ -40,6 +40,8 @@ nlohmann::json stageTwoJson(const StageTwoReport& r, const SampleGrid& grid, con
             {"activeCells", grid.stats().cells},
             {"skippedCells", grid.stats().skippedCells},
             {"samples", grid.stats().samples},
+            {"fineCells", grid.stats().fineCells},
+            {"fineSamplesAdded", grid.stats().fineSamplesAdded},
             {"samplesUsed", r.samplesUsed},
             {"pairsPerIteration", pairsPerIteration},
             {"pairsPerSecond", r.msForward + r.msBackward > 0 ? pairs / ((r.msForward + r.msBackward) / 1000.0) : 0.0},
@@ -55,7 +57,8 @@ nlohmann::json stageTwoJson(const StageTwoReport& r, const SampleGrid& grid, con
              {{"iterations", o.iterations}, {"lambdaOpacity", o.lambdaOpacity}, {"boundaryWeight", o.boundaryWeight},
               {"lowPassFilter", o.lowPassFilter}, {"lambdaLpf", o.lambdaLpf}, {"coverageSteps", o.coverageSteps}, {"rebuildEvery", o.rebuildEvery},
               {"cutoff", o.cutoff}, {"rejectSteps", o.rejectSteps}, {"stallStop", o.stallStop},
-              {"keepBest", o.keepBest}}},
+              {"keepBest", o.keepBest}, {"fineBelow", grid.options().fineBelow},
+              {"fineNeighbours", grid.options().fineNeighbours}}},
             {"timingsMs",
              {{"setup", r.msSetup}, {"coverage", r.msCoverage}, {"forward", r.msForward}, {"backward", r.msBackward},
               {"update", r.msUpdate}, {"total", r.msTotal}}}};
@@ -81,6 +84,7 @@ void writeExtras(const DeformRest& rest, const GaussianCloud& stage1, const Gaus
     if (!out.vdb.empty()) {
         SampleGridOptions gridOptions = o.grid;
         gridOptions.device = rest.device;
+        gridOptions.fineBelow = 0.0f; // field.vdb is one uniform lattice, as `to-vdb` writes
         const SampleGrid fieldGrid = runStage("field.vdb sample grid", [&] { return SampleGrid(fitted, gridOptions); });
         VdbExportOptions vo;
         vo.source = out.deformed;

@@ -37,12 +37,17 @@ __global__ void warpSamplesKernel(std::size_t n, const NodeAffine* affines, cons
     rotateSampleFeatures(*tables, rotations + 9 * p, shDegree, features + p * stride);
 }
 
-/// One thread per cell: F_k from the warped corner samples.
-__global__ void cellGradientKernel(std::size_t cells, const float* rest, const float* warped, int n, float* out)
+/// One thread per cell: F_k from the warped corner samples; first [C] and axis [C] give each
+/// cell's samples (SampleSet::cellFirst, cellAxis), or are null for the uniform lattice.
+__global__ void cellGradientKernel(std::size_t cells, const float* rest, const float* warped, int n,
+                                   const std::uint64_t* first, const std::uint8_t* axis, float* out)
 {
     const std::size_t c = globalIndex();
     if (c >= cells) return;
-    cellGradient(rest, warped, n, c, out + 9 * c);
+    if (first)
+        cellGradientAt(rest, warped, std::size_t(first[c]), int(axis[c]), n, out + 9 * c);
+    else
+        cellGradient(rest, warped, n, c, out + 9 * c);
 }
 
 /// One thread per point of a batch: brute-force k nearest of the J nodes and their weights.
@@ -149,7 +154,7 @@ void warpSamplesCuda(SampleSet& samples, const DeformationGraph& graph, const No
     const std::size_t m = samples.sampleCount();
     const int n = samples.samplesPerAxis;
     const std::size_t cells = samples.cellCount();
-    if (n < 2 || m != cells * std::size_t(n) * std::size_t(n) * std::size_t(n))
+    if (n < 2 || !samples.layoutConsistent())
         throw InputError("computeCellGradients: needs >= 2 samples per axis and warped positions for every cell");
     const std::size_t stride = std::size_t(samples.featureStride());
     const bool rotate = samples.shDegree > 0;
@@ -167,6 +172,12 @@ void warpSamplesCuda(SampleSet& samples, const DeformationGraph& graph, const No
         dRotations(rotate ? 9 * std::min(m, kBatch) : 0, "sample rotations");
     dRest.upload(samples.restPositions, st);
     if (rotate) dFeatures.upload(samples.targetF, st);
+    DeviceBuffer<std::uint64_t> dCellFirst("cell first samples");
+    DeviceBuffer<std::uint8_t> dCellAxis("cell samples per axis");
+    if (!samples.uniform()) {
+        dCellFirst.upload(samples.cellFirst, st);
+        dCellAxis.upload(samples.cellAxis, st);
+    }
     DeviceBuffer<std::int32_t> dNodes("skin-weight nodes");
     DeviceBuffer<float> dWeights("skin weights");
     for (std::size_t b0 = 0; b0 < m; b0 += kBatch) {
@@ -187,7 +198,8 @@ void warpSamplesCuda(SampleSet& samples, const DeformationGraph& graph, const No
         // The weight and rotation buffers are reused by the next batch: stream order keeps them apart.
     }
     launch("cellGradientKernel", cellGradientKernel, cells, st, cells, (const float*)dRest.data(),
-           (const float*)dWarped.data(), n, dGradient.data());
+           (const float*)dWarped.data(), n, samples.uniform() ? nullptr : (const std::uint64_t*)dCellFirst.data(),
+           samples.uniform() ? nullptr : (const std::uint8_t*)dCellAxis.data(), dGradient.data());
     // Download everything before touching the samples, so a failure leaves them as they were.
     std::vector<float> warped(3 * m), features, gradient(9 * cells);
     dWarped.download(warped.data(), warped.size(), st);

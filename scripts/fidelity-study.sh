@@ -2,7 +2,8 @@
 # Stage II fidelity study (issue 16): deform each model with each spec at the defaults (CPU),
 # then judge both outputs with `splatwarp eval` run separately, and print one Markdown row per
 # run: Stage I and Stage II judged errors (opacity, colour, inside, outside), the Stage II / Stage I
-# ratio, Gaussians, Stage II time, steps rejected, and whether eval printed the report's numbers.
+# ratio, Gaussians, Stage II time, steps rejected, whether eval printed the report's numbers, and
+# the deform run's CPU time (user + system) and peak RSS (GNU time).
 #   bash scripts/fidelity-study.sh OUTDIR [MODEL...]   (SPECS="bend twist" to choose specs)
 # Models default to the shared real models; extra deform flags go in DEFORM_FLAGS.
 set -euo pipefail
@@ -16,14 +17,14 @@ models=("$@")
 specs=(${SPECS:-bend twist stretch squash rigid})
 bin=build/tools/splatwarp
 mkdir -p "$out"
-echo "| model | spec | Gaussians | Stage I opacity / colour (inside, outside) | Stage II opacity / colour (inside, outside) | ratio opacity / colour | Stage II s | rejected | eval = report |"
-echo "|---|---|---|---|---|---|---|---|---|"
+echo "| model | spec | Gaussians | Stage I opacity / colour (inside, outside) | Stage II opacity / colour (inside, outside) | ratio opacity / colour | Stage II s | rejected | eval = report | deform CPU s / peak MB |"
+echo "|---|---|---|---|---|---|---|---|---|---|"
 for m in "${models[@]}"; do
   for s in "${specs[@]}"; do
     name="$(basename "${m%.*}")-$s"
     dir="$out/$name"
     # shellcheck disable=SC2086
-    "$bin" -q deform "$m" --spec "samples/specs/$s.json" -o "$dir" --device cpu ${DEFORM_FLAGS:-} > "$dir.log" 2>&1 ||
+    /usr/bin/time -o "$dir.time" -f "%U %S %M" "$bin" -q deform "$m" --spec "samples/specs/$s.json" -o "$dir" --device cpu ${DEFORM_FLAGS:-} > "$dir.log" 2>&1 ||
       { echo "| $name | failed: see $dir.log |"; continue; }
     for st in baseline deformed; do
       "$bin" -q eval --rest "$m" --spec "samples/specs/$s.json" --deformed "$dir/$st.ply" --json > "$dir/eval-$st.json"
@@ -31,6 +32,7 @@ for m in "${models[@]}"; do
     python3 - "$dir" "$(basename "$m")" "$s" <<'PY'
 import json, sys
 d, model, spec = sys.argv[1:4]
+user, system, rss_kb = open(f"{d}.time").read().split()[-3:]
 r = json.load(open(f"{d}/report.json"))
 e1, e2 = (json.load(open(f"{d}/eval-{s}.json")) for s in ("baseline", "deformed"))
 f1, f2 = r["stage1"]["field_error"], r["stage2"]["field_error"]
@@ -43,7 +45,7 @@ s2 = r["stage2"]
 moving = "Stage II skipped (rigid)" if "skipped" in s2 else f"{s2['movingGaussians']} moving"
 print(f"| {model} | {spec} | {moving} | {cell(f1)} | {cell(f2)} | "
       f"{ratio('opacity'):.3f} / {ratio('color'):.3f} | {r['timingsMs']['stage2'] / 1000:.1f} | "
-      f"{s2.get('rejectedSteps', '-')} | {same} |")
+      f"{s2.get('rejectedSteps', '-')} | {same} | {float(user) + float(system):.1f} / {int(rss_kb) / 1024:.0f} |")
 PY
   done
 done

@@ -18,7 +18,27 @@ struct DeformArgs {
     int nodes = 0, k = 0;
     std::uint32_t seed = 0;
     bool noLpf = false, noEval = false;
+    std::string fineCells = "off";
+    float fineBelow = 1.0f;
 };
+
+/// @brief --fine-cells and --fine-below (deform and animate; to-vdb keeps the uniform lattice).
+inline void addFineCellOptions(CLI::App* sub, DeformArgs& args)
+{
+    sub->add_option("--fine-cells", args.fineCells,
+                    "Finer Stage II samples where the Gaussians are small: auto gives a cell (2n)^3 samples when the "
+                    "median largest scale of the Gaussians centred in it is below --fine-below x the sample spacing h/n "
+                    "(its Gaussians' rest and Stage II filter then use the spacing h/2n); off: n^3 in every cell")
+        ->capture_default_str()
+        ->check(CLI::IsMember({"auto", "off"}));
+    sub->add_option("--fine-below", args.fineBelow,
+                    "With --fine-cells auto: the median largest Gaussian scale, in units of the spacing h/n, below which "
+                    "a cell is fine")
+        ->capture_default_str()
+        ->check(inRange(1e-3, 100.0));
+    sub->add_flag("--fine-neighbours", args.job.grid.fineNeighbours,
+                  "With --fine-cells auto: also refine the 26 neighbours of each fine cell");
+}
 
 /// @brief Every flag of a deform run except the input, --spec, -o, --vdb and --render.
 inline void addDeformOptions(CLI::App* sub, DeformArgs& args)
@@ -32,6 +52,7 @@ inline void addDeformOptions(CLI::App* sub, DeformArgs& args)
     sub->add_option("--k", args.k, "Nearest nodes per point and edges per node (overrides graph.k)")->check(inRange(1, 64));
     sub->add_option("--seed", args.seed, "Seed of the farthest-point sampling (overrides graph.seed)");
     addGridOptions(sub, job.grid);
+    addFineCellOptions(sub, args);
     sub->add_option("--iterations", job.stage2.iterations, "Stage II Adam iterations")->capture_default_str()->check(nonNegative());
     sub->add_option("--boundary-weight", job.stage2.boundaryWeight,
                     "lambda2: extra weight of |O* - O| where the target is empty (keeps Gaussians out of empty space)")
@@ -62,6 +83,7 @@ inline DeformJobOptions deformJobOptions(const DeformArgs& args, const CLI::App*
     if (sub->count("--k")) job.k = args.k;
     if (sub->count("--seed")) job.seed = args.seed;
     job.stage2.lowPassFilter = !args.noLpf;
+    job.grid.fineBelow = args.fineCells == "auto" ? args.fineBelow : 0.0f;
     job.evaluate = !args.noEval;
     return job;
 }

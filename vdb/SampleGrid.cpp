@@ -193,34 +193,119 @@ std::size_t indexCells(SampleGrid::Impl& im, const openvdb::MaskTree& topology, 
     return cells;
 }
 
-/// Samples: a cell-centred n^3 sub-lattice per cell of spacing h / n; warped = rest, gradients identity.
+/// The samples of cell c from sample s on: a cell-centred axis^3 sub-lattice of spacing h / axis;
+/// a fine cell (axis = 2n) octant by octant, n^3 each (compact blocks for Stage II).
+void placeCellSamples(SampleSet& set, const std::int32_t* ijk, std::int32_t c, int axis, double h, std::size_t s)
+{
+    const int na = set.samplesPerAxis;
+    const int run = na, octants = axis == na ? 1 : 8; // a fine cell: 8 octants of n^3
+    const double spacing = h / axis;
+    for (int o = 0; o < octants; ++o) {
+        const int off[3] = {(o >> 2) * run, ((o >> 1) & 1) * run, (o & 1) * run};
+        for (int a = 0; a < run; ++a)
+            for (int bb = 0; bb < run; ++bb)
+                for (int cc = 0; cc < run; ++cc, ++s) {
+                    set.restPositions[3 * s] = float((ijk[0] * axis + off[0] + a + 0.5) * spacing);
+                    set.restPositions[3 * s + 1] = float((ijk[1] * axis + off[1] + bb + 0.5) * spacing);
+                    set.restPositions[3 * s + 2] = float((ijk[2] * axis + off[2] + cc + 0.5) * spacing);
+                    set.sampleCell[s] = c;
+                }
+    }
+}
+
+/// Samples of every cell (SampleSet::firstSampleOf()); warped = rest, gradients identity.
 void placeSamples(SampleGrid::Impl& im, double h)
 {
     SampleSet& set = im.set;
-    const int na = set.samplesPerAxis;
-    const double spacing = h / na;
     const std::size_t cells = im.cellCoords.size() / 3;
-    const std::size_t perCell = std::size_t(na) * na * na;
-    const std::size_t m = cells * perCell;
+    const std::size_t m = set.firstSampleOf(cells);
     set.restPositions.resize(3 * m);
     set.sampleCell.resize(m);
     parallelForRange(cells, kGrain, im.options.threaded, [&](std::size_t b, std::size_t e) {
-        for (std::size_t c = b; c < e; ++c) {
-            const std::int32_t* ijk = &im.cellCoords[3 * c];
-            std::size_t s = c * perCell;
-            for (int a = 0; a < na; ++a)
-                for (int bb = 0; bb < na; ++bb)
-                    for (int cc = 0; cc < na; ++cc, ++s) {
-                        set.restPositions[3 * s] = float((ijk[0] * na + a + 0.5) * spacing);
-                        set.restPositions[3 * s + 1] = float((ijk[1] * na + bb + 0.5) * spacing);
-                        set.restPositions[3 * s + 2] = float((ijk[2] * na + cc + 0.5) * spacing);
-                        set.sampleCell[s] = std::int32_t(c);
-                    }
-        }
+        for (std::size_t c = b; c < e; ++c)
+            placeCellSamples(set, &im.cellCoords[3 * c], std::int32_t(c), set.axisOf(c), h, set.firstSampleOf(c));
     });
     set.warpedPositions = set.restPositions;
     set.cellGradient.assign(9 * cells, 0.0f);
     for (std::size_t c = 0; c < cells; ++c) set.cellGradient[9 * c] = set.cellGradient[9 * c + 4] = set.cellGradient[9 * c + 8] = 1.0f;
+}
+
+/// Cells whose Gaussians are small (SampleGridOptions::fineBelow): the median over the Gaussians
+/// centred in the cell of their largest scale is below fineBelow x h/n.
+std::vector<std::uint8_t> smallCells(const SampleGrid::Impl& im, const GaussianCloud& cloud, double h)
+{
+    const std::size_t cells = im.cellCoords.size() / 3;
+    std::vector<std::size_t> start(cells + 1, 0);
+    for (const std::int32_t c : im.gaussianCell) ++start[std::size_t(c) + 1];
+    for (std::size_t c = 0; c < cells; ++c) start[c + 1] += start[c];
+    std::vector<float> largest(cloud.size());
+    std::vector<std::size_t> at(start.begin(), start.end() - 1);
+    for (std::size_t i = 0; i < cloud.size(); ++i) {
+        const Vec3f sc = cloud.scale(i);
+        largest[at[std::size_t(im.gaussianCell[i])]++] = std::max(sc.x, std::max(sc.y, sc.z));
+    }
+    const double below = double(im.options.fineBelow) * h / im.options.samplesPerAxis;
+    std::vector<std::uint8_t> small(cells, 0);
+    for (std::size_t c = 0; c < cells; ++c) {
+        if (start[c + 1] == start[c]) continue;
+        const auto first = largest.begin() + std::ptrdiff_t(start[c]), last = largest.begin() + std::ptrdiff_t(start[c + 1]);
+        const auto mid = first + (last - first) / 2;
+        std::nth_element(first, mid, last);
+        small[c] = double(*mid) < below ? 1 : 0;
+    }
+    return small;
+}
+
+/// Per-cell resolution (SampleSet::cellAxis, cellFirst) when fine cells are asked for and found;
+/// the set stays uniform otherwise (the same samples, bit for bit, as without the option).
+void chooseFineCells(SampleGrid::Impl& im, const GaussianCloud& cloud, double h, int shDegree)
+{
+    const SampleGridOptions& o = im.options;
+    if (!(o.fineBelow > 0.0f)) return;
+    std::vector<std::uint8_t> fine = smallCells(im, cloud, h);
+    const std::size_t cells = fine.size();
+    if (o.fineNeighbours) {
+        const std::vector<std::uint8_t> small = fine;
+        openvdb::Int32Grid::ConstAccessor acc = im.index->getConstAccessor();
+        for (std::size_t c = 0; c < cells; ++c) {
+            if (!small[c]) continue;
+            const std::int32_t* ijk = &im.cellCoords[3 * c];
+            for (int d = 0; d < 27; ++d) {
+                const std::int32_t k = acc.getValue(openvdb::Coord(ijk[0] + d / 9 - 1, ijk[1] + (d / 3) % 3 - 1, ijk[2] + d % 3 - 1));
+                if (k >= 0) fine[std::size_t(k)] = 1;
+            }
+        }
+    }
+    const std::size_t count = std::size_t(std::count(fine.begin(), fine.end(), std::uint8_t(1)));
+    if (count == 0) return;
+    const int na = o.samplesPerAxis;
+    checkMemory(o, shDegree, double(cells) + 7.0 * double(count), "with its fine cells needs the equivalent of");
+    SampleSet& set = im.set;
+    set.cellAxis.resize(cells);
+    set.cellFirst.assign(cells + 1, 0);
+    for (std::size_t c = 0; c < cells; ++c) {
+        set.cellAxis[c] = std::uint8_t(fine[c] ? 2 * na : na);
+        set.cellFirst[c + 1] = set.cellFirst[c] + std::uint64_t(set.cellAxis[c]) * set.cellAxis[c] * set.cellAxis[c];
+    }
+    if (set.cellFirst[cells] > std::uint64_t(std::numeric_limits<std::int32_t>::max()))
+        throw InputError(msg("sample grid: ", set.cellFirst[cells], " samples with the fine cells is too many; use fewer cells or no fine cells"));
+    im.stats.fineCells = count;
+    im.stats.fineSamplesAdded = std::size_t(set.cellFirst[cells]) - cells * std::size_t(na) * na * na;
+}
+
+/// The model whose targets under the fine filter lambda (h/2n)^2 equal the per-Gaussian rest
+/// filter: the Gaussians of coarse cells widened by lambda ((h/n)^2 - (h/2n)^2) on every axis
+/// (an isotropic filter adds its variance to each of the Gaussian's own axes).
+GaussianCloud filterWidenedCloud(const SampleGrid::Impl& im, const GaussianCloud& cloud, double coarse, double fine)
+{
+    GaussianCloud out = cloud;
+    const double extra = coarse - fine;
+    parallelFor(cloud.size(), kGrain, im.options.threaded, [&](std::size_t i) {
+        if (im.set.axisOf(std::size_t(im.gaussianCell[i])) != im.set.samplesPerAxis) return;
+        const Vec3d v = clampedVariances(Vec3d(cloud.scale(i)));
+        for (int a = 0; a < 3; ++a) out.logScales[3 * i + std::size_t(a)] = float(0.5 * std::log(v[a] + extra));
+    });
+    return out;
 }
 
 /// Cell of each Gaussian's centre (active: its box, which contains the centre, was activated).
@@ -316,15 +401,25 @@ SampleGrid::SampleGrid(const GaussianCloud& cloud, const SampleGridOptions& opti
     const openvdb::MaskTree::Ptr topology =
         activeCells(im, prepareCloud(cloud, filterVariance, options.cutoff, options.threaded), h, cloud.shDegree);
     im.stats.cells = indexCells(im, *topology, h, cloud.shDegree);
-    placeSamples(im, h);
     locateGaussians(im, cloud);
+    chooseFineCells(im, cloud, h, cloud.shDegree);
+    placeSamples(im, h);
     im.stats.samples = im.set.sampleCell.size();
     im.stats.topologyMs = watch.ms();
     progress(msg("sample grid: ", im.stats.cells, " cells of ", h, " (", options.samplesPerAxis, "^3 samples each, ",
                  im.stats.samples, " samples) in ", int(im.stats.topologyMs), " ms"));
+    if (!im.set.uniform())
+        progress(msg("sample grid: ", im.stats.fineCells, " fine cells (", 2 * options.samplesPerAxis, "^3 samples: ",
+                     im.stats.fineSamplesAdded, " samples added)"));
 
     watch.reset();
-    evaluateTargets(im, cloud, filterVariance);
+    if (im.set.uniform()) {
+        evaluateTargets(im, cloud, filterVariance);
+    } else {
+        const double fine = filterVariance / 4.0;
+        evaluateTargets(im, filterWidenedCloud(im, cloud, filterVariance, fine), fine);
+        im.targetOptions.filterVariance = float(filterVariance); // the coarse cells' (see targetOptions())
+    }
     im.stats.featuresMs = watch.ms();
     im.computeCellSkip();
     progress(msg("sample grid: rest targets on ", deviceName(im.stats.device), " in ", int(im.stats.featuresMs), " ms; ",
@@ -334,12 +429,11 @@ SampleGrid::SampleGrid(const GaussianCloud& cloud, const SampleGridOptions& opti
 void SampleGrid::Impl::computeCellSkip()
 {
     const std::size_t cells = cellCoords.size() / 3;
-    const std::size_t perCell = std::size_t(set.samplesPerAxis) * set.samplesPerAxis * set.samplesPerAxis;
     const std::size_t stride = std::size_t(set.featureStride());
     std::vector<std::uint8_t> nonZero(cells, 0);
     parallelForRange(cells, kGrain, options.threaded, [&](std::size_t b, std::size_t e) {
         for (std::size_t c = b; c < e; ++c) {
-            const std::size_t s0 = c * perCell, s1 = s0 + perCell;
+            const std::size_t s0 = set.firstSampleOf(c), s1 = set.firstSampleOf(c + 1);
             bool any = std::any_of(set.targetO.begin() + s0, set.targetO.begin() + s1, [](float v) { return v != 0.0f; });
             any = any || std::any_of(set.targetF.begin() + s0 * stride, set.targetF.begin() + s1 * stride,
                                      [](float v) { return v != 0.0f; });

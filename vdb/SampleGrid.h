@@ -43,6 +43,13 @@ struct SampleGridOptions {
     /// Refuse (InputError naming the flags and the estimate) a grid whose host memory, estimated
     /// from the cell count before the per-sample arrays are allocated, exceeds this (0 = no limit).
     std::size_t maxMemoryBytes = 0;
+    /// Finer samples where the Gaussians are small (0: off, the uniform lattice): a cell whose
+    /// Gaussians (those centred in it) have a median largest scale below fineBelow x h/n holds
+    /// (2n)^3 samples, and its Gaussians' rest filter is lambda (h/2n)^2 (SampleSet::cellAxis).
+    float fineBelow = 0.0f;
+    /// With fineBelow: also refine the active neighbours (26) of each such cell, so the small
+    /// Gaussians' footprints beyond their cell are sampled finely too.
+    bool fineNeighbours = false;
     /// Host bytes per sample that the caller's later stages add (e.g. Stage II), counted in the estimate.
     std::size_t extraBytesPerSample = 0;
 };
@@ -54,7 +61,9 @@ std::size_t sampleGridBytesPerCell(const SampleGridOptions& options, int shDegre
 /// @brief Counts and timings of a build (for progress lines, reports and the benchmark).
 struct SampleGridStats {
     std::size_t cells = 0;          ///< active cells C
-    std::size_t samples = 0;        ///< samples M = C n^3
+    std::size_t samples = 0;        ///< samples M = C n^3 + 7 n^3 per fine cell
+    std::size_t fineCells = 0;      ///< cells with (2n)^3 samples (SampleGridOptions::fineBelow)
+    std::size_t fineSamplesAdded = 0; ///< samples the fine cells add to the uniform lattice's C n^3
     std::size_t skippedCells = 0;   ///< cells with cellSkip = 1
     double topologyMs = 0.0;        ///< cell topology + index grid + sample placement
     double featuresMs = 0.0;        ///< rest targets F, O
@@ -68,6 +77,8 @@ struct SampleGridStats {
 ///          0 <= a,b,c < n, sits at ((i n + a + 1/2) s, ...) with s = h/n, i.e. on the global
 ///          lattice index (i n + a, j n + b, k n + c). Cells are numbered in the (deterministic)
 ///          leaf order of the OpenVDB index grid; sample m of cell c is c n^3 + (a n + b) n + cc.
+///          With fine cells (options.fineBelow) a fine cell holds the (2n)^3 samples of spacing
+///          h/2n, octant by octant, from SampleSet::cellFirst[c] (SampleSet::firstSampleOf()).
 class SampleGrid {
 public:
     /// @brief Build the topology, the Int32 index grid, the rest samples and their targets.
@@ -87,7 +98,8 @@ public:
     const std::vector<std::int32_t>& gaussianCell() const;
     /// @brief [C,3] integer coordinates (i,j,k) of each cell.
     const std::vector<std::int32_t>& cellCoords() const;
-    /// @brief The feature options the rest targets were evaluated with (cutoff, rest filter).
+    /// @brief The feature options the rest targets were evaluated with (cutoff, rest filter
+    ///        lambda (h/n)^2; with fine cells their Gaussians' filter is lambda (h/2n)^2 instead).
     const FeatureOptions& targetOptions() const;
     /// @brief The Int32 index grid converted to NanoVDB (the index of each cell of cellCoords(),
     ///        background -1), for the GPU and other OpenVDB-free code (see field/CellTargetMath.h).

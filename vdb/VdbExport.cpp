@@ -141,6 +141,8 @@ void writeSampleGridVdb(const std::string& path, const SampleGrid& grid, const V
     vdb::initialize();
     Stopwatch watch;
     const SampleSet& set = grid.samples();
+    if (!set.uniform()) // its lattices are uniform: `deform --vdb` builds its own uniform grid
+        throw InputError(msg(path, ": a sample grid with fine cells cannot be exported (one lattice per file)"));
     const std::size_t k = std::size_t(shCoeffCount(set.shDegree));
     const std::size_t stride = std::size_t(set.featureStride());
     openvdb::math::Transform::Ptr sampleXf = latticeTransform(set.spacing);

@@ -56,13 +56,13 @@ void warpSamples(SampleSet& samples, const Deformation& deformation, bool thread
 void computeCellGradients(SampleSet& samples, bool threaded)
 {
     const int n = samples.samplesPerAxis;
-    const std::size_t perCell = std::size_t(n) * n * n;
     const std::size_t cells = samples.cellCount();
-    if (n < 2 || samples.warpedPositions.size() != 3 * cells * perCell)
+    if (n < 2 || !samples.layoutConsistent() || samples.warpedPositions.size() != samples.restPositions.size())
         throw InputError("computeCellGradients: needs >= 2 samples per axis and warped positions for every cell");
     samples.cellGradient.resize(9 * cells);
     parallelFor(cells, kGrain, threaded, [&](std::size_t c) {
-        cellGradient(samples.restPositions.data(), samples.warpedPositions.data(), n, c, &samples.cellGradient[9 * c]);
+        cellGradientAt(samples.restPositions.data(), samples.warpedPositions.data(), samples.firstSampleOf(c),
+                       samples.axisOf(c), n, &samples.cellGradient[9 * c]);
     });
 }
 

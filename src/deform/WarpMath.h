@@ -40,24 +40,32 @@ SPLATWARP_HOST_DEVICE void rotateSampleFeatures(const ShRotationTables& tables, 
     rotateSh(tables, rot, shDegree, features);
 }
 
-/// @brief F_k of cell c: least-squares affine fit of the warped positions of the cell's 8 corner
-///        samples against their rest offsets from the corners' centroid, F = (P Q^T)(Q Q^T)^-1.
-///        Samples are [cells, n^3] in (a, b, c) row-major order; out: [9] row-major.
-SPLATWARP_HOST_DEVICE void cellGradient(const float* restPositions, const float* warpedPositions, int n,
-                                        std::size_t c, float* out)
+/// @brief Sample index of corner q (bits x, y, z) of a cell of `axis` samples per axis whose
+///        samples start at `first`: (a, b, c) row-major; a fine cell (axis != base n) holds its
+///        samples octant by octant, n^3 each (SampleSet::cellAxis).
+SPLATWARP_HOST_DEVICE std::size_t cellCornerSample(std::size_t first, int axis, int base, int q)
 {
-    const std::size_t perCell = std::size_t(n) * std::size_t(n) * std::size_t(n);
+    const int qx = q >> 2, qy = (q >> 1) & 1, qz = q & 1;
+    const int n = axis == base ? axis : axis / 2; // samples per axis of one run
+    const std::size_t run = axis == base ? 0 : std::size_t(q) * std::size_t(n) * std::size_t(n) * std::size_t(n);
+    return first + run + std::size_t((qx * (n - 1) * n + qy * (n - 1)) * n + qz * (n - 1));
+}
+
+/// @brief F_k of the cell whose samples start at `first` (axis samples per axis, base n: see
+///        cellCornerSample()): least-squares affine fit of the warped positions of its 8 corner
+///        samples against their rest offsets from the corners' centroid, F = (P Q^T)(Q Q^T)^-1;
+///        out: [9] row-major.
+SPLATWARP_HOST_DEVICE void cellGradientAt(const float* restPositions, const float* warpedPositions, std::size_t first,
+                                          int axis, int base, float* out)
+{
     Vec3d rest[8], warped[8], restMean, warpedMean;
-    int q = 0;
-    for (int a = 0; a < n; a += n - 1)
-        for (int bb = 0; bb < n; bb += n - 1)
-            for (int cc = 0; cc < n; cc += n - 1, ++q) {
-                const std::size_t s = c * perCell + std::size_t((a * n + bb) * n + cc);
-                rest[q] = Vec3d(restPositions[3 * s], restPositions[3 * s + 1], restPositions[3 * s + 2]);
-                warped[q] = Vec3d(warpedPositions[3 * s], warpedPositions[3 * s + 1], warpedPositions[3 * s + 2]);
-                restMean += rest[q];
-                warpedMean += warped[q];
-            }
+    for (int q = 0; q < 8; ++q) {
+        const std::size_t s = cellCornerSample(first, axis, base, q);
+        rest[q] = Vec3d(restPositions[3 * s], restPositions[3 * s + 1], restPositions[3 * s + 2]);
+        warped[q] = Vec3d(warpedPositions[3 * s], warpedPositions[3 * s + 1], warpedPositions[3 * s + 2]);
+        restMean += rest[q];
+        warpedMean += warped[q];
+    }
     restMean *= 1.0 / 8.0;
     warpedMean *= 1.0 / 8.0;
     Mat3d pq, qq;
@@ -72,6 +80,13 @@ SPLATWARP_HOST_DEVICE void cellGradient(const float* restPositions, const float*
     const Mat3d f = pq * qq.inverse();
     for (int i = 0; i < 3; ++i)
         for (int j = 0; j < 3; ++j) out[3 * i + j] = float(f.m[i][j]);
+}
+
+/// @brief F_k of cell c of a uniform lattice: samples [cells, n^3] in (a, b, c) row-major order.
+SPLATWARP_HOST_DEVICE void cellGradient(const float* restPositions, const float* warpedPositions, int n,
+                                        std::size_t c, float* out)
+{
+    cellGradientAt(restPositions, warpedPositions, c * std::size_t(n) * std::size_t(n) * std::size_t(n), n, n, out);
 }
 
 } // namespace splatwarp

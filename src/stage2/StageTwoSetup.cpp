@@ -27,7 +27,8 @@ void validateStageTwo(const GaussianCloud& cloud, const SampleSet& s, const std:
     if (s.shDegree != cloud.shDegree)
         throw InputError(msg("Stage II: sample SH degree ", s.shDegree, " differs from the model's ", cloud.shDegree));
     if (s.warpedPositions.size() != 3 * m || s.targetF.size() != m * std::size_t(s.featureStride()) ||
-        s.sampleCell.size() != m || s.cellGradient.size() != 9 * c)
+        s.sampleCell.size() != m || s.cellGradient.size() != 9 * c ||
+        (!s.uniform() && (s.cellAxis.size() != c || s.cellFirst.size() != c + 1)))
         throw InputError("Stage II: sample set arrays have inconsistent sizes");
     if (moving.size() != cloud.size() || gaussianCell.size() != cloud.size())
         throw InputError(msg("Stage II: moving/gaussianCell have ", moving.size(), "/", gaussianCell.size(),
@@ -64,7 +65,8 @@ void selectUsedSamples(const SampleSet& samples, StageTwoSetup& st)
     st.sceneExtent = std::max({hi.x - lo.x, hi.y - lo.y, hi.z - lo.z});
 }
 
-/// Per-Gaussian low-pass filters (fixed: F_k of the rest cell does not change during Stage II).
+/// Per-Gaussian low-pass filters lambda s_c^2 F_c F_c^T, c the Gaussian's rest cell and s_c its
+/// sample spacing (finer in a fine cell, as the rest targets' filter); fixed during Stage II.
 std::vector<Mat3d> lowPassFilters(const SampleSet& samples, const std::vector<std::int32_t>& gaussianCell,
                                   const StageTwoOptions& options)
 {
@@ -73,7 +75,8 @@ std::vector<Mat3d> lowPassFilters(const SampleSet& samples, const std::vector<st
         parallelFor(filter.size(), 1024, options.threaded, [&](std::size_t i) {
             if (gaussianCell[i] >= 0)
                 filter[i] = lowPassFilter(samples.cellGradient.data() + 9 * std::size_t(gaussianCell[i]),
-                                          double(options.lambdaLpf), double(samples.spacing));
+                                          double(options.lambdaLpf),
+                                          double(samples.spacingOf(std::size_t(gaussianCell[i]))));
         });
     return filter;
 }

@@ -32,10 +32,11 @@ NodeTransforms affineTransforms(const DeformationGraph& graph, const Mat3d& m, c
     return nt;
 }
 
-SampleGrid smallGrid()
+SampleGrid smallGrid(float fineBelow = 0.0f)
 {
     SampleGridOptions o;
     o.cells = 12;
+    o.fineBelow = fineBelow;
     return SampleGrid(makeDemoModel("stripes", {1200, 9}), o);
 }
 
@@ -117,6 +118,29 @@ TEST(SampleWarp, AffineMotionGivesThatGradientAndItsPolarRotation)
         std::vector<float> expected(&rest.targetF[q * stride], &rest.targetF[q * stride] + stride);
         shr.apply(set.shDegree, expected.data());
         for (std::size_t k = 0; k < stride; ++k) ASSERT_NEAR(set.targetF[q * stride + k], expected[k], 1e-5);
+    }
+}
+
+// Fine cells (8^3 samples, octant by octant) and coarse ones side by side: each cell's F_k from
+// its own corner samples is the affine motion's matrix.
+TEST(SampleWarp, AffineMotionGradientInFineAndCoarseCells)
+{
+    SampleGrid grid = smallGrid(100.0f); // every cell holding a Gaussian's centre is fine
+    ASSERT_GT(grid.stats().fineCells, 0u);
+    ASSERT_LT(grid.stats().fineCells, grid.stats().cells);
+    const DeformationGraph graph = DeformationGraph::build(makeDemoModel("stripes", {1200, 9}), GraphOptions{16, 6, 0});
+    Mat3d m = rotationAbout(Vec3d(0, 1, 1), 0.5);
+    m.m[1][2] += 0.3;
+    m.m[0][0] *= 0.7;
+    const Vec3d t(0.1, -0.2, 0.05);
+    warpSamples(grid.samples(), graph, affineTransforms(graph, m, t));
+    const SampleSet& set = grid.samples();
+    for (std::size_t c = 0; c < set.cellCount(); ++c)
+        for (int i = 0; i < 3; ++i)
+            for (int j = 0; j < 3; ++j) ASSERT_NEAR(set.cellGradient[9 * c + 3 * i + j], m.m[i][j], 2e-4) << "cell " << c;
+    for (std::size_t s = 0; s < set.sampleCount(); s += 13) {
+        const Vec3d q = m * Vec3d(set.restPositions[3 * s], set.restPositions[3 * s + 1], set.restPositions[3 * s + 2]) + t;
+        for (int k = 0; k < 3; ++k) ASSERT_NEAR(set.warpedPositions[3 * s + k], q[k], 1e-4);
     }
 }
 
