@@ -177,50 +177,82 @@ __global__ void narrowOffsetsKernel(std::size_t n, const unsigned long long* in,
 // ---------------------------------------------------------------------------------------------
 // Kernels: forward, energy, backward, Adam
 
+/// Threads per block of the forward kernel: its [block, STRIDE] tile of rows (odd pitch) is
+/// 25 KB at stride 48, within the 48 KB of static shared memory.
+constexpr int kForwardBlock = 128;
+
 /// F, O of each sample (static part + its candidate Gaussians in ascending index order, no
-/// atomics), the loss, dE/dF, dE/dO and the counted pairs.
+/// atomics), the loss, dE/dF, dE/dO and the counted pairs. The block's [S, STRIDE] rows (static
+/// features, targets, dE/dF, features out) pass through a shared tile, so global memory is read
+/// and written in consecutive floats, not one row per thread (where each load instruction of a
+/// warp touches 32 cache lines). Tail threads (j >= s) only help with the tile.
 template <int STRIDE>
-__global__ void forwardKernel(std::size_t s, const float* x /* [S,3] */, const float* fStatic /* [S,STRIDE] */,
-                              const float* oStatic /* [S] */, const std::uint32_t* offsets /* [S+1] */,
-                              const std::uint32_t* items /* [P] */, const PreparedGaussian* kernels /* [G] */,
-                              const float* params /* [G,PER_G] */, const float* targetF /* [S,STRIDE] */,
-                              const float* targetO /* [S] */, float cutoff, float lambda1, float lambda2,
-                              float* gF /* [S,STRIDE] */, float* gO /* [S] */, float* energy /* [S,3] */,
-                              std::uint32_t* pairCount /* [S] */, float* featuresOut /* [S,STRIDE] or null */,
-                              float* opacityOut /* [S] or null */)
+__global__ void __launch_bounds__(kForwardBlock)
+    forwardKernel(std::size_t s, const float* x /* [S,3] */, const float* fStatic /* [S,STRIDE] */,
+                  const float* oStatic /* [S] */, const std::uint32_t* offsets /* [S+1] */, const std::uint32_t* items /* [P] */,
+                  const PreparedGaussian* kernels /* [G] */, const float* params /* [G,PER_G] */,
+                  const float* targetF /* [S,STRIDE] */, const float* targetO /* [S] */, float cutoff, float lambda1,
+                  float lambda2, float* gF /* [S,STRIDE] */, float* gO /* [S] */, float* energy /* [S,3] */,
+                  std::uint32_t* pairCount /* [S] */, float* featuresOut /* [S,STRIDE] or null */,
+                  float* opacityOut /* [S] or null */)
 {
     constexpr int perG = 11 + STRIDE;
-    const std::size_t j = globalIndex();
-    if (j >= s) return;
+    __shared__ float tile[kForwardBlock * tilePitch<STRIDE>()];
+    const std::size_t base = std::size_t(blockIdx.x) * kForwardBlock; // < s: blocksFor(s) blocks
+    const int rows = s - base < std::size_t(kForwardBlock) ? int(s - base) : kForwardBlock;
+    const std::size_t j = base + threadIdx.x;
+    const bool active = int(threadIdx.x) < rows;
+    float* row = tile + threadIdx.x * tilePitch<STRIDE>();
+    loadTileRows<STRIDE>(fStatic + base * STRIDE, rows, tile);
+    __syncthreads();
     float f[STRIDE];
 #pragma unroll
-    for (int c = 0; c < STRIDE; ++c) f[c] = fStatic[j * STRIDE + c];
-    float o = oStatic[j];
-    const Vec3f xj(x[3 * j], x[3 * j + 1], x[3 * j + 2]);
-    std::uint32_t counted = 0;
-    for (std::uint32_t e = offsets[j]; e < offsets[j + 1]; ++e) {
-        const std::uint32_t k = items[e];
-        const PreparedGaussian kg = kernels[k];
-        const float w = kg.weight(xj - kg.mean, cutoff);
-        if (w == 0.0f) continue;
-        ++counted;
-        o += w;
-        const float* h = params + std::size_t(k) * perG + kSh;
+    for (int c = 0; c < STRIDE; ++c) f[c] = active ? row[c] : 0.0f;
+    float o = 0.0f;
+    if (active) {
+        o = oStatic[j];
+        const Vec3f xj(x[3 * j], x[3 * j + 1], x[3 * j + 2]);
+        std::uint32_t counted = 0;
+        for (std::uint32_t e = offsets[j]; e < offsets[j + 1]; ++e) {
+            const std::uint32_t k = items[e];
+            const PreparedGaussian kg = kernels[k];
+            const float w = kg.weight(xj - kg.mean, cutoff);
+            if (w == 0.0f) continue;
+            ++counted;
+            o += w;
+            const float* h = params + std::size_t(k) * perG + kSh;
 #pragma unroll
-        for (int c = 0; c < STRIDE; ++c) f[c] += w * __ldg(h + c);
+            for (int c = 0; c < STRIDE; ++c) f[c] += w * __ldg(h + c);
+        }
+        pairCount[j] = counted;
     }
-    pairCount[j] = counted;
-    float g[STRIDE], terms[3], go;
-    sampleLoss<float, float>(f, targetF + j * STRIDE, o, targetO[j], STRIDE, lambda1, lambda2, g, go, terms);
+    if (featuresOut) { // the same for the whole block: its barriers are safe
+        __syncthreads();
+        if (active) {
 #pragma unroll
-    for (int c = 0; c < STRIDE; ++c) gF[j * STRIDE + c] = g[c];
-    gO[j] = go;
-    for (int t = 0; t < 3; ++t) energy[3 * j + t] = terms[t];
-    if (featuresOut) {
-#pragma unroll
-        for (int c = 0; c < STRIDE; ++c) featuresOut[j * STRIDE + c] = f[c];
-        opacityOut[j] = o;
+            for (int c = 0; c < STRIDE; ++c) row[c] = f[c];
+            opacityOut[j] = o;
+        }
+        __syncthreads();
+        storeTileRows<STRIDE>(tile, rows, featuresOut + base * STRIDE);
     }
+    __syncthreads(); // every thread is done with the tile's static features (or features out)
+    loadTileRows<STRIDE>(targetF + base * STRIDE, rows, tile);
+    __syncthreads();
+    float g[STRIDE];
+    if (active) {
+        float terms[3], go;
+        sampleLoss<float, float>(f, row, o, targetO[j], STRIDE, lambda1, lambda2, g, go, terms);
+        gO[j] = go;
+        for (int t = 0; t < 3; ++t) energy[3 * j + t] = terms[t];
+    }
+    __syncthreads(); // every thread has read its targets
+    if (active) {
+#pragma unroll
+        for (int c = 0; c < STRIDE; ++c) row[c] = g[c];
+    }
+    __syncthreads();
+    storeTileRows<STRIDE>(tile, rows, gF + base * STRIDE);
 }
 
 /// Energy terms (double) and counted pairs of one forward pass.
@@ -270,53 +302,109 @@ __device__ double warpSum(double v)
     return v;
 }
 
+/// One pass of a warp over a Gaussian's pairs (this lane: e = begin, begin + 32, ... < end),
+/// summing w dE/dF_c for the SH channels [C0, C0 + CN) into gh and, when WithAcc, the pair
+/// backward (dE/dw over every channel, ascending) into acc. Each sum keeps the pair order and
+/// its own accumulator, so splitting the channels over passes leaves every bit as in one pass;
+/// the weight is recomputed per pass (same operations, same bits).
+template <int STRIDE, int C0, int CN, bool WithAcc>
+__device__ void backwardPass(std::uint64_t begin, std::uint64_t end, const std::uint32_t* items, const float* x,
+                             const PreparedGaussian& kg, const float* h, const float* gF, const float* gO, float cutoff,
+                             double* gh /* [CN] */, GaussianAccum<double>& acc)
+{
+#pragma unroll 1 // one pair at a time: unrolled, the pairs' loads and temporaries would all be live
+    for (std::uint64_t e = begin; e < end; e += kWarp) { // 64-bit: e + kWarp would wrap near 2^32 pairs
+        const std::uint32_t j = items[e];
+        const Vec3f xj(x[3 * std::size_t(j)], x[3 * std::size_t(j) + 1], x[3 * std::size_t(j) + 2]);
+        Vec3f ad;
+        const float w = kg.weight(xj - kg.mean, cutoff, WithAcc ? &ad : nullptr);
+        if (w == 0.0f) continue;
+        const float* gfj = gF + std::size_t(j) * STRIDE;
+        if constexpr (WithAcc && CN == STRIDE) { // one pass (strides 3, 12): as few registers in one loop
+            double gw = gO[j];
+#pragma unroll
+            for (int c = 0; c < STRIDE; ++c) {
+                const double gfc = double(gfj[c]);
+                gw += gfc * double(h[c]);
+                gh[c] += double(w) * gfc;
+            }
+            pairBackward<double>(gw, double(w), double(kg.alpha), Vec3d(ad), acc);
+            continue;
+        }
+        if constexpr (WithAcc) {
+            double gw = gO[j];
+            // Not unrolled in full: the compiler would hoist the Gaussian's STRIDE SH values (as
+            // doubles) out of the pair loop into registers.
+#pragma unroll 4
+            for (int c = 0; c < STRIDE; ++c) gw += double(gfj[c]) * double(h[c]);
+            pairBackward<double>(gw, double(w), double(kg.alpha), Vec3d(ad), acc);
+        }
+#pragma unroll
+        for (int c = 0; c < CN; ++c) gh[c] += double(w) * double(gfj[C0 + c]);
+    }
+}
+
+/// Warp-sum gh [CN] and store SH channels [C0, C0 + CN) of the gradient row (lane c % 32 writes c).
+template <int C0, int CN>
+__device__ void storeShGradient(double* gh, int lane, float* out /* [PER_G] */)
+{
+#pragma unroll
+    for (int c = 0; c < CN; ++c) gh[c] = warpSum(gh[c]);
+#pragma unroll
+    for (int c = 0; c < CN; ++c)
+        if ((C0 + c) % kWarp == lane) out[kSh + C0 + c] = float(gh[c]);
+}
+
+/// SH channels per pass of the backward: the double accumulators of a whole degree-3 row (48)
+/// took the kernel to 168 registers (12.5% occupancy); 16 per pass keeps it at or below 128.
+constexpr int kShChunk = 16;
+
+/// Passes over the pairs for SH channels [C0, STRIDE), kShChunk at a time.
+template <int STRIDE, int C0>
+__device__ void shGradientPasses(std::uint64_t begin, std::uint64_t end, const std::uint32_t* items, const float* x,
+                                 const PreparedGaussian& kg, const float* gF, float cutoff, int lane, float* out)
+{
+    constexpr int CN = STRIDE - C0 < kShChunk ? STRIDE - C0 : kShChunk;
+    double gh[CN];
+#pragma unroll
+    for (int c = 0; c < CN; ++c) gh[c] = 0;
+    GaussianAccum<double> unused;
+    backwardPass<STRIDE, C0, CN, false>(begin, end, items, x, kg, nullptr, gF, nullptr, cutoff, gh, unused);
+    storeShGradient<C0, CN>(gh, lane, out);
+    if constexpr (C0 + CN < STRIDE) shGradientPasses<STRIDE, C0 + CN>(begin, end, items, x, kg, gF, cutoff, lane, out);
+}
+
 /// Gradient of each moving Gaussian: one warp gathers its pairs from the Gaussian-major list
-/// (lanes stride over the pairs, double accumulators, butterfly sums): no atomics.
+/// (lanes stride over the pairs, double accumulators, butterfly sums): no atomics. The first
+/// pass sums the geometry and opacity terms and the first kShChunk SH channels, later passes the
+/// other channels (see backwardPass).
 template <int STRIDE>
-__global__ void backwardKernel(std::size_t g, const std::uint32_t* offsets /* [G+1] */, const std::uint32_t* items /* [P] */,
-                               const float* x /* [S,3] */, const PreparedGaussian* kernels /* [G] */,
-                               const float* params /* [G,PER_G] */, const float* gF /* [S,STRIDE] */,
-                               const float* gO /* [S] */, float cutoff, float* grad /* [G,PER_G] */)
+__global__ void __launch_bounds__(kBlock) backwardKernel(std::size_t g, const std::uint32_t* offsets /* [G+1] */,
+                                                         const std::uint32_t* items /* [P] */, const float* x /* [S,3] */,
+                                                         const PreparedGaussian* kernels /* [G] */,
+                                                         const float* params /* [G,PER_G] */, const float* gF /* [S,STRIDE] */,
+                                                         const float* gO /* [S] */, float cutoff, float* grad /* [G,PER_G] */)
 {
     constexpr int perG = 11 + STRIDE;
+    constexpr int CN = STRIDE < kShChunk ? STRIDE : kShChunk;
     const std::size_t k = globalIndex() / kWarp;
     const int lane = int(threadIdx.x) % kWarp;
     if (k >= g) return; // whole warps leave together (blockDim is a multiple of the warp)
     const PreparedGaussian kg = kernels[k];
-    const float* h = params + k * perG + kSh;
+    const std::uint64_t begin = std::uint64_t(offsets[k]) + std::uint64_t(lane), end = offsets[k + 1];
+    float* out = grad + k * perG;
     GaussianAccum<double> acc;
-    double gh[STRIDE];
+    double gh[CN];
 #pragma unroll
-    for (int c = 0; c < STRIDE; ++c) gh[c] = 0;
-    // 64-bit: a 32-bit e + kWarp would wrap for lists ending near 2^32 pairs.
-    for (std::uint64_t e = std::uint64_t(offsets[k]) + std::uint64_t(lane); e < offsets[k + 1]; e += kWarp) {
-        const std::uint32_t j = items[e];
-        const Vec3f xj(x[3 * std::size_t(j)], x[3 * std::size_t(j) + 1], x[3 * std::size_t(j) + 2]);
-        Vec3f ad;
-        const float w = kg.weight(xj - kg.mean, cutoff, &ad);
-        if (w == 0.0f) continue;
-        const float* gfj = gF + std::size_t(j) * STRIDE;
-        double gw = gO[j];
-#pragma unroll
-        for (int c = 0; c < STRIDE; ++c) {
-            const double gfc = double(gfj[c]);
-            gw += gfc * double(h[c]);
-            gh[c] += double(w) * gfc;
-        }
-        pairBackward<double>(gw, double(w), double(kg.alpha), Vec3d(ad), acc);
-    }
+    for (int c = 0; c < CN; ++c) gh[c] = 0;
+    backwardPass<STRIDE, 0, CN, true>(begin, end, items, x, kg, params + k * perG + kSh, gF, gO, cutoff, gh, acc);
+    storeShGradient<0, CN>(gh, lane, out);
     for (int a = 0; a < 3; ++a) acc.mean[a] = warpSum(acc.mean[a]);
     for (int a = 0; a < 3; ++a)
         for (int b = 0; b < 3; ++b) acc.sigma.m[a][b] = warpSum(acc.sigma.m[a][b]);
     acc.alpha = warpSum(acc.alpha);
-#pragma unroll
-    for (int c = 0; c < STRIDE; ++c) gh[c] = warpSum(gh[c]);
-    float* out = grad + k * perG;
-#pragma unroll
-    for (int c = 0; c < STRIDE; ++c)
-        if (c % kWarp == lane) out[kSh + c] = float(gh[c]);
-    if (lane != 0) return;
-    packGradient(paramBackward(unpackParams(params + k * perG), acc), out);
+    if (lane == 0) packGradient(paramBackward(unpackParams(params + k * perG), acc), out);
+    if constexpr (CN < STRIDE) shGradientPasses<STRIDE, CN>(begin, end, items, x, kg, gF, cutoff, lane, out);
 }
 
 /// Adam on each moving Gaussian's packed row: adamStepRow, the CPU's arithmetic (this file is
@@ -414,7 +502,7 @@ public:
         mTimer.begin(PhaseTimer::Forward);
         dispatchStride([&](auto strideTag) {
             constexpr int kStride = decltype(strideTag)::value;
-            launch("forwardKernel", forwardKernel<kStride>, mS, stream(), mS, (const float*)mX.data(),
+            launch<kForwardBlock>("forwardKernel", forwardKernel<kStride>, mS, stream(), mS, (const float*)mX.data(),
                    (const float*)mFStatic.data(), (const float*)mOStatic.data(), (const std::uint32_t*)mSampleOffsets.data(),
                    (const std::uint32_t*)mSampleItems.data(), (const PreparedGaussian*)mPrepared.data(),
                    (const float*)mParams.data(), (const float*)mTargetF.data(), (const float*)mTargetO.data(),
@@ -666,7 +754,59 @@ void Solver::coverage(int iteration)
            std::size_t(pairs), mGaussianOffsets.data());
 }
 
+template <typename Kernel>
+KernelOccupancy occupancyOf(const char* name, Kernel kernel, int blockSize, int maxThreadsPerSm)
+{
+    cudaFuncAttributes a{};
+    SPLATWARP_CUDA_CHECK(cudaFuncGetAttributes(&a, kernel));
+    KernelOccupancy o;
+    o.name = name;
+    o.blockSize = blockSize;
+    o.registers = a.numRegs;
+    o.localBytes = a.localSizeBytes;
+    o.sharedBytes = a.sharedSizeBytes;
+    SPLATWARP_CUDA_CHECK(cudaOccupancyMaxActiveBlocksPerMultiprocessor(&o.blocksPerSm, kernel, blockSize, 0));
+    o.occupancy = double(o.blocksPerSm) * double(blockSize) / double(maxThreadsPerSm);
+    return o;
+}
+
+template <int STRIDE>
+void addStrideKernels(std::vector<KernelOccupancy>& out, int maxThreadsPerSm)
+{
+    const std::string s = std::to_string(STRIDE);
+    out.push_back(occupancyOf(("forwardKernel<" + s + ">").c_str(), forwardKernel<STRIDE>, kForwardBlock, maxThreadsPerSm));
+    out.push_back(occupancyOf(("backwardKernel<" + s + ">").c_str(), backwardKernel<STRIDE>, kBlock, maxThreadsPerSm));
+}
+
 } // namespace
+
+std::vector<KernelOccupancy> stageTwoKernelOccupancy()
+{
+    int device = 0, maxThreads = 0;
+    SPLATWARP_CUDA_CHECK(cudaGetDevice(&device));
+    SPLATWARP_CUDA_CHECK(cudaDeviceGetAttribute(&maxThreads, cudaDevAttrMaxThreadsPerMultiProcessor, device));
+    std::vector<KernelOccupancy> out;
+    addStrideKernels<3>(out, maxThreads);
+    addStrideKernels<12>(out, maxThreads);
+    addStrideKernels<27>(out, maxThreads);
+    addStrideKernels<48>(out, maxThreads);
+    // The rest run at kBlock (energyFinalKernel as one block: listed for its registers).
+    const auto add = [&](const char* name, auto kernel) { out.push_back(occupancyOf(name, kernel, kBlock, maxThreads)); };
+    add("prepareKernel", prepareKernel);
+    add("boxKernel", boxKernel);
+    add("holdsKernel", holdsKernel);
+    add("coverageKernel<count>", coverageKernel<false>);
+    add("coverageKernel<fill>", coverageKernel<true>);
+    add("gaussianOffsetsKernel", gaussianOffsetsKernel);
+    add("narrowOffsetsKernel", narrowOffsetsKernel);
+    add("energyPartialKernel", energyPartialKernel);
+    add("energyFinalKernel", energyFinalKernel);
+    add("adamKernel", adamKernel);
+    add("edgeKernel", edgeKernel);
+    add("binCountKernel", binCountKernel);
+    add("binFillKernel", binFillKernel);
+    return out;
+}
 
 StageTwoReport optimiseStageTwoCuda(GaussianCloud& cloud, const SampleSet& samples, const std::vector<std::uint8_t>& moving,
                                     const std::vector<std::int32_t>& gaussianCell, const StageTwoOptions& options,

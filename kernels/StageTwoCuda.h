@@ -6,6 +6,7 @@
 ///        buffers), the energy at report iterations and the result at the end.
 #include <cstdint>
 #include <functional>
+#include <string>
 #include <vector>
 
 #include "stage2/Coverage.h"
@@ -46,5 +47,22 @@ struct StageTwoCudaProbe {
 StageTwoCudaProbe probeStageTwoCuda(const GaussianCloud& cloud, const SampleSet& samples,
                                     const std::vector<std::uint8_t>& moving,
                                     const std::vector<std::int32_t>& gaussianCell, const StageTwoOptions& options);
+
+/// @brief Resources and theoretical occupancy of one Stage II kernel (instantiation) on the
+///        current device at the block size it is launched with.
+struct KernelOccupancy {
+    std::string name;            ///< e.g. "backwardKernel<48>"
+    int blockSize = 0;           ///< threads per block at launch
+    int registers = 0;           ///< per thread (cudaFuncAttributes::numRegs)
+    std::size_t localBytes = 0;  ///< local memory per thread: spills and stack (localSizeBytes)
+    std::size_t sharedBytes = 0; ///< static shared memory per block
+    int blocksPerSm = 0;         ///< cudaOccupancyMaxActiveBlocksPerMultiprocessor at blockSize
+    double occupancy = 0;        ///< blocksPerSm * blockSize / maxThreadsPerMultiProcessor
+};
+
+/// @brief Every kernel a Stage II run launches (the per-stride ones at strides 3, 12, 27, 48,
+///        the coverage bins' too), measured on the current device.
+/// @throws Error for a CUDA failure (no device)
+std::vector<KernelOccupancy> stageTwoKernelOccupancy();
 
 } // namespace splatwarp::cuda
