@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # Pack the CLI and the CUDA test binary for a lent GPU machine (see ../shared/docs/GPU.md) and
 # print the device command (scripts/device-benchmarks.sh: every test of splatwarp_cuda_tests -- parity,
-# kernel occupancy, counts past 2^32 (up to ~20 GB of GPU memory) --, every bench and the
+# kernel occupancy, counts past 2^31 and 2^32 (up to ~78 GB of GPU memory) --, every bench and the
 # Stage II benchmarks, CPU and GPU in the same run). The donut and playbot models travel in .device/data.
 # The default build already holds sm_90 code (CMAKE_CUDA_ARCHITECTURES "75-real;90").
 # usage: bash scripts/cuda-device-check.sh [BUILD_DIR]

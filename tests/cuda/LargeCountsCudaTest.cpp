@@ -70,6 +70,35 @@ TEST(LargeCountsCuda, RasteriserRefusesTileEntriesPast2To32)
     expectRefusal([&] { cuda::renderGaussiansCuda(cloud, camera); }, "splat-tile entries exceed its 32-bit offsets");
 }
 
+// 33000 copies of one splat covering all 256 x 256 tiles of a 4096 x 4096 image: 2.16e9 tile
+// entries, past 2^31 (no signed 32-bit count may hold them) and below the 2^32 limit, so the render
+// must succeed. With sigma 2048 px every pixel has alpha >= 0.36 and is opaque within ~21 copies, so
+// the image must equal, bit for bit, that of 64 copies (equal depths: index order, the same first
+// splats in every pixel). Memory: ~78 GB on the GPU (keys, values, their sorted copies and CUB's
+// alternate buffers: ~36 B per entry; skipped with a message where it does not fit); a few seconds.
+TEST(LargeCountsCuda, RasteriserPast2To31EntriesEqualsFewCopies)
+{
+    SPLATWARP_REQUIRE_GPU();
+    GaussianCloud many = unitGaussians(33000), few = unitGaussians(64);
+    for (GaussianCloud* c : {&many, &few}) std::fill(c->logScales.begin(), c->logScales.end(), std::log(3.0f));
+    const Camera camera = Camera::lookAt(Vec3d(0, 0, -3), Vec3d(0, 0, 0), Vec3d(0, 1, 0), 90.0, 4096, 4096);
+    static_assert(33000ull * 256 * 256 > (1ull << 31) && 33000ull * 256 * 256 < kTwo32, "between 2^31 and 2^32");
+    const Image a = cuda::renderGaussiansCuda(few, camera);
+    Image b;
+    try {
+        b = cuda::renderGaussiansCuda(many, camera);
+    } catch (const DeviceMemoryError& e) {
+        GTEST_SKIP() << "needs ~78 GB of GPU memory: " << e.what();
+    }
+    ASSERT_EQ(a.pixels.size(), b.pixels.size());
+    std::size_t differ = 0, transparent = 0;
+    for (std::size_t i = 0; i < a.pixels.size(); ++i) differ += a.pixels[i] != b.pixels[i];
+    for (std::size_t i = 3; i < a.pixels.size(); i += 4) transparent += a.pixels[i] < 0.99f;
+    std::printf("  %zu of %zu values differ; %zu pixels with alpha < 0.99\n", differ, a.pixels.size(), transparent);
+    EXPECT_EQ(transparent, 0u) << "the premise (every pixel opaque within 64 copies) does not hold";
+    EXPECT_EQ(differ, 0u);
+}
+
 // Two boxes spanning every cell of the 2^21-per-axis key range (2^63 cells each: their sum is
 // 2^64, which wraps to 0 without the per-box cap) among 2.5M point boxes (which make the first
 // cell small enough for that). With the cap the cell doubles until the entries fit (~4.6e8), and
