@@ -320,7 +320,7 @@ __device__ void backwardPass(std::uint64_t begin, std::uint64_t end, const std::
         const float w = kg.weight(xj - kg.mean, cutoff, WithAcc ? &ad : nullptr);
         if (w == 0.0f) continue;
         const float* gfj = gF + std::size_t(j) * STRIDE;
-        if constexpr (WithAcc && CN == STRIDE) { // one pass (strides 3, 12): as few registers in one loop
+        if constexpr (WithAcc && CN == STRIDE) { // one pass (strides 3, 12, 27): one fused loop
             double gw = gO[j];
 #pragma unroll
             for (int c = 0; c < STRIDE; ++c) {
@@ -333,7 +333,7 @@ __device__ void backwardPass(std::uint64_t begin, std::uint64_t end, const std::
         }
         if constexpr (WithAcc) {
             double gw = gO[j];
-            // Not unrolled in full: the compiler would hoist the Gaussian's STRIDE SH values (as
+            // Not unrolled in full: the compiler would hoist the Gaussian's 48 SH values (as
             // doubles) out of the pair loop into registers.
 #pragma unroll 4
             for (int c = 0; c < STRIDE; ++c) gw += double(gfj[c]) * double(h[c]);
@@ -355,16 +355,22 @@ __device__ void storeShGradient(double* gh, int lane, float* out /* [PER_G] */)
         if ((C0 + c) % kWarp == lane) out[kSh + C0 + c] = float(gh[c]);
 }
 
-/// SH channels per pass of the backward: the double accumulators of a whole degree-3 row (48)
-/// took the kernel to 168 registers (12.5% occupancy); 16 per pass keeps it at or below 128.
-constexpr int kShChunk = 16;
+/// SH channels per pass of the backward. The double accumulators of a whole degree-3 row (48)
+/// took the kernel to 168 registers (1 block of 256 threads per SM, 12.5% occupancy); three passes
+/// of 16 take 120 (2 blocks, 25%; two passes of 24 spill). Stride 27 takes 128 in one pass (2
+/// blocks), strides 3 and 12 fewer.
+template <int STRIDE>
+constexpr int shChunk()
+{
+    return STRIDE <= 27 ? STRIDE : 16;
+}
 
-/// Passes over the pairs for SH channels [C0, STRIDE), kShChunk at a time.
+/// Passes over the pairs for SH channels [C0, STRIDE), shChunk<STRIDE>() at a time.
 template <int STRIDE, int C0>
 __device__ void shGradientPasses(std::uint64_t begin, std::uint64_t end, const std::uint32_t* items, const float* x,
                                  const PreparedGaussian& kg, const float* gF, float cutoff, int lane, float* out)
 {
-    constexpr int CN = STRIDE - C0 < kShChunk ? STRIDE - C0 : kShChunk;
+    constexpr int CN = STRIDE - C0 < shChunk<STRIDE>() ? STRIDE - C0 : shChunk<STRIDE>();
     double gh[CN];
 #pragma unroll
     for (int c = 0; c < CN; ++c) gh[c] = 0;
@@ -376,8 +382,8 @@ __device__ void shGradientPasses(std::uint64_t begin, std::uint64_t end, const s
 
 /// Gradient of each moving Gaussian: one warp gathers its pairs from the Gaussian-major list
 /// (lanes stride over the pairs, double accumulators, butterfly sums): no atomics. The first
-/// pass sums the geometry and opacity terms and the first kShChunk SH channels, later passes the
-/// other channels (see backwardPass).
+/// pass sums the geometry and opacity terms and the first shChunk() SH channels, more passes
+/// (stride 48) the other channels (see backwardPass).
 template <int STRIDE>
 __global__ void __launch_bounds__(kBlock) backwardKernel(std::size_t g, const std::uint32_t* offsets /* [G+1] */,
                                                          const std::uint32_t* items /* [P] */, const float* x /* [S,3] */,
@@ -386,7 +392,7 @@ __global__ void __launch_bounds__(kBlock) backwardKernel(std::size_t g, const st
                                                          const float* gO /* [S] */, float cutoff, float* grad /* [G,PER_G] */)
 {
     constexpr int perG = 11 + STRIDE;
-    constexpr int CN = STRIDE < kShChunk ? STRIDE : kShChunk;
+    constexpr int CN = shChunk<STRIDE>();
     const std::size_t k = globalIndex() / kWarp;
     const int lane = int(threadIdx.x) % kWarp;
     if (k >= g) return; // whole warps leave together (blockDim is a multiple of the warp)

@@ -159,5 +159,5 @@ TEST(LargeCountsCuda, StageTwoRefusesCoveragePairsPast2To32)
     const std::vector<std::uint8_t> moving(cloud.size(), 1);
     const std::vector<std::int32_t> cells(cloud.size(), 0);
     expectRefusal([&] { cuda::probeStageTwoCuda(cloud, s, moving, cells, StageTwoOptions{}); },
-                  "too many for 32-bit indices");
+                  "pairs; too many for 32-bit indices"); // the coverage count, not the bins
 }
