@@ -104,10 +104,20 @@ TEST(FromVdb, RoundTripOfAGeneratedModel)
     const std::size_t p = pts.size() / 3;
     const FieldErrorReport eInit = fieldError(original, init.splats, pts.data(), pts.data(), nullptr, p);
     const FieldErrorReport eFit = fieldError(original, fit.splats, pts.data(), pts.data(), nullptr, p);
-    // Measured: init 0.554, fit 0.358 (opacity). The 0.15 is NOT reached on this model of
-    // large overlapping Gaussians in 100 iterations; this guards the direction and a clear gain.
+    // Measured: init 0.554, fit 0.358 (opacity). Unfiltered, the judge sees below the volume's
+    // lattice; this guards the direction and a clear gain.
     EXPECT_LT(eFit.opacity, 0.75 * eInit.opacity) << "init " << eInit.opacity << " fit " << eFit.opacity;
     EXPECT_LT(eFit.color, eInit.color);
+    // At the volume's lattice (both sides with the rest filter it was written with, as `eval
+    // --lattice`): measured init 0.526 / 0.732, fit 0.260 / 0.443 (opacity / colour). This model of
+    // large overlapping Gaussians with unrelated colours converges slowly (400 iterations: 0.105 /
+    // 0.153); scripts/round-trip.sh measures the real models.
+    FeatureOptions lattice;
+    lattice.filterVariance = float(volume.info().lambdaLpf * volume.info().voxelSize * volume.info().voxelSize);
+    const FieldErrorReport lInit = fieldError(original, init.splats, pts.data(), pts.data(), nullptr, p, lattice);
+    const FieldErrorReport lFit = fieldError(original, fit.splats, pts.data(), pts.data(), nullptr, p, lattice);
+    EXPECT_LT(lFit.opacity, 0.6 * lInit.opacity) << "init " << lInit.opacity << " fit " << lFit.opacity;
+    EXPECT_LT(lFit.color, 0.7 * lInit.color) << "init " << lInit.color << " fit " << lFit.color;
 }
 
 // A uniform slab of extinction sigma and thickness L transmits exp(-sigma l) straight through, l the
