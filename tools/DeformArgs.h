@@ -19,7 +19,7 @@ struct DeformArgs {
     std::uint32_t seed = 0;
     bool noLpf = false, noEval = false;
     std::string fineCells = "off";
-    float fineBelow = 1.0f;
+    float fineBelow = 4.0f;
 };
 
 /// @brief --fine-cells and --fine-below (deform and animate; to-vdb keeps the uniform lattice).
