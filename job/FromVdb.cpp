@@ -158,6 +158,10 @@ FromVdbResult fromVdb(const Volume& volume, const FromVdbOptions& o)
     MomentInitOptions init = o.init;
     init.gaussians = o.fit ? initialGaussianCount(budget, o.fitting) : budget;
     init.spread = o.spread > 0 ? o.spread : (meaning == VolumeMeaning::Extinction ? 1.5 : 1.0);
+    // Our own files hold the rest-filtered field (the fit uses that filter too, setFitFilter).
+    // playbot-31k round trip, --no-fit judged at the lattice: 0.471 -> 0.326; after 45 iterations
+    // 0.151 -> 0.135 (colour 0.211 -> 0.195).
+    if (volume.info().ownFile) init.filterVariance = volume.info().lambdaLpf * volume.info().voxelSize * volume.info().voxelSize;
     Stopwatch phase;
     FromVdbResult r;
     r.splats = initFromMoments(voxels, init);

@@ -78,6 +78,8 @@ void appendMomentGaussian(const VoxelSamples& v, const std::vector<std::uint32_t
         var *= std::pow(alpha / o.maxAlpha, 2.0 / 3.0);
         alpha = o.maxAlpha;
     }
+    // The filter keeps alpha and widens: alpha is the filtered moments', the Gaussian is narrower.
+    var = (var.array() - o.filterVariance).cwiseMax(v.voxelSize * v.voxelSize / 12.0);
     Mat3d r;
     for (int a = 0; a < 3; ++a)
         for (int b = 0; b < 3; ++b) r.m[a][b] = axes(a, b);

@@ -27,6 +27,10 @@ struct MomentInitOptions {
     /// exactly their cluster's moments leave dips between them.
     double spread = 1.0;
     float maxAlpha = 0.99f;    ///< a cluster whose mass needs more opacity gets a wider Gaussian instead
+    /// The isotropic filter variance the values were blurred with (our own to-vdb files: their rest
+    /// filter, which keeps alpha and adds this to every variance): alpha comes from the filtered
+    /// moments, the covariance with it taken off (down to the one-voxel floor).
+    double filterVariance = 0.0;
 };
 
 /// @brief The default budget: one Gaussian per 8 voxels (at least 1).
@@ -38,7 +42,8 @@ std::size_t defaultGaussianBudget(std::size_t voxels);
 ///          Each cluster with mass M > 0 gives a Gaussian: mean = value-weighted mean, covariance =
 ///          value-weighted covariance (each axis at least voxelSize^2/12) scaled by spread^2,
 ///          alpha = M voxelSize^3 / ((2 pi)^{3/2} sqrt(det Sigma)) (so the integral of alpha G is
-///          the cluster's mass), SH = the cluster's features per unit value.
+///          the cluster's mass), SH = the cluster's features per unit value; then filterVariance is
+///          taken off every axis of Sigma.
 /// @throws InputError for inconsistent arrays or a non-positive voxel size.
 GaussianCloud initFromMoments(const VoxelSamples& voxels, const MomentInitOptions& options = {});
 

@@ -11,14 +11,11 @@ namespace {
 
 using test::OneGaussian;
 
-// Point samples of a Gaussian much wider than a voxel have exactly its moments (the lattice sum of
-// a Gaussian's moments converges like exp(-2 pi^2 sigma^2 / s^2)); the tails to 6 sigma are kept.
-TEST(MomentInit, RecoversOneGaussianExactly)
+/// The one Gaussian initFromMoments() makes of these voxels equals `truth` (moments, alpha, colour).
+void expectRecovers(const OneGaussian& truth, const VoxelSamples& voxels, MomentInitOptions o)
 {
-    const OneGaussian truth;
-    MomentInitOptions o;
     o.gaussians = 1;
-    const GaussianCloud g = initFromMoments(truth.voxels(28), o);
+    const GaussianCloud g = initFromMoments(voxels, o);
     ASSERT_EQ(g.size(), 1u);
     for (int a = 0; a < 3; ++a) EXPECT_NEAR(g.means[std::size_t(a)], truth.mean[a], 1e-5);
     EXPECT_NEAR(g.alpha(0), truth.alpha, 1e-4);
@@ -32,6 +29,28 @@ TEST(MomentInit, RecoversOneGaussianExactly)
         }
     EXPECT_NEAR(g.sh[0], 0.7f, 1e-5);
     EXPECT_NEAR(g.sh[1], -0.2f, 1e-5);
+}
+
+// Point samples of a Gaussian much wider than a voxel have exactly its moments (the lattice sum of
+// a Gaussian's moments converges like exp(-2 pi^2 sigma^2 / s^2)); the tails to 6 sigma are kept.
+TEST(MomentInit, RecoversOneGaussianExactly)
+{
+    const OneGaussian truth;
+    expectRecovers(truth, truth.voxels(28), {});
+}
+
+// Our own files hold the field under an isotropic filter of variance f that keeps alpha: the
+// samples are those of the same Gaussian with every variance + f. Told f, the moments give the
+// unfiltered Gaussian back.
+TEST(MomentInit, RecoversTheGaussianUnderTheVolumesFilter)
+{
+    const OneGaussian truth;
+    const double f = 0.03; // a variance of the order of the smallest axis' (0.04)
+    OneGaussian filtered = truth;
+    for (int k = 0; k < 3; ++k) filtered.scales[k] = std::sqrt(truth.scales[k] * truth.scales[k] + f);
+    MomentInitOptions o;
+    o.filterVariance = f;
+    expectRecovers(truth, filtered.voxels(32), o);
 }
 
 TEST(MomentInit, BudgetAndDefault)
