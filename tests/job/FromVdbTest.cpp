@@ -104,14 +104,14 @@ TEST(FromVdb, RoundTripOfAGeneratedModel)
     const std::size_t p = pts.size() / 3;
     const FieldErrorReport eInit = fieldError(original, init.splats, pts.data(), pts.data(), nullptr, p);
     const FieldErrorReport eFit = fieldError(original, fit.splats, pts.data(), pts.data(), nullptr, p);
-    // Measured: init 0.554, fit 0.358 (opacity). Unfiltered, the judge sees below the volume's
-    // lattice; this guards the direction and a clear gain.
-    EXPECT_LT(eFit.opacity, 0.75 * eInit.opacity) << "init " << eInit.opacity << " fit " << eFit.opacity;
+    // Measured: init 0.552, fit 0.271 (opacity; 0.554 and 0.358, a ratio of 0.65, before the
+    // moments took the volume's filter off). Unfiltered, the judge sees below the volume's lattice.
+    EXPECT_LT(eFit.opacity, 0.6 * eInit.opacity) << "init " << eInit.opacity << " fit " << eFit.opacity;
     EXPECT_LT(eFit.color, eInit.color);
     // At the volume's lattice (both sides with the rest filter it was written with, as `eval
-    // --lattice`): measured init 0.526 / 0.732, fit 0.260 / 0.443 (opacity / colour). This model of
+    // --lattice`): measured init 0.523 / 0.735, fit 0.259 / 0.443 (opacity / colour). This model of
     // large overlapping Gaussians with unrelated colours converges slowly (400 iterations: 0.105 /
-    // 0.153); scripts/round-trip.sh measures the real models.
+    // 0.152); scripts/round-trip.sh measures the real models.
     FeatureOptions lattice;
     lattice.filterVariance = float(volume.info().lambdaLpf * volume.info().voxelSize * volume.info().voxelSize);
     const FieldErrorReport lInit = fieldError(original, init.splats, pts.data(), pts.data(), nullptr, p, lattice);
