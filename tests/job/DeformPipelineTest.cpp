@@ -131,3 +131,28 @@ TEST(DeformPipeline, TheJudgeIgnoresTrainingFlagsAndEvalPrintsTheReport)
     // A missing spec file is bad input: exit 1.
     EXPECT_EQ(runCli("eval --rest " + a.input + " --deformed " + a.outDir + "/baseline.ply --spec " + dir.file("missing.json")), 1);
 }
+
+// --fine-cells from the command line: auto refines some cells, and the report's sample count is
+// the uniform n^3 per active cell plus (2n)^3 - n^3 per fine cell; off refines none.
+TEST(DeformPipeline, FineCellsFromTheCommandLine)
+{
+    TempDir dir;
+    const DeformJobOptions a = smallJob(dir, "bend.json", 1);
+    const std::string base = "-q deform " + a.input + " --spec " + a.specPath + " --nodes 64 --cells 20 --iterations 1 "
+                             "--no-eval --device cpu --fine-cells ";
+    auto stage2 = [&](const std::string& mode) {
+        const std::string out = dir.file("out-" + mode);
+        EXPECT_EQ(runCli(base + mode + " -o " + out), 0) << mode;
+        std::ifstream in(out + "/report.json");
+        return nlohmann::json::parse(in)["stage2"];
+    };
+    const nlohmann::json fine = stage2("auto"), uniform = stage2("off");
+    const int n3 = 4 * 4 * 4, fine3 = 8 * 8 * 8;
+    EXPECT_GT(fine["fineCells"].get<std::size_t>(), 0u);
+    EXPECT_EQ(fine["fineSamplesAdded"].get<std::size_t>(), fine["fineCells"].get<std::size_t>() * (fine3 - n3));
+    EXPECT_EQ(fine["samples"].get<std::size_t>(),
+              fine["activeCells"].get<std::size_t>() * n3 + fine["fineSamplesAdded"].get<std::size_t>());
+    EXPECT_EQ(uniform["fineCells"].get<std::size_t>(), 0u);
+    EXPECT_EQ(uniform["samples"].get<std::size_t>(), uniform["activeCells"].get<std::size_t>() * n3);
+    EXPECT_EQ(runCli(base + "sometimes -o " + dir.file("bad")), 2);
+}
