@@ -33,6 +33,8 @@ json settingsJson(const DeformJobOptions& o)
             {"cellSize", o.grid.cellSize},
             {"samplesPerCell", o.grid.samplesPerAxis},
             {"cutoff", o.grid.cutoff},
+            {"fineBelow", o.grid.fineBelow},
+            {"fineNeighbours", o.grid.fineNeighbours},
             {"iterations", o.stage2.iterations},
             {"boundaryWeight", o.stage2.boundaryWeight},
             {"lowPassFilter", o.stage2.lowPassFilter},

@@ -129,7 +129,11 @@ TEST(AnimateJob, ResumeRedoesOnlyFramesWhoseFilesOrEntriesAreMissing)
     ASSERT_EQ(runCli(msg("-q animate ", fx.model, " --spec ", fx.spec, " -o ", fx.dir.file("out"), " ", kFlags,
                          " --frames 1-1 --boundary-weight 5"), fx.dir.file("changed.log")), 0);
     EXPECT_NE(readBytes(fx.dir.file("changed.log")).find("1 done, 0 resumed"), std::string::npos);
-    for (const char* flag : {"--stall-tolerance 0.5", "--max-mean-step 0.2", "--drop-invalid", "--warm-start"}) {
+    // Each flag against a run without it (the previous flag's run left other settings behind).
+    for (const char* flag : {"--stall-tolerance 0.5", "--max-mean-step 0.2", "--drop-invalid", "--warm-start",
+                             "--fine-cells auto"}) {
+        ASSERT_EQ(runCli(msg("-q animate ", fx.model, " --spec ", fx.spec, " -o ", fx.dir.file("out"), " ", kFlags,
+                             " --frames 2-2"), fx.dir.file("plain.log")), 0);
         ASSERT_EQ(runCli(msg("-q animate ", fx.model, " --spec ", fx.spec, " -o ", fx.dir.file("out"), " ", kFlags,
                              " --frames 2-2 ", flag), fx.dir.file("flag.log")), 0);
         EXPECT_NE(readBytes(fx.dir.file("flag.log")).find("1 done, 0 resumed"), std::string::npos) << flag;
