@@ -111,7 +111,7 @@ VolumeJudge makeVolumeJudge(const Volume& volume, double scale, const VolumeJudg
     for (double& x : t.features) x /= scale;
     for (double x : t.features) t.sumFeatures += std::fabs(x);
     for (float x : t.opacity) t.sumOpacity += x;
-    if (volume.info().ownFile) j.features.filterVariance = float(volume.info().lambdaLpf * volume.info().voxelSize * volume.info().voxelSize);
+    j.features.filterVariance = float(volume.info().restFilterVariance());
     return j;
 }
 
@@ -161,7 +161,7 @@ FromVdbResult fromVdb(const Volume& volume, const FromVdbOptions& o)
     // Our own files hold the rest-filtered field (the fit uses that filter too, setFitFilter).
     // playbot-31k round trip, --no-fit judged at the lattice: 0.471 -> 0.326; after 45 iterations
     // 0.151 -> 0.135 (colour 0.211 -> 0.195).
-    if (volume.info().ownFile) init.filterVariance = volume.info().lambdaLpf * volume.info().voxelSize * volume.info().voxelSize;
+    init.filterVariance = volume.info().restFilterVariance();
     Stopwatch phase;
     FromVdbResult r;
     r.splats = initFromMoments(voxels, init);

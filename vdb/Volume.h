@@ -36,6 +36,9 @@ struct VolumeInfo {
     std::size_t activeVoxels = 0;
     float minValue = 0.0f, maxValue = 0.0f;
     std::vector<std::string> notes; ///< conversions and defaults worth telling the user
+    /// The isotropic filter variance the values hold: our files' rest filter lambda s^2 (s the
+    /// voxel, = the sample spacing), 0 for other volumes.
+    double restFilterVariance() const { return ownFile ? double(lambdaLpf) * voxelSize * voxelSize : 0.0; }
 };
 
 /// @brief A volume in memory (OpenVDB grids behind a pimpl).

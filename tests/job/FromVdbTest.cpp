@@ -113,7 +113,7 @@ TEST(FromVdb, RoundTripOfAGeneratedModel)
     // large overlapping Gaussians with unrelated colours converges slowly (400 iterations: 0.105 /
     // 0.152); scripts/round-trip.sh measures the real models.
     FeatureOptions lattice;
-    lattice.filterVariance = float(volume.info().lambdaLpf * volume.info().voxelSize * volume.info().voxelSize);
+    lattice.filterVariance = float(volume.info().restFilterVariance());
     const FieldErrorReport lInit = fieldError(original, init.splats, pts.data(), pts.data(), nullptr, p, lattice);
     const FieldErrorReport lFit = fieldError(original, fit.splats, pts.data(), pts.data(), nullptr, p, lattice);
     EXPECT_LT(lFit.opacity, 0.6 * lInit.opacity) << "init " << lInit.opacity << " fit " << lFit.opacity;
