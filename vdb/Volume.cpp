@@ -202,6 +202,8 @@ Volume readVolume(const std::string& path, const VolumeReadOptions& o)
     if (info.minValue < 0.0f) throw InputError(msg(where, " has negative values (min ", info.minValue, ")"));
     info.ownFile = metaOr<std::string>(*file.getMetadata(), "creator", "") == "splatwarp";
     if (info.ownFile) info.lambdaLpf = metaOr<float>(*file.getMetadata(), "lambda_lpf", 0.0f);
+    if (!(std::isfinite(info.lambdaLpf) && info.lambdaLpf >= 0.0f)) // it sizes the fit's filter and initial Gaussians
+        throw InputError(msg(path, ": metadata lambda_lpf is ", info.lambdaLpf, " (a filter strength: finite and >= 0)"));
     readFeatures(file, grids, o, *impl);
     file.close();
     return Volume(std::move(impl));

@@ -10,6 +10,7 @@
 #include <nlohmann/json.hpp>
 
 #include "Volume.h"
+#include "support/VdbFileReader.h"
 #include "support/TestSupport.h"
 
 namespace splatwarp {
@@ -83,6 +84,14 @@ TEST(FromVdbCli, BadInputsExitOneAndWriteNothing)
     expectRefused(dir, dir.file("two.vdb"), "a (float), b (float)");
     expectRefused(dir, dir.file("two.vdb"), "'c'", "--grid c");
     EXPECT_EQ(runCli("from-vdb " + dir.file("two.vdb")), 2); // no -o: usage error
+
+    // Our own file (to-vdb) whose filter metadata was edited into nonsense.
+    ASSERT_EQ(runCli("-q sample stripes --count 300 -o " + dir.file("m.ply")), 0);
+    ASSERT_EQ(runCli("-q to-vdb " + dir.file("m.ply") + " -o " + dir.file("own.vdb") + " --cells 8 --device cpu"), 0);
+    for (const float bad : {std::numeric_limits<float>::quiet_NaN(), -1.0f, std::numeric_limits<float>::infinity()}) {
+        test::setFileMetadata(dir.file("own.vdb"), "lambda_lpf", bad);
+        expectRefused(dir, dir.file("own.vdb"), "lambda_lpf");
+    }
 }
 
 // A level set (negative inside) becomes fog: interior 1, a note in the report, nothing refused.

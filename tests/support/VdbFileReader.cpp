@@ -95,4 +95,23 @@ VdbFileData readVdbFile(const std::string& path)
     return data;
 }
 
+void setFileMetadata(const std::string& path, const std::string& key, float value)
+{
+    vdb::initialize();
+    try {
+        openvdb::io::File in(path);
+        in.open();
+        openvdb::MetaMap::Ptr meta = in.getMetadata();
+        openvdb::GridPtrVecPtr grids = in.getGrids();
+        in.close();
+        meta->removeMeta(key);
+        meta->insertMeta(key, openvdb::FloatMetadata(value));
+        openvdb::io::File out(path);
+        out.write(*grids, *meta);
+        out.close();
+    } catch (const openvdb::Exception& e) {
+        throw IoError(msg(path, ": cannot rewrite the VDB file: ", e.what()));
+    }
+}
+
 } // namespace splatwarp::test

@@ -31,6 +31,9 @@ struct VdbFileData {
     const VdbGridData* find(const std::string& name) const;
 };
 
+/// @brief Rewrite a `.vdb` file with one float file-metadata entry set (hand-edited files).
+void setFileMetadata(const std::string& path, const std::string& key, float value);
+
 /// @brief Read a `.vdb` file (float, double, int32, vec3s, bool and mask grids keep values).
 /// @throws IoError naming the file when it cannot be opened or parsed.
 VdbFileData readVdbFile(const std::string& path);
