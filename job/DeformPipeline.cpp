@@ -5,6 +5,7 @@
 
 #include "deform/SampleWarp.h"
 #include "Judge.h"
+#include "StretchedView.h"
 #include "VdbExport.h"
 #include "core/AtomicFile.h"
 #include "core/Error.h"
@@ -76,9 +77,31 @@ std::vector<Camera> comparisonCameras(const GaussianCloud& rest, const GaussianC
     return orbitCameras(both, orbit);
 }
 
-/// The optional outputs of Stage II's result: field.vdb and compare.png.
-void writeExtras(const DeformRest& rest, const GaussianCloud& stage1, const GaussianCloud& fitted,
-                 const DeformJobOptions& o, const FrameOutputs& out, nlohmann::json& report)
+/// stretched.png: a close-up of the most stretched region (StretchedView.h); report["stretched"]
+/// says where it is. The rest samples are warped again: only this output needs their gradients here.
+void writeStretchedView(const DeformRest& rest, const Deformation& deformation, const GaussianCloud& stage1,
+                        const GaussianCloud& fitted, const DeformJobOptions& o, const std::string& path,
+                        nlohmann::json& report)
+{
+    SampleSet samples = rest.grid->samples();
+    warpSamplesOn(samples, deformation, {rest.device, o.grid.threaded});
+    const std::optional<StretchedRegion> region = mostStretchedRegion(samples);
+    if (!region) {
+        progress("stretched.png: no cell with matter to show; not written");
+        return;
+    }
+    RenderOptions render;
+    render.device = rest.device;
+    writePng(path, renderStretchedCloseUp(rest.model, stage1, fitted, *region, o.renderSize, render));
+    const Vec3d& c = region->warpedCentre;
+    report["stretched"] = {{"cell", region->cell}, {"stretch", region->stretch}, {"centre", {c.x, c.y, c.z}},
+                           {"radius", region->radius}};
+    report["outputs"]["stretched"] = path;
+}
+
+/// The optional outputs of Stage II's result: field.vdb, compare.png and stretched.png.
+void writeExtras(const DeformRest& rest, const Deformation& deformation, const GaussianCloud& stage1,
+                 const GaussianCloud& fitted, const DeformJobOptions& o, const FrameOutputs& out, nlohmann::json& report)
 {
     Stopwatch clock;
     if (!out.vdb.empty()) {
@@ -101,6 +124,7 @@ void writeExtras(const DeformRest& rest, const GaussianCloud& stage1, const Gaus
                                                   comparisonCameras(rest.model, fitted, o), sheetOptions);
         writePng(out.compare, sheet);
         report["outputs"]["compare"] = out.compare;
+        if (!out.stretched.empty()) writeStretchedView(rest, deformation, stage1, fitted, o, out.stretched, report);
         report["timingsMs"]["render"] = clock.ms();
     }
 }
@@ -309,7 +333,7 @@ nlohmann::json runDeformFrame(DeformRest& rest, const DeformSpec& spec, const De
             writeMs += clock.ms();
             report["outputs"]["deformed"] = out.deformed;
         }
-        writeExtras(rest, stage1.deformed, fitted, o, out, report);
+        writeExtras(rest, deformation, stage1.deformed, fitted, o, out, report);
         if (written) *written = fitted;
     } else if (written) {
         *written = std::move(stage1.deformed);
@@ -329,12 +353,15 @@ nlohmann::json runDeformJob(const DeformJobOptions& o)
     std::unique_ptr<DeformRest> rest = prepareDeformRest(o, graphOptionsOf(spec, o));
     outputs.createDirectory(o.outDir);
     if (o.stage1Only)
-        for (const char* stale : {"deformed.ply", "field.vdb", "compare.png"}) outputs.removeOnCommit(outPath(o, stale));
+        for (const char* stale : {"deformed.ply", "field.vdb", "compare.png", "stretched.png"}) outputs.removeOnCommit(outPath(o, stale));
     FrameOutputs out;
     out.baseline = outPath(o, "baseline.ply");
     if (!o.stage1Only) out.deformed = outPath(o, "deformed.ply");
     if (o.writeVdb && !o.stage1Only) out.vdb = outPath(o, "field.vdb");
-    if (o.render && !o.stage1Only) out.compare = outPath(o, "compare.png");
+    if (o.render && !o.stage1Only) {
+        out.compare = outPath(o, "compare.png");
+        out.stretched = outPath(o, "stretched.png");
+    }
     nlohmann::json report = runDeformFrame(*rest, spec, o, out);
     report["timingsMs"]["total"] = total.ms(); // the rest side included
     const std::string reportPath = outPath(o, "report.json");

@@ -41,7 +41,7 @@ struct DeformJobOptions {
     bool evaluate = true;   ///< the judge's errors of Stage I and Stage II in the report (and the training-lattice error)
     int evalEvery = 0;      ///< also record the held-out error every K Stage II iterations (0 = off)
     bool writeVdb = false;  ///< field.vdb: the Stage II model's field (same grids as `to-vdb`)
-    bool render = false;    ///< compare.png: rest | Stage I | Stage II from a few orbit views
+    bool render = false;    ///< compare.png: rest | Stage I | Stage II from a few orbit views; stretched.png: a close-up of the most stretched region
     int renderViews = 3;    ///< orbit views in compare.png
     int renderSize = 320;   ///< pixels per view (square)
     /// Where every computing step runs (auto: CUDA when compiled in and a GPU is present),
@@ -80,6 +80,7 @@ std::unique_ptr<DeformRest> prepareDeformRest(const DeformJobOptions& options, c
 /// @brief Where one run of a spec writes; an empty path is not written (deformed: Stage II only).
 struct FrameOutputs {
     std::string baseline, deformed, vdb, compare, report;
+    std::string stretched; ///< close-up of the most stretched region (written with compare)
 };
 
 /// @brief Another start for Stage II than Stage I's model (animate's warm start), with a check
