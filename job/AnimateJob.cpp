@@ -35,6 +35,7 @@ json settingsJson(const DeformJobOptions& o)
             {"cutoff", o.grid.cutoff},
             {"fineBelow", o.grid.fineBelow},
             {"fineNeighbours", o.grid.fineNeighbours},
+            {"stage1Shape", o.stage1.shape == StageOneShape::Affine ? "affine" : "polar"},
             {"iterations", o.stage2.iterations},
             {"boundaryWeight", o.stage2.boundaryWeight},
             {"lowPassFilter", o.stage2.lowPassFilter},

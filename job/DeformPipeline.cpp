@@ -313,6 +313,7 @@ nlohmann::json runDeformFrame(DeformRest& rest, const DeformSpec& spec, const De
     progress(msg("Stage I: ", stage1.movingCount, " of ", rest.model.size(), " Gaussians moved (", int(rest.rigMs),
                  " ms weights, ", int(stage1.timings.updateMs), " ms update on ", deviceName(stage1.device), ")"));
     nlohmann::json report = stageOneReportJson(deformation, stage1, graphOptionsOf(spec, o), o.ed);
+    report["stage1"]["shape"] = o.stage1.shape == StageOneShape::Affine ? "affine" : "polar";
     report["input"] = {{"path", o.input}, {"format", rest.read.format}, {"gaussians", rest.model.size()},
                        {"shDegree", rest.model.shDegree}};
     report["spec"] = o.specPath;

@@ -10,13 +10,9 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 out=${1:?usage: fidelity-study.sh OUTDIR [MODEL...]}
 shift
-data=../shared/data/splats
-models=("$@")
-[ ${#models[@]} -gt 0 ] || models=("$data/train-1000.ply" "$data/lastchance.splat" "$data/donut.ply" \
-                                   "$data/playbot-31k-sh2.ply" "$data/guitar.compressed.ply")
+source scripts/study-models.sh
+study_setup "$out" "$@"
 specs=(${SPECS:-bend twist stretch squash rigid})
-bin=build/tools/splatwarp
-mkdir -p "$out"
 echo "| model | spec | Gaussians | Stage I opacity / colour (inside, outside) | Stage II opacity / colour (inside, outside) | ratio opacity / colour | Stage II s | rejected | eval = report | deform CPU s / peak MB |"
 echo "|---|---|---|---|---|---|---|---|---|---|"
 for m in "${models[@]}"; do

@@ -19,6 +19,7 @@ struct DeformArgs {
     std::uint32_t seed = 0;
     bool noLpf = false, noEval = false;
     std::string fineCells = "off";
+    std::string stage1Shape = "affine";
     float fineBelow = 4.0f;
 };
 
@@ -51,6 +52,12 @@ inline void addDeformOptions(CLI::App* sub, DeformArgs& args)
     sub->add_option("--nodes", args.nodes, "Graph node count (overrides the spec's graph.nodes)")->check(positive());
     sub->add_option("--k", args.k, "Nearest nodes per point and edges per node (overrides graph.k)")->check(inRange(1, 64));
     sub->add_option("--seed", args.seed, "Seed of the farthest-point sampling (overrides graph.seed)");
+    sub->add_option("--stage1-shape", args.stage1Shape,
+                    "How Stage I shapes a moving Gaussian from the affine map M fitted to its skinned endpoints: affine "
+                    "(covariance M Sigma M^T, so shear and a flat Gaussian's turning normal follow) or polar (the paper: "
+                    "M's rotation, each axis scaled by M's stretch along it)")
+        ->capture_default_str()
+        ->check(CLI::IsMember({"affine", "polar"}));
     addGridOptions(sub, job.grid);
     addFineCellOptions(sub, args);
     sub->add_option("--iterations", job.stage2.iterations, "Stage II Adam iterations")->capture_default_str()->check(nonNegative());
@@ -84,6 +91,7 @@ inline DeformJobOptions deformJobOptions(const DeformArgs& args, const CLI::App*
     if (sub->count("--seed")) job.seed = args.seed;
     job.stage2.lowPassFilter = !args.noLpf;
     job.grid.fineBelow = args.fineCells == "auto" ? args.fineBelow : 0.0f;
+    job.stage1.shape = args.stage1Shape == "polar" ? StageOneShape::Polar : StageOneShape::Affine;
     job.evaluate = !args.noEval;
     return job;
 }

@@ -24,6 +24,7 @@ StageOneParams stageOneParams(const StageOneOptions& o, double extent)
     p.absoluteEpsilon = o.absoluteEpsilon;
     p.minStretch = o.minStretch;
     p.extent = extent;
+    p.affineShape = o.shape == StageOneShape::Affine;
     return p;
 }
 

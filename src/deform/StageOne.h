@@ -15,7 +15,18 @@
 namespace splatwarp {
 
 /// @brief Options of Stage I.
+/// @brief How a moving Gaussian's shape follows M, the affine map fitted to its skinned endpoints.
+enum class StageOneShape {
+    /// Covariance M Sigma M^T: exact to first order, so shear off the Gaussian's axes and a flat
+    /// Gaussian's normal (which turns by M^-T, not by M's rotation) follow. Judged on the shared
+    /// models it lowers Stage I's error by a quarter to a third (docs/fidelity-study.md).
+    Affine,
+    /// The paper's: rotation R R0 from M = R S, each rest axis scaled by S's stretch along it.
+    Polar,
+};
+
 struct StageOneOptions {
+    StageOneShape shape = StageOneShape::Affine;
     double endpointSigmas = 2.0;     ///< endpoints at +-endpointSigmas * sigma per axis (paper: 2)
     double flatEpsilon = 1e-3;       ///< sigma = scale + flatEpsilon * largest scale: flat Gaussians keep a frame
     double absoluteEpsilon = 1e-6;   ///< ... + absoluteEpsilon * model extent: near-zero Gaussians too

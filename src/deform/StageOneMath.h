@@ -23,6 +23,7 @@ struct StageOneParams {
     double absoluteEpsilon = 1e-6;
     double minStretch = 1e-6;
     double extent = 1.0; ///< largest extent of the rest centres' bounding box
+    bool affineShape = true; ///< StageOneShape::Affine (else Polar)
 };
 
 /// @brief Rest frame of a Gaussian: rotation (normalised quaternion), endpoint sigmas and centre.
@@ -60,6 +61,69 @@ SPLATWARP_HOST_DEVICE Vec3d stageOneEndpoint(const StageOneRestFrame& f, int e, 
     return f.centre + axis * (sign * sigmas * f.sigma[a]);
 }
 
+/// @brief Permute and flip the eigenvector columns of v (with their eigenvalues) to lie closest
+///        to the identity's, det +1: the axes keep their rest order and sense where they can.
+SPLATWARP_HOST_DEVICE void stageOneAlignToIdentity(Mat3d& v, Vec3d& lambda)
+{
+    const int perms[6][3] = {{0, 1, 2}, {0, 2, 1}, {1, 0, 2}, {1, 2, 0}, {2, 0, 1}, {2, 1, 0}};
+    int best = 0;
+    double bestScore = -1;
+    for (int p = 0; p < 6; ++p) {
+        double score = 0;
+        for (int a = 0; a < 3; ++a) score += v[a][perms[p][a]] < 0 ? -v[a][perms[p][a]] : v[a][perms[p][a]];
+        if (score > bestScore) {
+            bestScore = score;
+            best = p;
+        }
+    }
+    Mat3d out;
+    Vec3d l;
+    int weakest = 0;
+    for (int a = 0; a < 3; ++a) {
+        const int k = perms[best][a];
+        const double sign = v[a][k] < 0 ? -1.0 : 1.0;
+        for (int r = 0; r < 3; ++r) out[r][a] = sign * v[r][k];
+        l[a] = lambda[k];
+        if (out[a][a] < out[weakest][weakest]) weakest = a;
+    }
+    if (out.determinant() < 0)
+        for (int r = 0; r < 3; ++r) out[r][weakest] = -out[r][weakest];
+    v = out;
+    lambda = l;
+}
+
+/// @brief The affine shape: covariance M Sigma M^T of the rest covariance Sigma = R0 diag(s^2) R0^T
+///        under the local map M = mr R0^T, as a rotation and log-scales. It is decomposed in the
+///        polar frame rr0 (= R R0), where a rigid M leaves it diagonal: then the rotation is rr0 and
+///        the scales the rest ones, as the polar shape gives, and the axes keep their order.
+SPLATWARP_HOST_DEVICE void stageOneAffineShape(const Mat3d& mr, const Mat3d& rr0, const float* logScales, double minStretch,
+                                               Quatd& q, float* outLogScales)
+{
+    const Mat3d b = rr0.transposed() * mr; // M R0 in the polar frame; M Sigma M^T = rr0 (b D b^T) rr0^T
+    Mat3d c;
+    for (int r = 0; r < 3; ++r)
+        for (int k = 0; k < 3; ++k) {
+            double sum = 0;
+            for (int a = 0; a < 3; ++a) sum += b[r][a] * b[k][a] * std::exp(2.0 * double(logScales[a]));
+            c[r][k] = sum;
+        }
+    Vec3d lambda;
+    Mat3d v;
+    symmetricEigen3(c, lambda, v);
+    // The thinnest axis of a flat Gaussian is below the rounding of the others' variances; take it
+    // from det C = det(b)^2 s0^2 s1^2 s2^2 instead (the eigenvalues come descending).
+    const double detB = b.determinant(), sumLog = double(logScales[0]) + double(logScales[1]) + double(logScales[2]);
+    if (lambda[0] * lambda[1] > 0) lambda[2] = detB * detB * std::exp(2.0 * sumLog) / (lambda[0] * lambda[1]);
+    stageOneAlignToIdentity(v, lambda);
+    q = matrixToQuat(rr0 * v);
+    // A flat axis can round to a tiny negative eigenvalue: floor it at the smallest rest scale times
+    // minStretch, as the polar shape floors its stretch (keeps log-scales finite).
+    double smallest = double(logScales[0]);
+    for (int a = 1; a < 3; ++a) smallest = double(logScales[a]) < smallest ? double(logScales[a]) : smallest;
+    const double floor = minStretch * std::exp(smallest);
+    for (int a = 0; a < 3; ++a) outLogScales[a] = float(0.5 * std::log(stageOneMax(lambda[a], floor * floor)));
+}
+
 /// @brief Read-only inputs of the update, GPU layout (N Gaussians, K = (shDegree+1)^2).
 struct StageOneInputs {
     const float* means = nullptr;         ///< [N,3] rest
@@ -84,7 +148,8 @@ struct StageOneOutputs {
 };
 
 /// @brief Update Gaussian i: skin its centre and endpoints, M = (P Q^T)(Q Q^T)^-1, polar M = R S,
-///        then mean, rotation R R0, log-scales + log stretch and SH rotated by R.
+///        then mean, shape (affine: covariance M Sigma M^T; polar: rotation R R0, log-scales + log
+///        stretch) and SH rotated by R.
 SPLATWARP_HOST_DEVICE void stageOneUpdate(const StageOneInputs& in, const StageOneParams& p, std::size_t i,
                                           const StageOneOutputs& out)
 {
@@ -124,16 +189,20 @@ SPLATWARP_HOST_DEVICE void stageOneUpdate(const StageOneInputs& in, const StageO
             stretch[a] = dot(ra, s * ra);
         }
     }
-    const Quatd q = matrixToQuat(rr0);
+    Quatd q = matrixToQuat(rr0);
+    if (p.affineShape) {
+        stageOneAffineShape(mr, rr0, in.logScales + 3 * i, p.minStretch, q, out.logScales + 3 * i);
+    } else {
+        for (int a = 0; a < 3; ++a)
+            out.logScales[3 * i + std::size_t(a)] =
+                float(double(in.logScales[3 * i + std::size_t(a)]) + std::log(stageOneMax(stretch[a], p.minStretch)));
+    }
     for (int a = 0; a < 3; ++a) out.means[3 * i + std::size_t(a)] = float(centre[a]);
     float* rot = out.rotations + 4 * i;
     rot[0] = float(q.w);
     rot[1] = float(q.x);
     rot[2] = float(q.y);
     rot[3] = float(q.z);
-    for (int a = 0; a < 3; ++a)
-        out.logScales[3 * i + std::size_t(a)] =
-            float(double(in.logScales[3 * i + std::size_t(a)]) + std::log(stageOneMax(stretch[a], p.minStretch)));
     if (in.shDegree > 0) {
         const std::size_t stride = std::size_t(3 * (in.shDegree + 1) * (in.shDegree + 1));
         rotateSh(*in.shTables, rr0 * f.r0.transposed(), in.shDegree, out.sh + i * stride);

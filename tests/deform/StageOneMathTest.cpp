@@ -23,17 +23,33 @@ namespace {
 // the log of the stretch and the SH sums (|coefficients| <= ~3 in the sample).
 constexpr double kFloatTolerance = 1e-6;
 
+// The affine covariance is rebuilt from float rotation and log-scales: ~3 float roundings of its
+// largest entry.
+constexpr double kAffineTolerance = 1e-6;
+
 double relErr(double a, double b) { return std::abs(a - b) / std::max(1.0, std::max(std::abs(a), std::abs(b))); }
 
-} // namespace
+/// Covariance R diag(exp(2 logScale)) R^T of Gaussian i of a cloud.
+Mat3d covarianceOf(const GaussianCloud& g, std::size_t i)
+{
+    const Quatf q = g.rotation(i);
+    const Mat3d r = quatToMatrix(Quatd{q.w, q.x, q.y, q.z});
+    Mat3d d = Mat3d::identity();
+    for (int a = 0; a < 3; ++a) d[a][a] = std::exp(2.0 * double(g.logScales[3 * i + std::size_t(a)]));
+    return r * d * r.transposed();
+}
 
-TEST(StageOneMath, UpdateMatchesPlainReferenceOnBend)
+/// The update of every moving Gaussian of a bent stripes model against a plain double reference:
+/// M = (P Q^T)(Q Q^T)^-1 over the 6 endpoint offsets, polar M = R S; polar shape: rotation R R0 and
+/// log-scales + log stretch; affine shape: covariance M Sigma M^T (relative to its largest entry).
+void checkAgainstReferenceOnBend(StageOneShape shape)
 {
     const GaussianCloud rest = makeDemoModel("stripes", DemoModelOptions{3000, 3});
     DeformSpec spec = loadDeformSpec(std::string(SPLATWARP_SOURCE_DIR) + "/samples/specs/bend.json");
     spec.graph.nodes = 64;
     const Deformation d = solveDeformation(rest, spec);
-    const StageOneOptions o;
+    StageOneOptions o;
+    o.shape = shape;
     const StageOneRig rig = prepareStageOne(rest, d.graph, o);
     const StageOneResult res = applyStageOneCpu(rest, rig, d.graph, d.transforms, d.nodeMoving, o);
     ASSERT_GT(res.movingCount, 0u);
@@ -69,6 +85,21 @@ TEST(StageOneMath, UpdateMatchesPlainReferenceOnBend)
         polarDecomposition(pq * qq.inverse(), rot, stretchMat);
         const Mat3d rr0 = rot * f.r0;
         for (int a = 0; a < 3; ++a) worst = std::max(worst, relErr(res.deformed.means[3 * i + a], c[a]));
+        std::vector<double> sh(rest.shOf(i), rest.shOf(i) + rest.shStride());
+        ShRotation(rot, rest.shDegree).apply(rest.shDegree, sh.data());
+        for (int s = 0; s < rest.shStride(); ++s) worst = std::max(worst, relErr(res.deformed.shOf(i)[s], sh[s]));
+        if (shape == StageOneShape::Affine) {
+            const Mat3d m = pq * qq.inverse();
+            const Mat3d ref = m * covarianceOf(rest, i) * m.transposed(), got = covarianceOf(res.deformed, i);
+            double largest = 0, diff = 0;
+            for (int r = 0; r < 3; ++r)
+                for (int k = 0; k < 3; ++k) {
+                    largest = std::max(largest, std::abs(ref[r][k]));
+                    diff = std::max(diff, std::abs(got[r][k] - ref[r][k]));
+                }
+            worst = std::max(worst, diff / largest);
+            continue;
+        }
         const Quatd q = matrixToQuat(rr0);
         const float* got = res.deformed.rotations.data() + 4 * i;
         const double plus = std::abs(got[0] - q.w) + std::abs(got[1] - q.x) + std::abs(got[2] - q.y) + std::abs(got[3] - q.z);
@@ -79,12 +110,15 @@ TEST(StageOneMath, UpdateMatchesPlainReferenceOnBend)
             const double ref = double(rest.logScales[3 * i + a]) + std::log(std::max(dot(ra, stretchMat * ra), o.minStretch));
             worst = std::max(worst, relErr(res.deformed.logScales[3 * i + a], ref));
         }
-        std::vector<double> sh(rest.shOf(i), rest.shOf(i) + rest.shStride());
-        ShRotation(rot, rest.shDegree).apply(rest.shDegree, sh.data());
-        for (int s = 0; s < rest.shStride(); ++s) worst = std::max(worst, relErr(res.deformed.shOf(i)[s], sh[s]));
     }
-    EXPECT_LT(worst, kFloatTolerance);
+    EXPECT_LT(worst, shape == StageOneShape::Affine ? kAffineTolerance : kFloatTolerance);
 }
+
+} // namespace
+
+TEST(StageOneMath, UpdateMatchesPlainReferenceOnBend) { checkAgainstReferenceOnBend(StageOneShape::Polar); }
+
+TEST(StageOneMath, AffineShapeIsTheCovarianceUnderTheLocalMap) { checkAgainstReferenceOnBend(StageOneShape::Affine); }
 
 TEST(StageOneMath, AffineSkinningMatchesSkinPointInGpuLayout)
 {

@@ -150,9 +150,11 @@ TEST(StageOne, NonRigidFieldMatchesNaiveSvdReference)
         x.t[j] = Vec3d(0.1 * u(rng), 0.1 * u(rng), 0.1 * u(rng));
     }
     const StageOneRig rig = prepareStageOne(rest, graph);
-    const StageOneResult res = applyStageOneCpu(rest, rig, graph, x, std::vector<std::uint8_t>(graph.nodeCount(), 1));
+    StageOneOptions o; // the polar shape against the SVD's polar factors
+    o.shape = StageOneShape::Polar;
+    const StageOneResult res =
+        applyStageOneCpu(rest, rig, graph, x, std::vector<std::uint8_t>(graph.nodeCount(), 1), o);
     ASSERT_EQ(res.movingCount, rest.size());
-    const StageOneOptions o;
     double worst = 0.0;
     for (std::size_t i = 0; i < rest.size(); ++i) {
         const Quatf qf = rest.rotation(i);
