@@ -43,6 +43,10 @@ json settingsJson(const DeformJobOptions& o)
             {"rebuildEvery", o.stage2.rebuildEvery},
             {"stallTolerance", o.stage2.stallTolerance},
             {"maxMeanStep", o.stage2.maxMeanStep},
+            {"split", o.densify.split},
+            {"splitStretch", o.densify.splitStretch},
+            {"splitAfter", o.densify.splitAfter},
+            {"pruneBelow", o.densify.pruneBelow},
             {"dropInvalid", o.dropInvalid},
             {"evaluate", o.evaluate},
             {"evalEvery", o.evalEvery},
@@ -159,7 +163,8 @@ public:
         if (!(previous && previous->correction)) s2["start"] = "cold";
         else s2["warmLimit"] = kWarmEnergyLimit * previous->fitEnergy;
         // A fit that kept its Stage I model (iteration 0) carries nothing but rounding: its odd frame starts cold.
-        if (s2.value("bestIteration", 0) == 0) mLast = Carried{f, std::nullopt, 0.0};
+        // So does one whose split or prune changed the count (a correction is per Gaussian).
+        if (s2.value("bestIteration", 0) == 0 || written.size() != stage1.size()) mLast = Carried{f, std::nullopt, 0.0};
         else mLast = Carried{f, stageTwoCorrection(stage1, written), s2.value("bestEnergy", 0.0)};
         return report;
     }

@@ -1,5 +1,7 @@
 #include "DeformPipeline.h"
 
+#include <algorithm>
+#include <cmath>
 #include <filesystem>
 #include <sstream>
 
@@ -16,6 +18,7 @@
 #include "image/ImageIO.h"
 #include "render/Camera.h"
 #include "render/ComparisonSheet.h"
+#include "stage2/Densify.h"
 #include "stage2/StageTwoDevice.h"
 
 namespace splatwarp {
@@ -168,7 +171,8 @@ GaussianCloud skipStageTwo(DeformRest& rest, const Deformation& deformation, con
                            const DeformJobOptions& o, nlohmann::json& report)
 {
     progress("Stage II: skipped (a rigid spec: the Stage I model is the fitted one)");
-    report["stage2"] = {{"skipped", "rigid spec"}, {"movingGaussians", 0}, {"device", "none"}};
+    report["stage2"] = {{"skipped", "rigid spec"}, {"movingGaussians", 0}, {"device", "none"},
+                        {"gaussiansAdded", 0}, {"gaussiansRemoved", 0}, {"gaussians", stage1.deformed.size()}};
     report["timingsMs"]["stage2"] = 0.0;
     Stopwatch clock;
     const FrameErrors errors(rest, deformation, o);
@@ -178,6 +182,86 @@ GaussianCloud skipStageTwo(DeformRest& rest, const Deformation& deformation, con
         report["timingsMs"]["evaluate"] = rest.heldOutMs + clock.ms();
     }
     return stage1.deformed;
+}
+
+/// Round `next` appended to `all`: energies, pairs and iterations offset by the iterations before it,
+/// counters and times summed, the rest (best iterate, moving count, device) of the last round.
+void appendRound(StageTwoReport& all, const StageTwoReport& next, int offset, bool first)
+{
+    const StageTwoReport before = all;
+    all = next;
+    if (first) return;
+    all.energies = before.energies;
+    for (StageTwoEnergy e : next.energies) {
+        e.iteration += offset;
+        all.energies.push_back(e);
+    }
+    all.pairsPerIteration = before.pairsPerIteration;
+    all.pairsPerIteration.insert(all.pairsPerIteration.end(), next.pairsPerIteration.begin(), next.pairsPerIteration.end());
+    all.bestIteration += offset;
+    if (next.stoppedAt >= 0) all.stoppedAt += offset;
+    all.rejectedSteps += before.rejectedSteps;
+    all.coverageRebuilds += before.coverageRebuilds;
+    all.coverageForcedRebuilds += before.coverageForcedRebuilds;
+    all.gpuPeakBytes = std::max(all.gpuPeakBytes, before.gpuPeakBytes);
+    all.msSetup += before.msSetup;
+    all.msCoverage += before.msCoverage;
+    all.msForward += before.msForward;
+    all.msBackward += before.msBackward;
+    all.msUpdate += before.msUpdate;
+    all.msTotal += before.msTotal;
+}
+
+/// Gaussians split and pruned by a Stage II run.
+struct DensifyCounts {
+    std::size_t split = 0, pruned = 0;
+    double ms = 0;
+};
+
+/// Stage II in rounds: the iterations before the split, split (and prune) on the host, the rest.
+/// Each round is one runStageTwo() call on a fresh solver; children inherit moving flag and cell.
+StageTwoReport fitInRounds(GaussianCloud& fitted, const SampleSet& samples, const StageOneResult& stage1,
+                           const SampleGrid& grid, const StageTwoOptions& s2, const DeformJobOptions& o,
+                           const std::function<void(int, const GaussianCloud&)>& onEval, DensifyCounts& counts)
+{
+    const DensifyJobOptions& d = o.densify;
+    std::vector<std::uint8_t> moving = stage1.moving;
+    std::vector<std::int32_t> cell = grid.gaussianCell();
+    DensifyCloud dc{fitted, moving, cell};
+    const int first = d.split ? int(std::lround(double(s2.iterations) * d.splitAfter)) : s2.iterations;
+    StageTwoReport all;
+    int done = 0;
+    bool any = false;
+    auto round = [&](int iterations) {
+        StageTwoOptions r = s2;
+        r.iterations = iterations;
+        const int offset = done;
+        auto shifted = [&](int iteration, const GaussianCloud& current) { onEval(offset + iteration, current); };
+        const StageTwoReport next = runStageTwo(fitted, samples, moving, cell, r,
+                                                onEval ? std::function<void(int, const GaussianCloud&)>(shifted)
+                                                       : std::function<void(int, const GaussianCloud&)>(),
+                                                o.evalEvery);
+        appendRound(all, next, offset, !any);
+        any = true;
+        done += iterations;
+    };
+    auto prune = [&] {
+        if (d.pruneBelow > 0) counts.pruned += pruneMovingBelow(dc, d.pruneBelow);
+    };
+    if (first > 0 || !d.split) round(first);
+    if (d.split) {
+        Stopwatch clock;
+        prune();
+        counts.split += splitGaussians(dc, stretchedGaussians(moving, cell, samples.cellGradient, d.splitStretch));
+        counts.ms += clock.ms();
+        progress(msg("Stage II: split ", counts.split, " Gaussians of cells stretched over ", d.splitStretch, " (",
+                     fitted.size(), " Gaussians)"));
+        if (s2.iterations - first > 0 || !any) round(s2.iterations - first);
+    }
+    Stopwatch clock;
+    prune();
+    counts.ms += clock.ms();
+    return all;
 }
 
 /// Stage II on a warped copy of the rest samples, with the held-out errors; returns the fitted model.
@@ -211,13 +295,15 @@ GaussianCloud stageTwo(DeformRest& rest, const Deformation& deformation, const S
     };
     StageTwoOptions s2 = o.stage2;
     s2.device = rest.device;
+    DensifyCounts counts;
     auto fit = [&] {
         progress(msg("Stage II: ", o.stage2.iterations, " iterations on ", stage1.movingCount, " moving Gaussians"));
         curve = nlohmann::json::array();
-        return runStageTwo(fitted, samples, stage1.moving, rest.grid->gaussianCell(), s2,
+        counts = DensifyCounts();
+        return fitInRounds(fitted, samples, stage1, *rest.grid, s2, o,
                            o.evalEvery > 0 ? std::function<void(int, const GaussianCloud&)>(onEval)
                                            : std::function<void(int, const GaussianCloud&)>(),
-                           o.evalEvery);
+                           counts);
     };
     StageTwoReport r2 = fit();
     std::optional<double> rejectedStart; // the warm start's energy when the frame went back to the cold start
@@ -230,7 +316,18 @@ GaussianCloud stageTwo(DeformRest& rest, const Deformation& deformation, const S
         r2 = fit();
     }
     report["stage2"] = stageTwoJson(r2, *rest.grid, o.stage2);
-    report["timingsMs"]["stage2"] = r2.msTotal + rejectedMs;
+    report["stage2"]["densify"] = {{"split", o.densify.split ? "auto" : "off"},
+                                   {"splitStretch", o.densify.splitStretch},
+                                   {"splitAfter", o.densify.splitAfter},
+                                   {"pruneBelow", o.densify.pruneBelow},
+                                   {"ms", counts.ms}};
+    report["stage2"]["gaussiansAdded"] = counts.split;
+    report["stage2"]["gaussiansRemoved"] = counts.pruned;
+    report["stage2"]["gaussians"] = fitted.size();
+    if (o.densify.split || o.densify.pruneBelow > 0)
+        progress(msg("Stage II: ", counts.split, " Gaussians added by splits, ", counts.pruned, " pruned: ",
+                     fitted.size(), " Gaussians"));
+    report["timingsMs"]["stage2"] = r2.msTotal + rejectedMs + counts.ms;
     if (start.change) report["stage2"]["start"] = rejectedStart ? "cold" : "warm";
     if (rejectedStart) report["stage2"]["warmEnergy"] = *rejectedStart;
     if (o.evalEvery > 0) report["stage2"]["eval_curve"] = curve;

@@ -24,6 +24,15 @@
 
 namespace splatwarp {
 
+/// @brief Split and prune in Stage II (src/stage2/Densify.h): with a split, Stage II runs in two
+///        rounds (one runStageTwo() call each, so every device follows) with the split between them.
+struct DensifyJobOptions {
+    bool split = false;         ///< --split auto: split the moving Gaussians of stretched cells
+    float splitStretch = 1.3f;  ///< a cell is stretched when its F's largest singular value is above this
+    float splitAfter = 0.5f;    ///< share of the iterations before the split (0: split before Stage II)
+    float pruneBelow = 0.0f;    ///< remove moving Gaussians whose opacity ends below this (0: none)
+};
+
 /// @brief Everything a deform run needs; defaults are those of each stage's options struct.
 struct DeformJobOptions {
     std::string input;     ///< model to deform (any supported format)
@@ -37,6 +46,7 @@ struct DeformJobOptions {
     StageOneOptions stage1;
     SampleGridOptions grid;
     StageTwoOptions stage2;
+    DensifyJobOptions densify;
     HeldOutOptions heldOut; ///< points and seed of the judge (and of the training-lattice error)
     bool evaluate = true;   ///< the judge's errors of Stage I and Stage II in the report (and the training-lattice error)
     int evalEvery = 0;      ///< also record the held-out error every K Stage II iterations (0 = off)

@@ -20,6 +20,7 @@ struct DeformArgs {
     bool noLpf = false, noEval = false;
     std::string fineCells = "off";
     std::string stage1Shape = "affine";
+    std::string split = "off";
     float fineBelow = 4.0f;
 };
 
@@ -41,6 +42,31 @@ inline void addFineCellOptions(CLI::App* sub, DeformArgs& args)
                   "With --fine-cells auto: also refine the 26 neighbours of each fine cell");
 }
 
+/// @brief --split, --split-stretch, --split-after, --prune-below (Stage II in rounds, src/stage2/Densify.h).
+inline void addDensifyOptions(CLI::App* sub, DeformArgs& args)
+{
+    DensifyJobOptions& d = args.job.densify;
+    sub->add_option("--split", args.split,
+                    "auto: split each moving Gaussian whose rest cell's deformation gradient F has its largest singular "
+                    "value above --split-stretch into two along its longest axis (same mass, mean, covariance and colour), "
+                    "between two Stage II rounds; off: one round")
+        ->capture_default_str()
+        ->check(CLI::IsMember({"auto", "off"}));
+    sub->add_option("--split-stretch", d.splitStretch,
+                    "With --split auto: the largest singular value of a cell's F above which its Gaussians split")
+        ->capture_default_str()
+        ->check(inRange(1.0, 100.0));
+    sub->add_option("--split-after", d.splitAfter,
+                    "With --split auto: share of the Stage II iterations run before the split (0: split first)")
+        ->capture_default_str()
+        ->check(inRange(0.0, 1.0));
+    sub->add_option("--prune-below", d.pruneBelow,
+                    "Remove the moving Gaussians whose opacity Stage II leaves below this (before the split and at the "
+                    "end; 0: keep every Gaussian)")
+        ->capture_default_str()
+        ->check(inRange(0.0, 1.0));
+}
+
 /// @brief Every flag of a deform run except the input, --spec, -o, --vdb and --render.
 inline void addDeformOptions(CLI::App* sub, DeformArgs& args)
 {
@@ -60,6 +86,7 @@ inline void addDeformOptions(CLI::App* sub, DeformArgs& args)
         ->check(CLI::IsMember({"affine", "polar"}));
     addGridOptions(sub, job.grid);
     addFineCellOptions(sub, args);
+    addDensifyOptions(sub, args);
     sub->add_option("--iterations", job.stage2.iterations, "Stage II Adam iterations")->capture_default_str()->check(nonNegative());
     sub->add_option("--boundary-weight", job.stage2.boundaryWeight,
                     "lambda2: extra weight of |O* - O| where the target is empty (keeps Gaussians out of empty space)")
@@ -93,6 +120,7 @@ inline DeformJobOptions deformJobOptions(const DeformArgs& args, const CLI::App*
     job.grid.fineBelow = args.fineCells == "auto" ? args.fineBelow : 0.0f;
     job.stage1.shape = args.stage1Shape == "polar" ? StageOneShape::Polar : StageOneShape::Affine;
     job.evaluate = !args.noEval;
+    job.densify.split = args.split == "auto";
     return job;
 }
 

@@ -176,3 +176,36 @@ TEST(DeformPipeline, FineCellsFromTheCommandLine)
     EXPECT_EQ(uniform["samples"].get<std::size_t>(), uniform["activeCells"].get<std::size_t>() * n3);
     EXPECT_EQ(runCli(base + "sometimes -o " + dir.file("bad")), 2);
 }
+
+// --split auto and --prune-below from the command line: the report's counts add up and match the
+// written deformed.ply; bad values are usage errors.
+TEST(DeformPipeline, SplitAndPruneFromTheCommandLine)
+{
+    TempDir dir;
+    const DeformJobOptions a = smallJob(dir, "stretch.json", 1);
+    const std::string base = "-q deform " + a.input + " --spec " + a.specPath + " --nodes 64 --cells 20 --iterations 6 "
+                             "--no-eval --device cpu ";
+    auto run = [&](const std::string& flags, const std::string& name) {
+        const std::string out = dir.file(name);
+        EXPECT_EQ(runCli(base + flags + " -o " + out), 0) << flags;
+        std::ifstream in(out + "/report.json");
+        return nlohmann::json::parse(in);
+    };
+    const std::size_t input = readGaussians(a.input).size();
+    const nlohmann::json off = run("", "off");
+    EXPECT_EQ(off["stage2"]["gaussiansAdded"].get<std::size_t>(), 0u);
+    EXPECT_EQ(off["stage2"]["gaussiansRemoved"].get<std::size_t>(), 0u);
+    EXPECT_EQ(off["stage2"]["gaussians"].get<std::size_t>(), input);
+    // The stretch pulls the +x end out by 30%: its cells' F exceed 1.1.
+    const nlohmann::json r = run("--split auto --split-stretch 1.1 --prune-below 0.05", "split");
+    const std::size_t added = r["stage2"]["gaussiansAdded"].get<std::size_t>();
+    const std::size_t removed = r["stage2"]["gaussiansRemoved"].get<std::size_t>();
+    EXPECT_GT(added, 0u);
+    EXPECT_EQ(r["stage2"]["gaussians"].get<std::size_t>(), input + added - removed);
+    EXPECT_EQ(readGaussians(dir.file("split") + "/deformed.ply").size(), input + added - removed);
+    EXPECT_EQ(readGaussians(dir.file("split") + "/baseline.ply").size(), input);
+    // The iterations run in two rounds of 3; the energies of both are in the report.
+    EXPECT_EQ(r["stage2"]["energies"].back()["iteration"].get<int>(), 6);
+    for (const std::string bad : {"--split sometimes", "--split-stretch 0.5", "--prune-below 1.5", "--split-after -0.1"})
+        EXPECT_EQ(runCli(base + bad + " -o " + dir.file("bad")), 2) << bad;
+}

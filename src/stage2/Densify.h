@@ -1,0 +1,54 @@
+#pragma once
+/// @file Densify.h
+/// @brief Split and prune between Stage II rounds, on a host cloud with its moving flags and rest
+///        cells (the arrays runStageTwo() takes), so every device follows the same rules.
+///
+///        The field is additive (field/FeatureField.h: O = sum alpha G, F = sum alpha G c, no
+///        compositing), so a split can keep the parent's mass and moments exactly: two children
+///        at mean +- k sigma u along the longest axis u, sigma_u' = sigma_u sqrt(1 - k^2), alpha' =
+///        alpha / (2 sqrt(1 - k^2)), the parent's SH. Then the pair's integral of alpha G (and of
+///        alpha G c per SH coefficient), mean and covariance are the parent's; the field pointwise
+///        is not (one Gaussian becomes two bumps). Only the cutoff (pairs with alpha G below it are
+///        not counted) makes it inexact: a few 1e-3 of the mass at the default 1/255.
+///        With a low-pass filter (Stage II's training field) the filtered mass alpha |Sigma + V|^1/2
+///        is kept only to first order in V / Sigma.
+#include <cstddef>
+#include <cstdint>
+#include <vector>
+
+#include "core/GaussianCloud.h"
+
+namespace splatwarp {
+
+/// Children sit at mean +- kSplitOffset sigma along the axis (3DGS shrinks children by 1/1.6:
+/// sqrt(1 - 0.8^2) = 0.6), so alpha' = alpha / 1.2 < 1 for every parent.
+constexpr float kSplitOffset = 0.8f;
+
+/// @brief A cloud with the per-Gaussian arrays of a Stage II run, kept in step by every change.
+struct DensifyCloud {
+    GaussianCloud& cloud;
+    std::vector<std::uint8_t>& moving;       ///< [N] 1: Stage II moves it
+    std::vector<std::int32_t>& gaussianCell; ///< [N] rest cell of its low-pass filter (-1: none)
+};
+
+/// @brief Largest singular value of a row-major 3x3 matrix (a cell's deformation gradient F).
+float largestSingularValue(const float* f);
+
+/// @brief The moving Gaussians whose rest cell's F (cellGradient, [C,9]) has its largest singular
+///        value above `stretch`, ascending. Gaussians without a cell (-1) are never chosen.
+std::vector<std::size_t> stretchedGaussians(const std::vector<std::uint8_t>& moving,
+                                            const std::vector<std::int32_t>& gaussianCell,
+                                            const std::vector<float>& cellGradient, float stretch);
+
+/// @brief Split Gaussian i into two along its longest axis (see the file comment): i becomes the
+///        child at mean + k sigma u, the other child is appended with i's moving flag and cell.
+void splitGaussian(DensifyCloud& d, std::size_t i);
+
+/// @brief Split each listed Gaussian (indices into the cloud before any split); returns how many.
+std::size_t splitGaussians(DensifyCloud& d, const std::vector<std::size_t>& which);
+
+/// @brief Remove the moving Gaussians whose opacity alpha is below `below` (the static ones and
+///        every other moving one are kept bit for bit, in order); returns how many were removed.
+std::size_t pruneMovingBelow(DensifyCloud& d, float below);
+
+} // namespace splatwarp

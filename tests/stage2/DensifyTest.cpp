@@ -1,0 +1,200 @@
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <cstring>
+
+#include "field/FeatureField.h"
+#include "stage2/Densify.h"
+
+using namespace splatwarp;
+
+namespace {
+
+/// Three overlapping Gaussians of SH degree 1: rotated, anisotropic, opacities near 1, mid and low.
+GaussianCloud threeGaussians()
+{
+    GaussianCloud g;
+    g.resize(3, 1);
+    const float means[3][3] = {{0.0f, 0.0f, 0.0f}, {0.25f, -0.1f, 0.05f}, {-0.2f, 0.15f, -0.1f}};
+    const float scales[3][3] = {{0.30f, 0.12f, 0.08f}, {0.10f, 0.22f, 0.09f}, {0.09f, 0.10f, 0.18f}};
+    const float quats[3][4] = {{0.9f, 0.2f, -0.3f, 0.1f}, {0.7f, -0.1f, 0.5f, 0.4f}, {1.0f, 0.0f, 0.0f, 0.0f}};
+    const float alphas[3] = {0.97f, 0.5f, 0.06f};
+    for (std::size_t i = 0; i < 3; ++i) {
+        g.setMean(i, Vec3f{means[i][0], means[i][1], means[i][2]});
+        g.setRotation(i, Quatf{quats[i][0], quats[i][1], quats[i][2], quats[i][3]});
+        for (int a = 0; a < 3; ++a) g.logScales[3 * i + std::size_t(a)] = std::log(scales[i][a]);
+        g.opacities[i] = std::log(alphas[i] / (1.0f - alphas[i]));
+        for (int c = 0; c < g.shStride(); ++c) g.shOf(i)[c] = 0.3f * float(i + 1) - 0.07f * float(c);
+    }
+    return g;
+}
+
+/// Moments of the field on a lattice (midpoint rule): mass of O, its mean and covariance, and
+/// the integral of each F channel.
+struct FieldMoments {
+    double mass = 0;
+    double mean[3] = {0, 0, 0};
+    double cov[3][3] = {};
+    std::vector<double> f;
+};
+
+/// Spacing h = 0.04: the midpoint rule on a Gaussian errs by ~2 exp(-2 pi^2 sigma^2 / h^2) < 1e-30
+/// for every sigma >= 0.08 (the smallest, before and after the split). The box [-1.6, 1.6]^3 holds
+/// every Gaussian and child out to > 4.5 sigma along its longest axis (mass beyond < 1e-5 of it,
+/// and nearly the same before and after).
+FieldMoments moments(const GaussianCloud& g, float cutoff)
+{
+    const double h = 0.04, lo = -1.6;
+    const int n = 81;
+    std::vector<float> points;
+    for (int z = 0; z < n; ++z)
+        for (int y = 0; y < n; ++y)
+            for (int x = 0; x < n; ++x)
+                for (double v : {lo + h * x, lo + h * y, lo + h * z}) points.push_back(float(v));
+    const std::size_t m = points.size() / 3;
+    FeatureOptions fo;
+    fo.cutoff = cutoff;
+    std::vector<float> o(m), f(m * std::size_t(g.shStride()));
+    evaluateFeatures(g, points.data(), m, fo, f.data(), o.data());
+    FieldMoments r;
+    r.f.assign(std::size_t(g.shStride()), 0.0);
+    for (std::size_t j = 0; j < m; ++j) {
+        r.mass += o[j];
+        for (int a = 0; a < 3; ++a) r.mean[a] += o[j] * points[3 * j + std::size_t(a)];
+        for (int c = 0; c < g.shStride(); ++c) r.f[std::size_t(c)] += f[j * std::size_t(g.shStride()) + std::size_t(c)];
+    }
+    for (int a = 0; a < 3; ++a) r.mean[a] /= r.mass;
+    for (std::size_t j = 0; j < m; ++j)
+        for (int a = 0; a < 3; ++a)
+            for (int b = 0; b < 3; ++b)
+                r.cov[a][b] += o[j] * (points[3 * j + std::size_t(a)] - r.mean[a]) * (points[3 * j + std::size_t(b)] - r.mean[b]);
+    for (int a = 0; a < 3; ++a)
+        for (int b = 0; b < 3; ++b) r.cov[a][b] /= r.mass;
+    return r;
+}
+
+/// Share of a 3D Gaussian's mass beyond Mahalanobis radius r: P(chi^2_3 > r^2).
+double chi3Tail(double r) { return std::erfc(r / std::sqrt(2.0)) + std::sqrt(2.0 / M_PI) * r * std::exp(-0.5 * r * r); }
+
+/// Split all three and compare the field's moments; `tolerance` relative to the parent's.
+void expectSplitKeepsMoments(float cutoff, double tolerance)
+{
+    GaussianCloud g = threeGaussians();
+    const FieldMoments before = moments(g, cutoff);
+    std::vector<std::uint8_t> moving(3, 1);
+    std::vector<std::int32_t> cell = {4, 5, -1};
+    DensifyCloud d{g, moving, cell};
+    ASSERT_EQ(splitGaussians(d, {0, 1, 2}), 3u);
+    ASSERT_EQ(g.size(), 6u);
+    const FieldMoments after = moments(g, cutoff);
+    EXPECT_NEAR(after.mass / before.mass, 1.0, tolerance);
+    const double extent = std::sqrt(before.cov[0][0] + before.cov[1][1] + before.cov[2][2]);
+    for (int a = 0; a < 3; ++a) {
+        EXPECT_NEAR(after.mean[a], before.mean[a], tolerance * extent) << "axis " << a;
+        for (int b = 0; b < 3; ++b)
+            EXPECT_NEAR(after.cov[a][b], before.cov[a][b], tolerance * extent * extent) << a << "," << b;
+    }
+    for (std::size_t c = 0; c < before.f.size(); ++c)
+        EXPECT_NEAR(after.f[c], before.f[c], tolerance * std::fabs(before.f[c]) + 1e-9 * before.mass) << "F " << c;
+}
+
+} // namespace
+
+// Cutoff 1e-9: the mass any Gaussian leaves uncounted is P(chi^2_3 > 2 ln(alpha' / 1e-9)) < 2e-7
+// (alpha' = 0.05 / 1.2 the smallest), float rounding of 0.5M values summed in double ~1e-7: 1e-5.
+TEST(Densify, SplitKeepsMassMeanCovarianceAndColour) { expectSplitKeepsMoments(1e-9f, 1e-5); }
+
+// At the default cutoff 1/255 a pair below alpha G = 1/255 is not counted: a Gaussian of opacity a
+// loses the share P(chi^2_3 > 2 ln(255 a)) of its mass m = a (2 pi)^1.5 sx sy sz, a child (a / 1.2)
+// a little more. The relative change is then below sum m tail(a / 1.2) / sum m (1 - tail(a)),
+// 0.021 for these three (measured 0.0033): the stated tolerance.
+TEST(Densify, SplitKeepsMassWithinTheCutoffsTail)
+{
+    const GaussianCloud g = threeGaussians();
+    auto tail = [](double a) { return chi3Tail(std::sqrt(2.0 * std::log(255.0 * a))); };
+    double lost = 0, kept = 0;
+    for (std::size_t i = 0; i < g.size(); ++i) {
+        const Vec3f s = g.scale(i);
+        const double m = g.alpha(i) * double(s.x) * s.y * s.z;
+        lost += m * tail(g.alpha(i) / 1.2);
+        kept += m * (1.0 - tail(g.alpha(i)));
+    }
+    EXPECT_LT(lost / kept, 0.05);
+    expectSplitKeepsMoments(1.0f / 255.0f, lost / kept);
+}
+
+TEST(Densify, ChildrenInheritCellAndMovingFlagAndSplitAlongTheLongestAxis)
+{
+    GaussianCloud g = threeGaussians();
+    const GaussianCloud parent = g;
+    std::vector<std::uint8_t> moving = {1, 0, 1};
+    std::vector<std::int32_t> cell = {7, 3, 9};
+    DensifyCloud d{g, moving, cell};
+    splitGaussian(d, 2); // axis-aligned, longest along z (0.18)
+    ASSERT_EQ(g.size(), 4u);
+    EXPECT_EQ(moving, (std::vector<std::uint8_t>{1, 0, 1, 1}));
+    EXPECT_EQ(cell, (std::vector<std::int32_t>{7, 3, 9, 9}));
+    const float dz = kSplitOffset * 0.18f;
+    EXPECT_NEAR(g.mean(2).z - parent.mean(2).z, dz, 1e-6f);
+    EXPECT_NEAR(g.mean(3).z - parent.mean(2).z, -dz, 1e-6f);
+    EXPECT_NEAR(g.mean(2).x, parent.mean(2).x, 1e-7f);
+    EXPECT_NEAR(g.scale(3).z, 0.18f * 0.6f, 1e-6f);
+    EXPECT_NEAR(g.scale(3).x, 0.09f, 1e-6f);
+    EXPECT_NEAR(g.alpha(3), 0.06f / 1.2f, 1e-6f);
+    for (int c = 0; c < g.shStride(); ++c) EXPECT_EQ(g.shOf(3)[c], parent.shOf(2)[c]);
+    // The other Gaussians are untouched.
+    EXPECT_EQ(std::memcmp(g.means.data(), parent.means.data(), 6 * sizeof(float)), 0);
+}
+
+TEST(Densify, PruneRemovesExactlyTheMovingGaussiansBelowTheThreshold)
+{
+    GaussianCloud g;
+    g.resize(6, 1);
+    const float alphas[6] = {0.5f, 0.003f, 0.001f, 0.0039f, 0.004f, 0.2f};
+    const std::vector<std::uint8_t> movingIn = {1, 1, 0, 1, 1, 1};
+    for (std::size_t i = 0; i < 6; ++i) {
+        g.opacities[i] = std::log(alphas[i] / (1.0f - alphas[i]));
+        g.setMean(i, Vec3f{float(i), 0.5f * float(i), -float(i)});
+        for (int c = 0; c < g.shStride(); ++c) g.shOf(i)[c] = float(i) + 0.01f * float(c);
+        g.logScales[3 * i] = -float(i);
+    }
+    const GaussianCloud in = g;
+    std::vector<std::uint8_t> moving = movingIn;
+    std::vector<std::int32_t> cell = {0, 1, 2, 3, 4, 5};
+    DensifyCloud d{g, moving, cell};
+    // Removed: 1 (0.003) and 3 (0.0039); 2 is below but static, 4 is at 0.004 >= 1/255.
+    EXPECT_EQ(pruneMovingBelow(d, 1.0f / 255.0f), 2u);
+    const std::vector<std::size_t> kept = {0, 2, 4, 5};
+    ASSERT_EQ(g.size(), kept.size());
+    EXPECT_EQ(cell, (std::vector<std::int32_t>{0, 2, 4, 5}));
+    EXPECT_EQ(moving, (std::vector<std::uint8_t>{1, 0, 1, 1}));
+    GaussianCloud expected;
+    expected.shDegree = 1;
+    for (std::size_t i : kept) expected.append(in, i);
+    auto same = [](const std::vector<float>& a, const std::vector<float>& b) {
+        return a.size() == b.size() && std::memcmp(a.data(), b.data(), a.size() * sizeof(float)) == 0;
+    };
+    EXPECT_TRUE(same(g.means, expected.means));
+    EXPECT_TRUE(same(g.rotations, expected.rotations));
+    EXPECT_TRUE(same(g.logScales, expected.logScales));
+    EXPECT_TRUE(same(g.opacities, expected.opacities));
+    EXPECT_TRUE(same(g.sh, expected.sh));
+    EXPECT_EQ(pruneMovingBelow(d, 0.0f), 0u);
+}
+
+TEST(Densify, StretchedGaussiansAreTheMovingOnesOfCellsAboveTheThreshold)
+{
+    // Cell 0: identity. Cell 1: a rotation (singular values 1). Cell 2: stretched 1.4 along a
+    // rotated axis. Cell 3: squashed to 0.5 (largest singular value 1).
+    const float c = std::cos(0.7f), s = std::sin(0.7f);
+    std::vector<float> gradient = {1, 0, 0, 0, 1, 0, 0, 0, 1,
+                                   c, -s, 0, s, c, 0, 0, 0, 1,
+                                   1.4f * c, -s, 0, 1.4f * s, c, 0, 0, 0, 1,
+                                   0.5f, 0, 0, 0, 1, 0, 0, 0, 1};
+    EXPECT_NEAR(largestSingularValue(&gradient[18]), 1.4f, 1e-5f);
+    EXPECT_NEAR(largestSingularValue(&gradient[9]), 1.0f, 1e-5f);
+    const std::vector<std::uint8_t> moving = {1, 1, 1, 0, 1, 1, 1};
+    const std::vector<std::int32_t> cell = {0, 1, 2, 2, 3, -1, 2};
+    EXPECT_EQ(stretchedGaussians(moving, cell, gradient, 1.3f), (std::vector<std::size_t>{2, 6}));
+    EXPECT_TRUE(stretchedGaussians(moving, cell, gradient, 1.5f).empty());
+}
