@@ -46,6 +46,7 @@ json settingsJson(const DeformJobOptions& o)
             {"split", o.densify.split},
             {"splitStretch", o.densify.splitStretch},
             {"splitAfter", o.densify.splitAfter},
+            {"splitOffset", o.densify.splitOffset},
             {"pruneBelow", o.densify.pruneBelow},
             {"dropInvalid", o.dropInvalid},
             {"evaluate", o.evaluate},

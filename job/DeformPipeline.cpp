@@ -252,7 +252,8 @@ StageTwoReport fitInRounds(GaussianCloud& fitted, const SampleSet& samples, cons
     if (d.split) {
         Stopwatch clock;
         prune();
-        counts.split += splitGaussians(dc, stretchedGaussians(moving, cell, samples.cellGradient, d.splitStretch));
+        counts.split += splitGaussians(dc, stretchedGaussians(moving, cell, samples.cellGradient, d.splitStretch),
+                                       d.splitOffset);
         counts.ms += clock.ms();
         progress(msg("Stage II: split ", counts.split, " Gaussians of cells stretched over ", d.splitStretch, " (",
                      fitted.size(), " Gaussians)"));
@@ -319,6 +320,7 @@ GaussianCloud stageTwo(DeformRest& rest, const Deformation& deformation, const S
     report["stage2"]["densify"] = {{"split", o.densify.split ? "auto" : "off"},
                                    {"splitStretch", o.densify.splitStretch},
                                    {"splitAfter", o.densify.splitAfter},
+                                   {"splitOffset", o.densify.splitOffset},
                                    {"pruneBelow", o.densify.pruneBelow},
                                    {"ms", counts.ms}};
     report["stage2"]["gaussiansAdded"] = counts.split;

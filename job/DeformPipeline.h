@@ -19,6 +19,7 @@
 #include "deform/StageOne.h"
 #include "deform/StageOneDevice.h"
 #include "io/GaussianIO.h"
+#include "stage2/Densify.h"
 #include "stage2/StageTwo.h"
 #include "stage2/StageTwoOptions.h"
 
@@ -30,6 +31,7 @@ struct DensifyJobOptions {
     bool split = false;         ///< --split auto: split the moving Gaussians of stretched cells
     float splitStretch = 1.3f;  ///< a cell is stretched when its F's largest singular value is above this
     float splitAfter = 0.5f;    ///< share of the iterations before the split (0: split before Stage II)
+    float splitOffset = kSplitOffset; ///< children at mean +- this x sigma along the longest axis
     float pruneBelow = 0.0f;    ///< remove moving Gaussians whose opacity ends below this (0: none)
 };
 

@@ -60,6 +60,11 @@ inline void addDensifyOptions(CLI::App* sub, DeformArgs& args)
                     "With --split auto: share of the Stage II iterations run before the split (0: split first)")
         ->capture_default_str()
         ->check(inRange(0.0, 1.0));
+    sub->add_option("--split-offset", d.splitOffset,
+                    "With --split auto: the children sit at the mean +- this x sigma along the longest axis (their "
+                    "sigma there is sqrt(1 - offset^2) x the parent's)")
+        ->capture_default_str()
+        ->check(inRange(0.05, double(kMaxSplitOffset)));
     sub->add_option("--prune-below", d.pruneBelow,
                     "Remove the moving Gaussians whose opacity Stage II leaves below this (before the split and at the "
                     "end; 0: keep every Gaussian)")

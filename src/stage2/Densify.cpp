@@ -54,13 +54,13 @@ int longestAxis(const GaussianCloud& g, std::size_t i, Vec3f& direction)
     return axis;
 }
 
-void splitGaussian(DensifyCloud& d, std::size_t i)
+void splitGaussian(DensifyCloud& d, std::size_t i, float k)
 {
     GaussianCloud& g = d.cloud;
     Vec3f u;
     const int axis = longestAxis(g, i, u);
-    const float offset = kSplitOffset * g.scale(i)[axis];
-    const float shrink = std::sqrt(1.0f - kSplitOffset * kSplitOffset);
+    const float offset = k * g.scale(i)[axis];
+    const float shrink = std::sqrt(1.0f - k * k);
     g.logScales[3 * i + std::size_t(axis)] += std::log(shrink);
     g.opacities[i] = float(childLogit(g.opacities[i], 2.0 * double(shrink)));
     // The second child: a copy of the first, pushed value by value (a range insert from the vector
@@ -84,12 +84,14 @@ void splitGaussian(DensifyCloud& d, std::size_t i)
     d.gaussianCell.push_back(d.gaussianCell[i]);
 }
 
-std::size_t splitGaussians(DensifyCloud& d, const std::vector<std::size_t>& which)
+std::size_t splitGaussians(DensifyCloud& d, const std::vector<std::size_t>& which, float offset)
 {
+    if (!(offset > 0.0f && offset <= kMaxSplitOffset))
+        throw InputError(msg("split: offset ", offset, " is outside (0, ", kMaxSplitOffset, "]"));
     const std::size_t n = d.cloud.size();
     for (std::size_t i : which) {
         if (i >= n) throw InputError(msg("split: Gaussian ", i, " outside 0..", n - 1));
-        splitGaussian(d, i);
+        splitGaussian(d, i, offset);
     }
     return which.size();
 }

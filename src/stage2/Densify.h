@@ -20,9 +20,13 @@
 
 namespace splatwarp {
 
-/// Children sit at mean +- kSplitOffset sigma along the axis (3DGS shrinks children by 1/1.6:
-/// sqrt(1 - 0.8^2) = 0.6), so alpha' = alpha / 1.2 < 1 for every parent.
-constexpr float kSplitOffset = 0.8f;
+/// Children sit at mean +- kSplitOffset sigma along the axis: sigma' = 0.866 sigma, alpha' = 0.577 alpha.
+/// The pair then differs from the parent pointwise by 2% of its mass in L1 (0.8, 3DGS's 1/1.6
+/// shrink: 23%), which the unfiltered judge sees and Stage II, fitting the filtered field, hardly
+/// undoes: guitar bend 0.945 with 0.5, 0.971 with 0.8 (docs/fidelity-study.md#split-and-prune).
+constexpr float kSplitOffset = 0.5f;
+/// Largest offset: alpha' = alpha / (2 sqrt(1 - k^2)) stays below 1 for every parent up to sqrt(3)/2.
+constexpr float kMaxSplitOffset = 0.85f;
 
 /// @brief A cloud with the per-Gaussian arrays of a Stage II run, kept in step by every change.
 struct DensifyCloud {
@@ -42,10 +46,11 @@ std::vector<std::size_t> stretchedGaussians(const std::vector<std::uint8_t>& mov
 
 /// @brief Split Gaussian i into two along its longest axis (see the file comment): i becomes the
 ///        child at mean + k sigma u, the other child is appended with i's moving flag and cell.
-void splitGaussian(DensifyCloud& d, std::size_t i);
+/// @param offset  k in (0, kMaxSplitOffset]: the children's distance from the mean in units of sigma along u
+void splitGaussian(DensifyCloud& d, std::size_t i, float offset = kSplitOffset);
 
 /// @brief Split each listed Gaussian (indices into the cloud before any split); returns how many.
-std::size_t splitGaussians(DensifyCloud& d, const std::vector<std::size_t>& which);
+std::size_t splitGaussians(DensifyCloud& d, const std::vector<std::size_t>& which, float offset = kSplitOffset);
 
 /// @brief Remove the moving Gaussians whose opacity alpha is below `below` (the static ones and
 ///        every other moving one are kept bit for bit, in order); returns how many were removed.

@@ -206,6 +206,6 @@ TEST(DeformPipeline, SplitAndPruneFromTheCommandLine)
     EXPECT_EQ(readGaussians(dir.file("split") + "/baseline.ply").size(), input);
     // The iterations run in two rounds of 3; the energies of both are in the report.
     EXPECT_EQ(r["stage2"]["energies"].back()["iteration"].get<int>(), 6);
-    for (const std::string bad : {"--split sometimes", "--split-stretch 0.5", "--prune-below 1.5", "--split-after -0.1"})
+    for (const std::string bad : {"--split sometimes", "--split-stretch 0.5", "--prune-below 1.5", "--split-after -0.1", "--split-offset 0.9"})
         EXPECT_EQ(runCli(base + bad + " -o " + dir.file("bad")), 2) << bad;
 }

@@ -76,15 +76,15 @@ FieldMoments moments(const GaussianCloud& g, float cutoff)
 /// Share of a 3D Gaussian's mass beyond Mahalanobis radius r: P(chi^2_3 > r^2).
 double chi3Tail(double r) { return std::erfc(r / std::sqrt(2.0)) + std::sqrt(2.0 / M_PI) * r * std::exp(-0.5 * r * r); }
 
-/// Split all three and compare the field's moments; `tolerance` relative to the parent's.
-void expectSplitKeepsMoments(float cutoff, double tolerance)
+/// Split all three with an offset and compare the field's moments; `tolerance` relative to the parent's.
+void expectSplitKeepsMoments(float cutoff, double tolerance, float offset)
 {
     GaussianCloud g = threeGaussians();
     const FieldMoments before = moments(g, cutoff);
     std::vector<std::uint8_t> moving(3, 1);
     std::vector<std::int32_t> cell = {4, 5, -1};
     DensifyCloud d{g, moving, cell};
-    ASSERT_EQ(splitGaussians(d, {0, 1, 2}), 3u);
+    ASSERT_EQ(splitGaussians(d, {0, 1, 2}, offset), 3u);
     ASSERT_EQ(g.size(), 6u);
     const FieldMoments after = moments(g, cutoff);
     EXPECT_NEAR(after.mass / before.mass, 1.0, tolerance);
@@ -101,11 +101,16 @@ void expectSplitKeepsMoments(float cutoff, double tolerance)
 } // namespace
 
 // Cutoff 1e-9: the mass any Gaussian leaves uncounted is P(chi^2_3 > 2 ln(alpha' / 1e-9)) < 2e-7
-// (alpha' = 0.05 / 1.2 the smallest), float rounding of 0.5M values summed in double ~1e-7: 1e-5.
-TEST(Densify, SplitKeepsMassMeanCovarianceAndColour) { expectSplitKeepsMoments(1e-9f, 1e-5); }
+// (alpha' = 0.06 / 1.2 the smallest), float rounding of 0.5M values summed in double ~1e-7: 1e-5
+// (measured 6e-8 for the mass). At the default offset and at 0.8 (children 0.6 sigma wide).
+TEST(Densify, SplitKeepsMassMeanCovarianceAndColour)
+{
+    expectSplitKeepsMoments(1e-9f, 1e-5, kSplitOffset);
+    expectSplitKeepsMoments(1e-9f, 1e-5, 0.8f);
+}
 
 // At the default cutoff 1/255 a pair below alpha G = 1/255 is not counted: a Gaussian of opacity a
-// loses the share P(chi^2_3 > 2 ln(255 a)) of its mass m = a (2 pi)^1.5 sx sy sz, a child (a / 1.2)
+// (split with offset 0.8: children of opacity a / 1.2) loses the share P(chi^2_3 > 2 ln(255 a)) of its mass m = a (2 pi)^1.5 sx sy sz, a child (a / 1.2)
 // a little more. The relative change is then below sum m tail(a / 1.2) / sum m (1 - tail(a)),
 // 0.021 for these three (measured 0.0033): the stated tolerance.
 TEST(Densify, SplitKeepsMassWithinTheCutoffsTail)
@@ -120,7 +125,7 @@ TEST(Densify, SplitKeepsMassWithinTheCutoffsTail)
         kept += m * (1.0 - tail(g.alpha(i)));
     }
     EXPECT_LT(lost / kept, 0.05);
-    expectSplitKeepsMoments(1.0f / 255.0f, lost / kept);
+    expectSplitKeepsMoments(1.0f / 255.0f, lost / kept, 0.8f);
 }
 
 TEST(Densify, ChildrenInheritCellAndMovingFlagAndSplitAlongTheLongestAxis)
@@ -130,11 +135,11 @@ TEST(Densify, ChildrenInheritCellAndMovingFlagAndSplitAlongTheLongestAxis)
     std::vector<std::uint8_t> moving = {1, 0, 1};
     std::vector<std::int32_t> cell = {7, 3, 9};
     DensifyCloud d{g, moving, cell};
-    splitGaussian(d, 2); // axis-aligned, longest along z (0.18)
+    splitGaussian(d, 2, 0.8f); // axis-aligned, longest along z (0.18): children 0.6 x as wide, alpha / 1.2
     ASSERT_EQ(g.size(), 4u);
     EXPECT_EQ(moving, (std::vector<std::uint8_t>{1, 0, 1, 1}));
     EXPECT_EQ(cell, (std::vector<std::int32_t>{7, 3, 9, 9}));
-    const float dz = kSplitOffset * 0.18f;
+    const float dz = 0.8f * 0.18f;
     EXPECT_NEAR(g.mean(2).z - parent.mean(2).z, dz, 1e-6f);
     EXPECT_NEAR(g.mean(3).z - parent.mean(2).z, -dz, 1e-6f);
     EXPECT_NEAR(g.mean(2).x, parent.mean(2).x, 1e-7f);
