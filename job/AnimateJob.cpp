@@ -37,6 +37,7 @@ json settingsJson(const DeformJobOptions& o)
             {"fineNeighbours", o.grid.fineNeighbours},
             {"stage1Shape", o.stage1.shape == StageOneShape::Affine ? "affine" : "polar"},
             {"iterations", o.stage2.iterations},
+            {"scheduleIterations", o.stage2.scheduleIterations},
             {"boundaryWeight", o.stage2.boundaryWeight},
             {"lowPassFilter", o.stage2.lowPassFilter},
             {"coverageSteps", o.stage2.coverageSteps},

@@ -92,7 +92,7 @@ inline void addDeformOptions(CLI::App* sub, DeformArgs& args)
     addGridOptions(sub, job.grid);
     addFineCellOptions(sub, args);
     addDensifyOptions(sub, args);
-    sub->add_option("--iterations", job.stage2.iterations, "Stage II Adam iterations")->capture_default_str()->check(nonNegative());
+    addIterationsOption(sub, job.stage2);
     sub->add_option("--boundary-weight", job.stage2.boundaryWeight,
                     "lambda2: extra weight of |O* - O| where the target is empty (keeps Gaussians out of empty space)")
         ->capture_default_str()

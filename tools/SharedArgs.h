@@ -1,8 +1,11 @@
 #pragma once
 /// @file SharedArgs.h
 /// @brief Flags that several commands take, each declared once: `--device` (every command that
-///        computes on a device), `--max-mean-step` and the coverage flags (every command that runs
-///        Stage II).
+///        computes on a device), `--iterations`, `--max-mean-step` and the coverage flags (every
+///        command that runs Stage II).
+#include <cerrno>
+#include <cstdlib>
+#include <sstream>
 #include <string>
 
 #include "Command.h"
@@ -23,6 +26,50 @@ inline void addDeviceOption(CLI::App* sub, Device& device, const std::string& wh
                              "to the CPU), cpu or cuda")
         ->default_str("auto")
         ->check(CLI::IsMember({"auto", "cpu", "cuda"}));
+}
+
+inline std::string iterationsHelp()
+{
+    std::ostringstream s;
+    s << "Stage II Adam iterations, or auto: up to " << StageTwoOptions::kAutoIterations
+      << ", stopping once the energy fell by less than a fraction " << StageTwoOptions::kAutoStallTolerance << " over "
+      << StageTwoOptions().stallWindow << " iterations (--stall-tolerance sets that fraction)";
+    return s.str();
+}
+
+/// @brief `--iterations N|auto` into the Stage II options (default: theirs). `auto` sets the cap
+///        and the stall stop (StageTwoOptions::setAutoIterations()); a `--stall-tolerance` given
+///        too keeps its value. Anything but auto or a whole number in [0, 1000000] is a usage error.
+inline void addIterationsOption(CLI::App* sub, StageTwoOptions& stageTwo)
+{
+    const auto count = [](const std::string& word, long& n) {
+        errno = 0;
+        char* end = nullptr;
+        n = std::strtol(word.c_str(), &end, 10);
+        return !word.empty() && errno == 0 && end && *end == '\0' && n >= 0 && n <= 1000000;
+    };
+    sub->add_option_function<std::string>(
+           "--iterations",
+           [sub, &stageTwo, count](const std::string& word) {
+               long n = 0;
+               if (word != "auto" && count(word, n)) {
+                   stageTwo.iterations = int(n);
+                   stageTwo.scheduleIterations = 0;
+                   return;
+               }
+               const float tolerance = stageTwo.stallTolerance;
+               stageTwo.setAutoIterations();
+               if (sub->count("--stall-tolerance")) stageTwo.stallTolerance = tolerance;
+           },
+           iterationsHelp())
+        ->default_str(std::to_string(stageTwo.iterations))
+        ->check(CLI::Validator(
+            [count](std::string& word) {
+                long n = 0;
+                return word == "auto" || count(word, n) ? std::string()
+                                                        : "must be auto or a whole number from 0 to 1000000, not '" + word + "'";
+            },
+            "auto|N"));
 }
 
 /// @brief `--max-mean-step` into the Stage II options (default: the options' value).

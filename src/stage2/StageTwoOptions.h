@@ -28,6 +28,11 @@ struct StageTwoOptions {
     float coveragePad = 0.1f;
     float cutoff = kDefaultCutoff; ///< a pair counts only where alpha*G >= cutoff
 
+    /// Iterations the position rate decays over (0: all of them). `--iterations auto` keeps the
+    /// default run's 100, so its first 100 steps are that run's and later ones go on at the end rate.
+    int scheduleIterations = 0;
+    int scheduleLength() const { return scheduleIterations > 0 ? scheduleIterations : iterations; }
+
     // Learning rates (3DGS / the authors' values; positions are scaled by the scene extent, the
     // largest edge of the warped samples' bounding box, since those values assume unit scenes).
     float lrPositionStart = 3.2e-4f; ///< position, decayed exponentially to lrPositionEnd over the run
@@ -70,6 +75,17 @@ struct StageTwoOptions {
     bool threaded = true;  ///< oneTBB (results identical for any thread count)
     /// Where runStageTwo() (stage2/StageTwoDevice.h) runs; optimiseStageTwo() is always the CPU.
     ResolvedDevice device;
+
+    /// `--iterations auto`: run until the held energy stalls (kAutoStallTolerance over
+    /// stallWindow iterations), at most kAutoIterations, on the schedule of a default run.
+    static constexpr int kAutoIterations = 300;
+    static constexpr float kAutoStallTolerance = 1e-3f;
+    void setAutoIterations()
+    {
+        scheduleIterations = StageTwoOptions().iterations;
+        iterations = kAutoIterations;
+        stallTolerance = kAutoStallTolerance;
+    }
 };
 
 } // namespace splatwarp

@@ -15,10 +15,12 @@
 namespace splatwarp {
 
 /// @brief Position learning rate at an iteration: exponential from lrPositionStart to
-///        lrPositionEnd over the run, times the scene extent.
+///        lrPositionEnd over the schedule (StageTwoOptions::scheduleLength()), then flat, times
+///        the scene extent.
 inline float stageTwoPositionRate(const StageTwoOptions& o, int iteration, float sceneExtent)
 {
-    const double tFrac = o.iterations > 1 ? double(iteration) / double(o.iterations - 1) : 0.0;
+    const int n = o.scheduleLength();
+    const double tFrac = n > 1 ? double(iteration) / double(n - 1) : 0.0;
     return float(double(o.lrPositionStart) *
                  std::pow(double(o.lrPositionEnd) / double(o.lrPositionStart), std::min(tFrac, 1.0)) *
                  double(sceneExtent));

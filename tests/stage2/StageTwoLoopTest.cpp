@@ -8,6 +8,7 @@
 
 #include "core/Error.h"
 #include "stage2/StageTwoLoop.h"
+#include "stage2/StageTwoParams.h"
 
 using namespace splatwarp;
 
@@ -200,4 +201,54 @@ TEST(StageTwoLoop, StopsWhenTheEnergyStalls)
     StageTwoOptions off = rejecting(7);
     ScriptedSolver t({100, 90, 81, 80.9, 80.8, 80.7, 80.6, 80.5});
     EXPECT_EQ(runStageTwoLoop(t, cloud, off).stoppedAt, -1);
+}
+
+TEST(StageTwoLoop, AutoIterationsStopOnAStallBeforeTheCapAndRunOnWhileTheEnergyFalls)
+{
+    StageTwoOptions o;
+    o.setAutoIterations();
+    ASSERT_GT(o.stallTolerance, 0.0f);
+    const int cap = o.iterations;
+    // Falls by 1% a step for 40 steps, then by 0.05 x the tolerance per step: held energies
+    // e(40 + k) = e40 (1 - 0.05 tol k). The first iteration i with e(i - w) - e(i) < tol e(i - w)
+    // is the first whose window lies in the slow part (0.05 tol w < tol for w = 10): i = 40 + w.
+    std::vector<double> stalling(std::size_t(cap) + 1);
+    const double tol = double(o.stallTolerance);
+    for (std::size_t i = 0; i < stalling.size(); ++i)
+        stalling[i] = i <= 40 ? 1000.0 * std::pow(0.99, double(i))
+                              : stalling[40] * (1.0 - 0.05 * tol * double(i - 40));
+    ScriptedSolver s(stalling);
+    GaussianCloud cloud;
+    const StageTwoReport r = runStageTwoLoop(s, cloud, o);
+    EXPECT_EQ(r.stoppedAt, 40 + o.stallWindow);
+    EXPECT_LT(r.stoppedAt, cap);
+    EXPECT_EQ(r.bestEnergy, stalling[std::size_t(r.stoppedAt)]);
+    // Falling by 0.05% a step (0.5% over 10 iterations, five times the tolerance): no stall, the
+    // run takes every iteration up to the cap.
+    std::vector<double> falling(std::size_t(cap) + 1);
+    for (std::size_t i = 0; i < falling.size(); ++i) falling[i] = 1000.0 * std::pow(1.0 - 0.5 * tol, double(i));
+    ScriptedSolver t(falling);
+    const StageTwoReport all = runStageTwoLoop(t, cloud, o);
+    EXPECT_EQ(all.stoppedAt, -1);
+    EXPECT_EQ(all.bestIteration, cap);
+    EXPECT_EQ(t.steps.size(), std::size_t(cap));
+}
+
+TEST(StageTwoLoop, AutoIterationsKeepTheDefaultRunsPositionSchedule)
+{
+    // The position rate decays over a default run's iterations, then stays at the end rate, so
+    // the first steps of an auto run are those of a default run.
+    StageTwoOptions plain, automatic;
+    automatic.setAutoIterations();
+    ASSERT_GT(automatic.iterations, plain.iterations);
+    for (int it = 0; it < plain.iterations; ++it)
+        EXPECT_EQ(stageTwoPositionRate(automatic, it, 2.0f), stageTwoPositionRate(plain, it, 2.0f)) << it;
+    const float end = stageTwoPositionRate(plain, plain.iterations - 1, 2.0f);
+    EXPECT_FLOAT_EQ(end, plain.lrPositionEnd * 2.0f);
+    for (int it = plain.iterations; it <= automatic.iterations; it += 50) EXPECT_EQ(stageTwoPositionRate(automatic, it, 2.0f), end) << it;
+    // A number after auto drops its schedule: the rate decays over the run again.
+    StageTwoOptions again = automatic;
+    again.iterations = 50;
+    again.scheduleIterations = 0;
+    EXPECT_EQ(stageTwoPositionRate(again, 49, 2.0f), end);
 }
