@@ -191,8 +191,7 @@ __global__ void __launch_bounds__(kForwardBlock)
     forwardKernel(std::size_t s, const float* x /* [S,3] */, const float* fStatic /* [S,STRIDE] */,
                   const float* oStatic /* [S] */, const std::uint32_t* offsets /* [S+1] */, const std::uint32_t* items /* [P] */,
                   const PreparedGaussian* kernels /* [G] */, const float* params /* [G,PER_G] */,
-                  const float* targetF /* [S,STRIDE] */, const float* targetO /* [S] */,
-                  const float* volume /* [S] sampleWeightOf(), or null: all 1 */, float cutoff, float lambda1,
+                  const float* targetF /* [S,STRIDE] */, const float* targetO /* [S] */, float cutoff, float lambda1,
                   float lambda2, float* gF /* [S,STRIDE] */, float* gO /* [S] */, float* energy /* [S,3] */,
                   std::uint32_t* pairCount /* [S] */, float* featuresOut /* [S,STRIDE] or null */,
                   float* opacityOut /* [S] or null */)
@@ -243,7 +242,7 @@ __global__ void __launch_bounds__(kForwardBlock)
     float g[STRIDE];
     if (active) {
         float terms[3], go;
-        sampleLoss<float, float>(f, row, o, targetO[j], STRIDE, lambda1, lambda2, g, go, terms, volume ? volume[j] : 1.0f);
+        sampleLoss<float, float>(f, row, o, targetO[j], STRIDE, lambda1, lambda2, g, go, terms);
         gO[j] = go;
         for (int t = 0; t < 3; ++t) energy[3 * j + t] = terms[t];
     }
@@ -513,7 +512,7 @@ public:
                    (const float*)mFStatic.data(), (const float*)mOStatic.data(), (const std::uint32_t*)mSampleOffsets.data(),
                    (const std::uint32_t*)mSampleItems.data(), (const PreparedGaussian*)mPrepared.data(),
                    (const float*)mParams.data(), (const float*)mTargetF.data(), (const float*)mTargetO.data(),
-                   mVolume.size() > 0 ? (const float*)mVolume.data() : nullptr, mOptions.cutoff, mOptions.lambdaOpacity, mOptions.boundaryWeight, mGF.data(), mGO.data(),
+                   mOptions.cutoff, mOptions.lambdaOpacity, mOptions.boundaryWeight, mGF.data(), mGO.data(),
                    mEnergy.data(), mPairCount.data(), featuresOut, opacityOut);
         });
         energyPartialKernel<<<kReduceBlocks, kBlock, 0, stream()>>>(mS, mEnergy.data(), mPairCount.data(), mPartial.data());
@@ -642,8 +641,7 @@ private:
     std::uint64_t mPairs = 0;
 
     DeviceBuffer<float> mX{"sample positions"}, mFStatic{"static features"}, mOStatic{"static opacity"},
-        mTargetF{"target features"}, mTargetO{"target opacity"}, mVolume{"sample volume weights"},
-        mParams{"Gaussian parameters"},
+        mTargetF{"target features"}, mTargetO{"target opacity"}, mParams{"Gaussian parameters"},
         mGrad{"parameter gradients"}, mAdamM{"Adam first moments"}, mAdamV{"Adam second moments"},
         mGF{"feature gradients"}, mGO{"opacity gradients"}, mEnergy{"per-sample energies"},
         mBoxLo{"coverage boxes"}, mBoxHi{"coverage boxes"}, mKeptParams{"kept-iterate parameters"},
@@ -672,12 +670,6 @@ void Solver::upload(const GaussianCloud& cloud, const SampleSet& samples)
         std::copy_n(samples.targetF.data() + j * std::size_t(mStride), mStride, targetF.data() + k * std::size_t(mStride));
         targetO[k] = samples.targetO[j];
     }
-    // The volume weight of each used sample (as the CPU's per block); the uniform lattice: none (all 1).
-    std::vector<float> volume;
-    if (!samples.uniform()) {
-        volume.resize(mS);
-        for (std::size_t k = 0; k < mS; ++k) volume[k] = samples.sampleWeightOf(std::size_t(samples.sampleCell[mSetup.used[k]]));
-    }
     std::vector<float> params(mG * std::size_t(mPerG));
     std::vector<double> filter(9 * mG);
     for (std::size_t k = 0; k < mG; ++k) {
@@ -691,7 +683,6 @@ void Solver::upload(const GaussianCloud& cloud, const SampleSet& samples)
     mOStatic.upload(mSetup.oStatic, st);
     mTargetF.upload(targetF, st);
     mTargetO.upload(targetO, st);
-    mVolume.upload(volume, st);
     mParams.upload(params, st);
     mFilter.upload(filter, st);
     mPrepared.resize(mG);

@@ -50,15 +50,6 @@ struct SampleSet {
     }
     /// Rest sample spacing of cell c: h / axisOf(c) (spacing itself for a coarse cell).
     float spacingOf(std::size_t c) const { return uniform() || cellAxis[c] == samplesPerAxis ? spacing : cellSize / float(cellAxis[c]); }
-    /// Weight of the Stage II loss of each sample of cell c: the volume it stands for against a
-    /// coarse sample's, (spacingOf(c) / spacing)^3 = (n / axisOf(c))^3: 1/8 in a fine cell, 1 in a
-    /// coarse one and everywhere on the uniform lattice, so a fine cell weighs what a coarse one does.
-    float sampleWeightOf(std::size_t c) const
-    {
-        if (uniform() || cellAxis[c] == samplesPerAxis) return 1.0f;
-        const float r = float(samplesPerAxis) / float(cellAxis[c]);
-        return r * r * r;
-    }
 };
 
 } // namespace splatwarp

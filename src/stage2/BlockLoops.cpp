@@ -316,8 +316,7 @@ inline __attribute__((always_inline)) VecF signOf(VecF v)
 } // namespace
 
 SPLATWARP_SIMD_CLONES void blockLoss(const float* f, const float* o, const float* tF, const float* tO, int lanes, int samples,
-                                     int stride, float lambda1, float lambda2, float volume, float* gF, float* gO,
-                                     float* terms)
+                                     int stride, float lambda1, float lambda2, float* gF, float* gO, float* terms)
 {
     const VecI lane = {0, 1, 2, 3, 4, 5, 6, 7};
     for (int t0 = 0; t0 < lanes; t0 += L) {
@@ -326,15 +325,15 @@ SPLATWARP_SIMD_CLONES void blockLoss(const float* f, const float* o, const float
         for (int c = 0; c < stride; ++c) {
             const VecF r = loadF(f + c * lanes + t0) - loadF(tF + c * lanes + t0);
             e += absF(r);
-            storeF(gF + c * lanes + t0, select(real, signOf(r) * volume, VecF{}));
+            storeF(gF + c * lanes + t0, select(real, signOf(r), VecF{}));
         }
         const VecF target = loadF(tO + t0), ro = loadF(o + t0) - target, aro = absF(ro);
         const VecI empty = target == 0.0f;
         const VecF weight = lambda1 + select(empty, splat(lambda2), VecF{});
-        storeF(gO + t0, select(real, weight * signOf(ro) * volume, VecF{}));
-        storeF(terms + t0, select(real, e * volume, VecF{}));
-        storeF(terms + lanes + t0, select(real, lambda1 * aro * volume, VecF{}));
-        storeF(terms + 2 * lanes + t0, select(real & empty, lambda2 * aro * volume, VecF{}));
+        storeF(gO + t0, select(real, weight * signOf(ro), VecF{}));
+        storeF(terms + t0, select(real, e, VecF{}));
+        storeF(terms + lanes + t0, select(real, lambda1 * aro, VecF{}));
+        storeF(terms + 2 * lanes + t0, select(real & empty, lambda2 * aro, VecF{}));
     }
 }
 

@@ -90,9 +90,8 @@ void gatherPartials(const float* partials, std::size_t pitch, const std::uint32_
 /// @brief sampleLoss() on every lane of a block (the same operations per lane, so the same bits).
 ///        Lanes at or past `samples` get zero gradients and terms.
 /// @param f, tF  [stride][lanes] current and target F; o, tO: [lanes]
-/// @param volume the block's samples' volume weight (its cell's SampleSet::sampleWeightOf())
 /// @param gF     out [stride][lanes] dE/dF; gO: out [lanes]; terms: out [3][lanes] (see sampleLoss())
 void blockLoss(const float* f, const float* o, const float* tF, const float* tO, int lanes, int samples, int stride,
-               float lambda1, float lambda2, float volume, float* gF, float* gO, float* terms);
+               float lambda1, float lambda2, float* gF, float* gO, float* terms);
 
 } // namespace splatwarp

@@ -109,7 +109,6 @@ private:
     // Per padded slot, [stride][lanes] or [lanes] per block (padding 0): static F and O, targets.
     BigVector<float> mStaticF, mStaticO, mTargetF, mTargetO;
     std::vector<std::uint8_t> mStaticBlock; // [B] whether any static F or O of the block is not zero
-    std::vector<float> mBlockVolume; // [B] its cell's sample volume weight (SampleSet::sampleWeightOf()); empty: all 1
     std::vector<double> mBlockEnergy; // [B,3] each block's loss terms summed in sample order
     std::vector<std::uint64_t> mBlockPairs; // [B] counted pairs of the last forward pass
     BigVector<std::uint8_t> mPairChunks; // [block-major coverage entries] counting chunks of the last forward pass
@@ -132,10 +131,6 @@ CpuSolver::CpuSolver(const GaussianCloud& cloud, const SampleSet& samples, const
     std::vector<std::int32_t> cells(mS);
     for (std::size_t j = 0; j < mS; ++j) cells[j] = samples.sampleCell[mSetup.used[j]];
     mBlocks = SampleBlocks::build(mSetup.x.data(), cells.data(), mS);
-    if (!samples.uniform()) {
-        mBlockVolume.resize(mBlocks.count());
-        for (std::size_t b = 0; b < mBlocks.count(); ++b) mBlockVolume[b] = samples.sampleWeightOf(std::size_t(cells[mBlocks.first[b]]));
-    }
     mCoverage = BlockCoverage(mBlocks);
     const std::size_t n = mG * std::size_t(mPerG);
     mParams.resize(n);
@@ -289,7 +284,7 @@ std::uint64_t CpuSolver::forwardBlock(std::size_t b)
     const std::uint64_t pairs =
         blockForward(gs, pts, mOptions.cutoff, mStride, f, o, mPairChunks.data() + e0, kept.data(), keptAt.data());
     blockLoss(f, o, &mTargetF[s0 * stride], &mTargetO[s0], pts.lanes, pts.samples, mStride, mOptions.lambdaOpacity,
-              mOptions.boundaryWeight, mBlockVolume.empty() ? 1.0f : mBlockVolume[b], gF, gO, terms);
+              mOptions.boundaryWeight, gF, gO, terms);
     for (int a = 0; a < 3; ++a) {
         double sum = 0;
         for (std::size_t t = 0; t < std::size_t(pts.samples); ++t) sum += double(terms[std::size_t(a) * lanes + t]);

@@ -66,29 +66,28 @@ SPLATWARP_HOST_DEVICE BasicPreparedGaussian<T> prepareParams(const GaussianParam
     return prepareGaussian(p.mean, filteredCovariance(p.rotation, s, filter), sigmoid(p.logit), cutoff);
 }
 
-/// @brief L1 loss of one sample and its gradient, each term and gradient times the sample's
-///        volume weight (SampleSet::sampleWeightOf(); applied last, so a weight of 1 changes no bit).
+/// @brief L1 loss of one sample and its gradient.
 /// @param f, fStar  [stride] current and target F; o, oStar: O
 /// @param gF        [stride] out: dE/dF;  gO out: dE/dO
-/// @param terms     out: volume x ([0] sum |F* - F|_1, [1] lambda1 |O* - O|, [2] lambda2 |O* - O| where O* = 0)
+/// @param terms     out: [0] sum |F* - F|_1, [1] lambda1 |O* - O|, [2] lambda2 |O* - O| where O* = 0
 /// @return the sample's energy terms[0] + terms[1] + terms[2]
 template <typename T, typename S>
 SPLATWARP_HOST_DEVICE T sampleLoss(const T* f, const S* fStar, T o, S oStar, int stride, T lambda1, T lambda2,
-                                   T* gF, T& gO, T* terms, T volume = T(1))
+                                   T* gF, T& gO, T* terms)
 {
     auto sign = [](T v) { return v > T(0) ? T(1) : (v < T(0) ? T(-1) : T(0)); };
     T e = 0;
     for (int c = 0; c < stride; ++c) {
         const T r = f[c] - T(fStar[c]);
         e += std::fabs(r);
-        gF[c] = sign(r) * volume;
+        gF[c] = sign(r);
     }
     const T ro = o - T(oStar);
     const T weight = lambda1 + (oStar == S(0) ? lambda2 : T(0));
-    terms[0] = e * volume;
-    terms[1] = lambda1 * std::fabs(ro) * volume;
-    terms[2] = oStar == S(0) ? lambda2 * std::fabs(ro) * volume : T(0);
-    gO = weight * sign(ro) * volume;
+    terms[0] = e;
+    terms[1] = lambda1 * std::fabs(ro);
+    terms[2] = oStar == S(0) ? lambda2 * std::fabs(ro) : T(0);
+    gO = weight * sign(ro);
     return terms[0] + terms[1] + terms[2];
 }
 

@@ -22,11 +22,9 @@ struct Tiny {
     std::vector<Mat3d> filter;
     std::vector<Vec3d> x;
     std::vector<double> fStar, oStar;
-    std::vector<double> volume; ///< per sample (SampleSet::sampleWeightOf()); empty: all 1
 };
 
-/// With volume weights: every other sample stands for an eighth of the volume (a fine cell's).
-Tiny makeTiny(bool lpf, std::uint32_t seed, bool volumeWeights = false)
+Tiny makeTiny(bool lpf, std::uint32_t seed)
 {
     std::mt19937 rng(seed);
     std::uniform_real_distribution<double> u(-1, 1), ls(std::log(0.08), std::log(0.2)), lg(-1.0, 2.0);
@@ -51,7 +49,6 @@ Tiny makeTiny(bool lpf, std::uint32_t seed, bool volumeWeights = false)
     for (std::size_t j = 0; j < t.x.size(); ++j) {
         t.oStar.push_back(j % 4 == 0 ? 0.0 : 0.5 * (u(rng) + 1));
         for (int c = 0; c < t.stride; ++c) t.fStar.push_back(0.3 * u(rng));
-        if (volumeWeights) t.volume.push_back(j % 2 == 0 ? 0.125 : 1.0);
     }
     return t;
 }
@@ -80,7 +77,7 @@ double energy(const Tiny& t, std::vector<GaussianParamGrad<double>>* grads, std:
         }
         double gO = 0, terms[3];
         e += sampleLoss<double, double>(f.data(), t.fStar.data() + j * std::size_t(t.stride), o, t.oStar[j], t.stride,
-                                        t.lambda1, t.lambda2, gF.data(), gO, terms, t.volume.empty() ? 1.0 : t.volume[j]);
+                                        t.lambda1, t.lambda2, gF.data(), gO, terms);
         for (double g : gF) signature += g > 0 ? '+' : '-';
         signature += gO > 0 ? '+' : '-';
         if (!grads) continue;
@@ -101,9 +98,9 @@ double energy(const Tiny& t, std::vector<GaussianParamGrad<double>>* grads, std:
     return e;
 }
 
-void checkGradients(bool lpf, std::uint32_t seed, bool volumeWeights = false)
+void checkGradients(bool lpf, std::uint32_t seed)
 {
-    Tiny t = makeTiny(lpf, seed, volumeWeights);
+    Tiny t = makeTiny(lpf, seed);
     std::vector<GaussianParamGrad<double>> grads;
     std::vector<std::vector<double>> gH;
     std::string base;
@@ -146,8 +143,7 @@ void checkGradients(bool lpf, std::uint32_t seed, bool volumeWeights = false)
         check(p.logit, g.logit, "logit");
         for (int c = 0; c < t.stride; ++c) check(t.h[i][std::size_t(c)], gH[i][std::size_t(c)], "SH");
     }
-    std::printf("  lpf %d volume weights %d: %d parameters checked, %d skipped at kinks, worst relative error %.3g\n", int(lpf),
-                int(volumeWeights), checked,
+    std::printf("  lpf %d: %d parameters checked, %d skipped at kinks, worst relative error %.3g\n", int(lpf), checked,
                 skipped, worst);
     EXPECT_GE(checked, 3 * (11 + t.stride) * 3 / 4);
 }
@@ -162,31 +158,6 @@ TEST(PairGradients, MatchFiniteDifferencesWithoutLpf)
 TEST(PairGradients, MatchFiniteDifferencesWithLpf)
 {
     checkGradients(true, 4);
-}
-
-TEST(PairGradients, MatchFiniteDifferencesWithVolumeWeights)
-{
-    checkGradients(true, 5, true);
-}
-
-TEST(PairGradients, VolumeWeightScalesEachSampleLossAndItsGradient)
-{
-    // sampleLoss with weight v: v x the unweighted terms, energy and gradients, bit for bit at v = 1/8 (a power of 2).
-    Tiny t = makeTiny(false, 6);
-    const std::size_t stride = std::size_t(t.stride);
-    std::vector<double> f(stride), g1(stride), gv(stride);
-    for (std::size_t c = 0; c < stride; ++c) f[c] = 0.2 * double(c % 5) - 0.4;
-    for (std::size_t j = 0; j < 8; ++j) {
-        double gO1 = 0, gOv = 0, t1[3], tv[3];
-        const double* fs = t.fStar.data() + j * stride;
-        const double e1 = sampleLoss<double, double>(f.data(), fs, 0.3, t.oStar[j], t.stride, t.lambda1, t.lambda2, g1.data(), gO1, t1);
-        const double ev = sampleLoss<double, double>(f.data(), fs, 0.3, t.oStar[j], t.stride, t.lambda1, t.lambda2, gv.data(), gOv, tv, 0.125);
-        EXPECT_GT(e1, 0.0);
-        EXPECT_EQ(ev, 0.125 * e1);
-        EXPECT_EQ(gOv, 0.125 * gO1);
-        for (int k = 0; k < 3; ++k) EXPECT_EQ(tv[k], 0.125 * t1[k]);
-        for (std::size_t c = 0; c < stride; ++c) EXPECT_EQ(gv[c], 0.125 * g1[c]);
-    }
 }
 
 TEST(PairGradients, QuaternionScaleInvariance)

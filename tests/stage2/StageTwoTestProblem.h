@@ -19,11 +19,9 @@ namespace splatwarp::test {
 
 /// @brief Cells of edge h covering [-half, half]^3 (cellsPerAxis per axis), n^3 samples per
 ///        cell; targets from `target` with the isotropic rest filter lambda*spacing^2; cells
-///        with zero target opacity in themselves and all 26 neighbours are skipped. With
-///        fineEvery > 0 every cell whose index is a multiple of it is fine: (2n)^3 samples
-///        (SampleSet::cellAxis; in lattice order, not octant by octant: Stage II does not care).
+///        with zero target opacity in themselves and all 26 neighbours are skipped.
 inline SampleSet latticeSampleSet(const GaussianCloud& target, int cellsPerAxis, float half, int n,
-                                  const StageTwoOptions& o, int fineEvery = 0)
+                                  const StageTwoOptions& o)
 {
     SampleSet s;
     s.shDegree = target.shDegree;
@@ -31,25 +29,18 @@ inline SampleSet latticeSampleSet(const GaussianCloud& target, int cellsPerAxis,
     s.cellSize = 2.0f * half / float(cellsPerAxis);
     s.spacing = s.cellSize / float(n);
     const int c = cellsPerAxis;
-    if (fineEvery > 0) s.cellFirst.push_back(0);
     for (int cx = 0; cx < c; ++cx)
         for (int cy = 0; cy < c; ++cy)
             for (int cz = 0; cz < c; ++cz) {
                 const std::int32_t cell = std::int32_t((cx * c + cy) * c + cz);
-                const int m = fineEvery > 0 && cell % fineEvery == 0 ? 2 * n : n;
-                const float step = s.cellSize / float(m);
-                for (int a = 0; a < m; ++a)
-                    for (int b = 0; b < m; ++b)
-                        for (int d = 0; d < m; ++d) {
-                            s.restPositions.push_back(-half + s.cellSize * float(cx) + step * (float(a) + 0.5f));
-                            s.restPositions.push_back(-half + s.cellSize * float(cy) + step * (float(b) + 0.5f));
-                            s.restPositions.push_back(-half + s.cellSize * float(cz) + step * (float(d) + 0.5f));
+                for (int a = 0; a < n; ++a)
+                    for (int b = 0; b < n; ++b)
+                        for (int d = 0; d < n; ++d) {
+                            s.restPositions.push_back(-half + s.cellSize * float(cx) + s.spacing * (float(a) + 0.5f));
+                            s.restPositions.push_back(-half + s.cellSize * float(cy) + s.spacing * (float(b) + 0.5f));
+                            s.restPositions.push_back(-half + s.cellSize * float(cz) + s.spacing * (float(d) + 0.5f));
                             s.sampleCell.push_back(cell);
                         }
-                if (fineEvery > 0) {
-                    s.cellAxis.push_back(std::uint8_t(m));
-                    s.cellFirst.push_back(s.cellFirst.back() + std::uint64_t(m) * std::uint64_t(m) * std::uint64_t(m));
-                }
             }
     s.warpedPositions = s.restPositions;
     const std::size_t m = s.restPositions.size() / 3;
@@ -103,15 +94,15 @@ struct RigidStageTwoProblem {
 };
 
 /// @brief See RigidStageTwoProblem; the cloud is randomCloud(count, degree, seed, extent, 0.04..0.12 scales)
-///        and the lattice latticeSampleSet(target, cellsPerAxis, half, 2, options, fineEvery).
+///        and the lattice latticeSampleSet(target, cellsPerAxis, half, 2, options).
 inline RigidStageTwoProblem rigidStageTwoProblem(std::size_t count, int degree, std::uint32_t seed, float extent,
                                                  const Mat3d& r, const Vec3d& t, int cellsPerAxis, float half,
-                                                 const StageTwoOptions& options = {}, int fineEvery = 0)
+                                                 const StageTwoOptions& options = {})
 {
     RigidStageTwoProblem p;
     p.options = options;
     p.start = randomCloud(count, degree, seed, extent, 0.04f, 0.12f);
-    p.samples = latticeSampleSet(rigidlyMoved(p.start, r, t), cellsPerAxis, half, 2, options, fineEvery);
+    p.samples = latticeSampleSet(rigidlyMoved(p.start, r, t), cellsPerAxis, half, 2, options);
     p.moving.assign(count, 1);
     p.cells = latticeCells(p.start, cellsPerAxis, half);
     return p;
