@@ -357,6 +357,25 @@ TEST(StageTwoCuda, StepRejectionFollowsTheCpu)
 }
 
 // Nothing moving: no pairs, no steps, the cloud and the energy unchanged (empty launches skipped).
+// --iterations auto: the shared loop's stall stop and the default run's position schedule on the
+// GPU as on the CPU. Both stop before the cap; the stall iteration depends on energies within
+// rounding (a priori a few iterations apart), the held energies agree as in 100 iterations.
+TEST(StageTwoCuda, AutoIterationsStopLikeTheCpu)
+{
+    SPLATWARP_REQUIRE_GPU();
+    Problem p = makeProblem(1, 57, true);
+    p.options.setAutoIterations();
+    GaussianCloud a = p.start, b = p.start;
+    const StageTwoReport rc = optimiseStageTwo(a, p.samples, p.moving, p.cells, p.options);
+    const StageTwoReport rg = cuda::optimiseStageTwoCuda(b, p.samples, p.moving, p.cells, p.options);
+    std::printf("  auto: cpu stopped at %d (energy %.6g), cuda at %d (energy %.6g)\n", rc.stoppedAt, rc.bestEnergy,
+                rg.stoppedAt, rg.bestEnergy);
+    ASSERT_GE(rc.stoppedAt, 0); // stopped before the cap (else the test shows nothing: pick another seed)
+    EXPECT_GE(rg.stoppedAt, 0);
+    EXPECT_NEAR(double(rg.stoppedAt), double(rc.stoppedAt), 0.1 * double(rc.stoppedAt) + 5.0);
+    EXPECT_NEAR(rg.bestEnergy, rc.bestEnergy, kEnergyRel100 * rc.bestEnergy);
+}
+
 TEST(StageTwoCuda, NothingMoving)
 {
     SPLATWARP_REQUIRE_GPU();

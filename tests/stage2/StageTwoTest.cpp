@@ -1,5 +1,6 @@
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cstdio>
 #include <cstring>
 
@@ -180,4 +181,32 @@ TEST(StageTwo, NothingMovingLeavesModelAndEnergy)
     EXPECT_EQ(r.movingGaussians, 0u);
     EXPECT_EQ(r.energies.front().total, r.energies.back().total);
     EXPECT_GT(r.energies.front().total, 0.0);
+}
+
+TEST(StageTwo, AutoIterationsFollowTheDefaultRunUntilTheyStop)
+{
+    // Same schedule for the first 100 steps: every energy an auto run records up to its stop (or
+    // iteration 100) is the default run's, bit for bit; past 100 the held energy only falls.
+    StageTwoOptions plain, automatic;
+    automatic.setAutoIterations();
+    const Problem p = makeProblem(plain);
+    GaussianCloud a = p.start, b = p.start;
+    const StageTwoReport rp = optimiseStageTwo(a, p.samples, p.moving, p.cells, plain);
+    const StageTwoReport ra = optimiseStageTwo(b, p.samples, p.moving, p.cells, automatic);
+    std::printf("  auto stopped at %d (energy %.6g); 100 iterations: %.6g\n", ra.stoppedAt, ra.bestEnergy, rp.bestEnergy);
+    ASSERT_GE(ra.stoppedAt, 0);
+    EXPECT_LT(ra.stoppedAt, automatic.iterations);
+    std::size_t compared = 0;
+    for (const StageTwoEnergy& e : ra.energies) {
+        if (e.iteration > std::min(ra.stoppedAt, plain.iterations)) break;
+        const auto same = std::find_if(rp.energies.begin(), rp.energies.end(), [&](const StageTwoEnergy& x) {
+            return x.iteration == e.iteration && x.rejected == e.rejected;
+        });
+        if (same == rp.energies.end()) continue; // recorded by one run only (its last iteration)
+        EXPECT_EQ(e.total, same->total) << "iteration " << e.iteration;
+        ++compared;
+    }
+    EXPECT_GT(compared, 3u);
+    if (ra.stoppedAt > plain.iterations) EXPECT_LE(ra.bestEnergy, rp.bestEnergy);
+    if (ra.stoppedAt < plain.iterations) EXPECT_GE(ra.bestEnergy, rp.bestEnergy);
 }
