@@ -1,6 +1,5 @@
 #include "VdbExport.h"
 
-#include <Eigen/SVD>
 #include <cerrno>
 #include <cstring>
 #include <fstream>
@@ -12,6 +11,7 @@
 #include "VdbLibrary.h"
 #include "core/AtomicFile.h"
 #include "core/Error.h"
+#include "core/Polar.h"
 #include "core/Progress.h"
 #include "sh/SphericalHarmonics.h"
 
@@ -99,15 +99,6 @@ void addMetadata(openvdb::MetaMap& meta, const SampleGrid& grid, const VdbExport
     if (!options.spec.empty()) meta.insertMeta("spec", openvdb::StringMetadata(options.spec));
 }
 
-/// Largest singular value of a row-major 3x3.
-float largestSingularValue(const float* f)
-{
-    Eigen::Matrix3d m;
-    for (int i = 0; i < 3; ++i)
-        for (int j = 0; j < 3; ++j) m(i, j) = f[3 * i + j];
-    return float(Eigen::JacobiSVD<Eigen::Matrix3d>(m).singularValues()(0));
-}
-
 /// openvdb::io::File::write neither flushes nor checks its stream, so a full disk or `ulimit -f`
 /// left a truncated file reported as written: write the same seekable archive to our own stream.
 class CheckedArchive : public openvdb::io::Archive {
@@ -186,7 +177,7 @@ void writeSampleGridVdb(const std::string& path, const SampleGrid& grid, const V
         const std::vector<std::int32_t>& cells = grid.cellCoords();
         for (std::size_t c = 0; c < set.cellCount(); ++c)
             acc.setValue(openvdb::Coord(cells[3 * c], cells[3 * c + 1], cells[3 * c + 2]),
-                         largestSingularValue(&set.cellGradient[9 * c]));
+                         float(largestSingularValue(&set.cellGradient[9 * c])));
         grids.push_back(stretch);
     }
 

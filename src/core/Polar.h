@@ -162,4 +162,17 @@ SPLATWARP_HOST_DEVICE Mat3d polarRotationFast(const Mat3d& m)
     return polarRotationNewton(m, r) ? r : polarRotation(m);
 }
 
+/// @brief Largest singular value of a row-major 3x3 (a cell's deformation gradient F: its largest
+///        stretch), the square root of F^T F's largest eigenvalue.
+SPLATWARP_HOST_DEVICE double largestSingularValue(const float* f)
+{
+    Mat3d m;
+    for (int r = 0; r < 3; ++r)
+        for (int c = 0; c < 3; ++c) m[r][c] = double(f[3 * r + c]);
+    Vec3d lambda;
+    Mat3d v;
+    symmetricEigen3(m.transposed() * m, lambda, v);
+    return std::sqrt(lambda.x > 0 ? lambda.x : 0.0);
+}
+
 } // namespace splatwarp

@@ -1,19 +1,11 @@
 #include "stage2/Densify.h"
 
-#include <Eigen/SVD>
 #include <cmath>
 
 #include "core/Error.h"
+#include "core/Polar.h"
 
 namespace splatwarp {
-
-float largestSingularValue(const float* f)
-{
-    Eigen::Matrix3d m;
-    for (int i = 0; i < 3; ++i)
-        for (int j = 0; j < 3; ++j) m(i, j) = f[3 * i + j];
-    return float(Eigen::JacobiSVD<Eigen::Matrix3d>(m).singularValues()(0));
-}
 
 std::vector<std::size_t> stretchedGaussians(const std::vector<std::uint8_t>& moving,
                                             const std::vector<std::int32_t>& gaussianCell,

@@ -35,9 +35,6 @@ struct DensifyCloud {
     std::vector<std::int32_t>& gaussianCell; ///< [N] rest cell of its low-pass filter (-1: none)
 };
 
-/// @brief Largest singular value of a row-major 3x3 matrix (a cell's deformation gradient F).
-float largestSingularValue(const float* f);
-
 /// @brief The moving Gaussians whose rest cell's F (cellGradient, [C,9]) has its largest singular
 ///        value above `stretch`, ascending. Gaussians without a cell (-1) are never chosen.
 std::vector<std::size_t> stretchedGaussians(const std::vector<std::uint8_t>& moving,

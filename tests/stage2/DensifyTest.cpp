@@ -4,6 +4,7 @@
 #include <cstring>
 
 #include "field/FeatureField.h"
+#include "core/Polar.h"
 #include "stage2/Densify.h"
 
 using namespace splatwarp;
