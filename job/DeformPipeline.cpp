@@ -54,6 +54,7 @@ nlohmann::json stageTwoJson(const StageTwoReport& r, const SampleGrid& grid, con
             {"bestEnergy", r.bestEnergy},
             {"rejectedSteps", r.rejectedSteps},
             {"stoppedAt", r.stoppedAt},
+            {"stopReason", r.stoppedAt >= 0 ? r.stopReason : std::string("ran every iteration")},
             {"device", deviceName(r.device)},
             {"gpuPeakBytes", r.gpuPeakBytes},
             {"sceneExtent", r.sceneExtent},

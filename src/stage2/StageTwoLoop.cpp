@@ -171,6 +171,7 @@ StageTwoReport runStageTwoLoop(StageTwoSolver& solver, GaussianCloud& cloud, con
         if (const char* why = keeper.stalled()) {
             progress(msg("Stage II: stopping at iteration ", it, " (", why, ")"));
             report.stoppedAt = it;
+            report.stopReason = why;
             last = it;
             break;
         }

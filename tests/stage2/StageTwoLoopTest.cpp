@@ -167,6 +167,7 @@ TEST(StageTwoLoop, StopsAfterStallStopRejectionsInARow)
     GaussianCloud cloud;
     const StageTwoReport r = runStageTwoLoop(s, cloud, rejecting(10, 3));
     EXPECT_EQ(r.stoppedAt, 3);
+    EXPECT_EQ(r.stopReason, "steps rejected in a row");
     EXPECT_EQ(r.rejectedSteps, 3);
     EXPECT_EQ(r.bestIteration, 0);
     EXPECT_EQ(cloud.opacities, std::vector<float>{0.0f});
@@ -196,11 +197,14 @@ TEST(StageTwoLoop, StopsWhenTheEnergyStalls)
     GaussianCloud cloud;
     const StageTwoReport r = runStageTwoLoop(s, cloud, o);
     EXPECT_EQ(r.stoppedAt, 4);
+    EXPECT_EQ(r.stopReason, "the energy stalled");
     EXPECT_EQ(r.bestEnergy, 80.8);
     EXPECT_EQ(cloud.opacities, std::vector<float>{4.0f});
     StageTwoOptions off = rejecting(7);
     ScriptedSolver t({100, 90, 81, 80.9, 80.8, 80.7, 80.6, 80.5});
-    EXPECT_EQ(runStageTwoLoop(t, cloud, off).stoppedAt, -1);
+    const StageTwoReport ran = runStageTwoLoop(t, cloud, off);
+    EXPECT_EQ(ran.stoppedAt, -1);
+    EXPECT_EQ(ran.stopReason, "");
 }
 
 TEST(StageTwoLoop, AutoIterationsStopOnAStallBeforeTheCapAndRunOnWhileTheEnergyFalls)
