@@ -7,6 +7,7 @@
 
 #include "deform/SampleWarp.h"
 #include "Judge.h"
+#include "StageTwoRounds.h"
 #include "StretchedView.h"
 #include "VdbExport.h"
 #include "core/AtomicFile.h"
@@ -18,7 +19,6 @@
 #include "image/ImageIO.h"
 #include "render/Camera.h"
 #include "render/ComparisonSheet.h"
-#include "stage2/Densify.h"
 #include "stage2/StageTwoDevice.h"
 
 namespace splatwarp {
@@ -185,87 +185,6 @@ GaussianCloud skipStageTwo(DeformRest& rest, const Deformation& deformation, con
     return stage1.deformed;
 }
 
-/// Round `next` appended to `all`: energies, pairs and iterations offset by the iterations before it,
-/// counters and times summed, the rest (best iterate, moving count, device) of the last round.
-void appendRound(StageTwoReport& all, const StageTwoReport& next, int offset, bool first)
-{
-    const StageTwoReport before = all;
-    all = next;
-    if (first) return;
-    all.energies = before.energies;
-    for (StageTwoEnergy e : next.energies) {
-        e.iteration += offset;
-        all.energies.push_back(e);
-    }
-    all.pairsPerIteration = before.pairsPerIteration;
-    all.pairsPerIteration.insert(all.pairsPerIteration.end(), next.pairsPerIteration.begin(), next.pairsPerIteration.end());
-    all.bestIteration += offset;
-    if (next.stoppedAt >= 0) all.stoppedAt += offset;
-    all.rejectedSteps += before.rejectedSteps;
-    all.coverageRebuilds += before.coverageRebuilds;
-    all.coverageForcedRebuilds += before.coverageForcedRebuilds;
-    all.gpuPeakBytes = std::max(all.gpuPeakBytes, before.gpuPeakBytes);
-    all.msSetup += before.msSetup;
-    all.msCoverage += before.msCoverage;
-    all.msForward += before.msForward;
-    all.msBackward += before.msBackward;
-    all.msUpdate += before.msUpdate;
-    all.msTotal += before.msTotal;
-}
-
-/// Gaussians split and pruned by a Stage II run.
-struct DensifyCounts {
-    std::size_t split = 0, pruned = 0;
-    double ms = 0;
-};
-
-/// Stage II in rounds: the iterations before the split, split (and prune) on the host, the rest.
-/// Each round is one runStageTwo() call on a fresh solver; children inherit moving flag and cell.
-StageTwoReport fitInRounds(GaussianCloud& fitted, const SampleSet& samples, const StageOneResult& stage1,
-                           const SampleGrid& grid, const StageTwoOptions& s2, const DeformJobOptions& o,
-                           const std::function<void(int, const GaussianCloud&)>& onEval, DensifyCounts& counts)
-{
-    const DensifyJobOptions& d = o.densify;
-    std::vector<std::uint8_t> moving = stage1.moving;
-    std::vector<std::int32_t> cell = grid.gaussianCell();
-    DensifyCloud dc{fitted, moving, cell};
-    const int first = d.split ? int(std::lround(double(s2.iterations) * d.splitAfter)) : s2.iterations;
-    StageTwoReport all;
-    int done = 0;
-    bool any = false;
-    auto round = [&](int iterations) {
-        StageTwoOptions r = s2;
-        r.iterations = iterations;
-        const int offset = done;
-        auto shifted = [&](int iteration, const GaussianCloud& current) { onEval(offset + iteration, current); };
-        const StageTwoReport next = runStageTwo(fitted, samples, moving, cell, r,
-                                                onEval ? std::function<void(int, const GaussianCloud&)>(shifted)
-                                                       : std::function<void(int, const GaussianCloud&)>(),
-                                                o.evalEvery);
-        appendRound(all, next, offset, !any);
-        any = true;
-        done += iterations;
-    };
-    auto prune = [&] {
-        if (d.pruneBelow > 0) counts.pruned += pruneMovingBelow(dc, d.pruneBelow);
-    };
-    if (first > 0 || !d.split) round(first);
-    if (d.split) {
-        Stopwatch clock;
-        prune();
-        counts.split += splitGaussians(dc, stretchedGaussians(moving, cell, samples.cellGradient, d.splitStretch),
-                                       d.splitOffset);
-        counts.ms += clock.ms();
-        progress(msg("Stage II: split ", counts.split, " Gaussians of cells stretched over ", d.splitStretch, " (",
-                     fitted.size(), " Gaussians)"));
-        if (s2.iterations - first > 0 || !any) round(s2.iterations - first);
-    }
-    Stopwatch clock;
-    prune();
-    counts.ms += clock.ms();
-    return all;
-}
-
 /// Stage II on a warped copy of the rest samples, with the held-out errors; returns the fitted model.
 GaussianCloud stageTwo(DeformRest& rest, const Deformation& deformation, const StageOneResult& stage1,
                        const DeformJobOptions& o, const StageTwoStart& start, nlohmann::json& report)
@@ -302,10 +221,10 @@ GaussianCloud stageTwo(DeformRest& rest, const Deformation& deformation, const S
         progress(msg("Stage II: ", o.stage2.iterations, " iterations on ", stage1.movingCount, " moving Gaussians"));
         curve = nlohmann::json::array();
         counts = DensifyCounts();
-        return fitInRounds(fitted, samples, stage1, *rest.grid, s2, o,
+        return fitInRounds(fitted, samples, stage1.moving, rest.grid->gaussianCell(), s2, o.densify,
                            o.evalEvery > 0 ? std::function<void(int, const GaussianCloud&)>(onEval)
                                            : std::function<void(int, const GaussianCloud&)>(),
-                           counts);
+                           o.evalEvery, counts);
     };
     StageTwoReport r2 = fit();
     std::optional<double> rejectedStart; // the warm start's energy when the frame went back to the cold start

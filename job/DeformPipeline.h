@@ -19,21 +19,11 @@
 #include "deform/StageOne.h"
 #include "deform/StageOneDevice.h"
 #include "io/GaussianIO.h"
-#include "stage2/Densify.h"
+#include "StageTwoRounds.h"
 #include "stage2/StageTwo.h"
 #include "stage2/StageTwoOptions.h"
 
 namespace splatwarp {
-
-/// @brief Split and prune in Stage II (src/stage2/Densify.h): with a split, Stage II runs in two
-///        rounds (one runStageTwo() call each, so every device follows) with the split between them.
-struct DensifyJobOptions {
-    bool split = false;         ///< --split auto: split the moving Gaussians of stretched cells
-    float splitStretch = 1.3f;  ///< a cell is stretched when its F's largest singular value is above this
-    float splitAfter = 0.5f;    ///< share of the iterations before the split (0: split before Stage II)
-    float splitOffset = kSplitOffset; ///< children at mean +- this x sigma along the longest axis
-    float pruneBelow = 0.0f;    ///< remove moving Gaussians whose opacity ends below this (0: none)
-};
 
 /// @brief Everything a deform run needs; defaults are those of each stage's options struct.
 struct DeformJobOptions {

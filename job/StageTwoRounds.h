@@ -1,0 +1,42 @@
+#pragma once
+/// @file StageTwoRounds.h
+/// @brief Stage II in rounds with split and prune between them (stage2/Densify.h): each round is
+///        one runStageTwo() call on a fresh solver, so the CPU and CUDA solvers follow the same
+///        rules; the rounds' reports are merged into one.
+#include <cstddef>
+#include <cstdint>
+#include <functional>
+#include <vector>
+
+#include "core/GaussianCloud.h"
+#include "field/SampleSet.h"
+#include "stage2/Densify.h"
+#include "stage2/StageTwo.h"
+
+namespace splatwarp {
+
+/// @brief Split and prune in Stage II (src/stage2/Densify.h): with a split, Stage II runs in two
+///        rounds (one runStageTwo() call each, so every device follows) with the split between them.
+struct DensifyJobOptions {
+    bool split = false;         ///< --split auto: split the moving Gaussians of stretched cells
+    float splitStretch = 1.3f;  ///< a cell is stretched when its F's largest singular value is above this
+    float splitAfter = 0.5f;    ///< share of the iterations before the split (0: split before Stage II)
+    float splitOffset = kSplitOffset; ///< children at mean +- this x sigma along the longest axis
+    float pruneBelow = 0.0f;    ///< remove moving Gaussians whose opacity ends below this (0: none)
+};
+
+/// @brief Gaussians split and pruned by a Stage II run, and the time it took.
+struct DensifyCounts {
+    std::size_t split = 0, pruned = 0;
+    double ms = 0;
+};
+
+/// @brief Stage II in rounds: the iterations before the split, split (and prune) on the host, the
+///        rest; one round when splitting is off. Children inherit their parent's moving flag and cell.
+/// @param onEval  sees each round's iterations offset by the iterations before it
+StageTwoReport fitInRounds(GaussianCloud& fitted, const SampleSet& samples, const std::vector<std::uint8_t>& moving,
+                           const std::vector<std::int32_t>& gaussianCell, const StageTwoOptions& options,
+                           const DensifyJobOptions& densify, const std::function<void(int, const GaussianCloud&)>& onEval,
+                           int evalEvery, DensifyCounts& counts);
+
+} // namespace splatwarp
