@@ -36,6 +36,7 @@ json settingsJson(const DeformJobOptions& o)
             {"fineBelow", o.grid.fineBelow},
             {"fineNeighbours", o.grid.fineNeighbours},
             {"stage1Shape", o.stage1.shape == StageOneShape::Affine ? "affine" : "polar"},
+            {"endpointSigmas", o.stage1.endpointSigmas},
             {"iterations", o.stage2.iterations},
             {"scheduleIterations", o.stage2.scheduleIterations},
             {"boundaryWeight", o.stage2.boundaryWeight},

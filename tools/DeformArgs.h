@@ -89,6 +89,11 @@ inline void addDeformOptions(CLI::App* sub, DeformArgs& args)
                     "M's rotation, each axis scaled by M's stretch along it)")
         ->capture_default_str()
         ->check(CLI::IsMember({"affine", "polar"}));
+    sub->add_option("--endpoint-sigmas", job.stage1.endpointSigmas,
+                    "Stage I fits M to the skinned endpoints at +-this many standard deviations along each Gaussian "
+                    "axis (the paper: 2)")
+        ->capture_default_str()
+        ->check(CLI::Range(0.1, 5.0));
     addGridOptions(sub, job.grid);
     addFineCellOptions(sub, args);
     addDensifyOptions(sub, args);

@@ -42,7 +42,7 @@ Mat3d covarianceOf(const GaussianCloud& g, std::size_t i)
 /// The update of every moving Gaussian of a bent stripes model against a plain double reference:
 /// M = (P Q^T)(Q Q^T)^-1 over the 6 endpoint offsets, polar M = R S; polar shape: rotation R R0 and
 /// log-scales + log stretch; affine shape: covariance M Sigma M^T (relative to its largest entry).
-void checkAgainstReferenceOnBend(StageOneShape shape)
+void checkAgainstReferenceOnBend(StageOneShape shape, double endpointSigmas = 2.0)
 {
     const GaussianCloud rest = makeDemoModel("stripes", DemoModelOptions{3000, 3});
     DeformSpec spec = loadDeformSpec(std::string(SPLATWARP_SOURCE_DIR) + "/samples/specs/bend.json");
@@ -50,6 +50,7 @@ void checkAgainstReferenceOnBend(StageOneShape shape)
     const Deformation d = solveDeformation(rest, spec);
     StageOneOptions o;
     o.shape = shape;
+    o.endpointSigmas = endpointSigmas;
     const StageOneRig rig = prepareStageOne(rest, d.graph, o);
     const StageOneResult res = applyStageOneCpu(rest, rig, d.graph, d.transforms, d.nodeMoving, o);
     ASSERT_GT(res.movingCount, 0u);
@@ -119,6 +120,8 @@ void checkAgainstReferenceOnBend(StageOneShape shape)
 TEST(StageOneMath, UpdateMatchesPlainReferenceOnBend) { checkAgainstReferenceOnBend(StageOneShape::Polar); }
 
 TEST(StageOneMath, AffineShapeIsTheCovarianceUnderTheLocalMap) { checkAgainstReferenceOnBend(StageOneShape::Affine); }
+
+TEST(StageOneMath, AffineShapeWithEndpointsAtOneSigma) { checkAgainstReferenceOnBend(StageOneShape::Affine, 1.0); }
 
 TEST(StageOneMath, AffineSkinningMatchesSkinPointInGpuLayout)
 {

@@ -131,7 +131,8 @@ TEST(AnimateJob, ResumeRedoesOnlyFramesWhoseFilesOrEntriesAreMissing)
     EXPECT_NE(readBytes(fx.dir.file("changed.log")).find("1 done, 0 resumed"), std::string::npos);
     // Each flag against a run without it (the previous flag's run left other settings behind).
     for (const char* flag : {"--stall-tolerance 0.5", "--max-mean-step 0.2", "--drop-invalid", "--warm-start",
-                             "--fine-cells auto", "--stage1-shape polar"}) {
+                             "--fine-cells auto", "--stage1-shape polar",
+                             "--endpoint-sigmas 1"}) {
         ASSERT_EQ(runCli(msg("-q animate ", fx.model, " --spec ", fx.spec, " -o ", fx.dir.file("out"), " ", kFlags,
                              " --frames 2-2"), fx.dir.file("plain.log")), 0);
         ASSERT_EQ(runCli(msg("-q animate ", fx.model, " --spec ", fx.spec, " -o ", fx.dir.file("out"), " ", kFlags,
