@@ -32,8 +32,6 @@ double childLogit(float logit, double c)
     return a > 0 ? std::log(a) - std::log1p(-a) : double(logit) - std::log(c);
 }
 
-} // namespace
-
 /// The longest axis of Gaussian i (its index) and that axis' world direction.
 int longestAxis(const GaussianCloud& g, std::size_t i, Vec3f& direction)
 {
@@ -45,6 +43,8 @@ int longestAxis(const GaussianCloud& g, std::size_t i, Vec3f& direction)
     direction = Vec3f{r.m[0][axis], r.m[1][axis], r.m[2][axis]};
     return axis;
 }
+
+} // namespace
 
 void splitGaussian(DensifyCloud& d, std::size_t i, float k)
 {
@@ -59,8 +59,8 @@ void splitGaussian(DensifyCloud& d, std::size_t i, float k)
     // itself is not allowed).
     const std::size_t j = g.size();
     auto copyTail = [i](std::vector<float>& v, std::size_t width) {
-        for (std::size_t k = 0; k < width; ++k) {
-            const float value = v[width * i + k];
+        for (std::size_t c = 0; c < width; ++c) {
+            const float value = v[width * i + c];
             v.push_back(value);
         }
     };
