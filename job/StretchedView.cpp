@@ -11,14 +11,6 @@
 namespace splatwarp {
 namespace {
 
-Mat3d cellGradientOf(const SampleSet& s, std::size_t c)
-{
-    Mat3d f;
-    for (int r = 0; r < 3; ++r)
-        for (int k = 0; k < 3; ++k) f[r][k] = s.cellGradient[9 * c + std::size_t(3 * r + k)];
-    return f;
-}
-
 /// Largest target opacity and the rest and warped centres of a cell's samples.
 struct CellSamples {
     float maxTarget = 0;
@@ -78,7 +70,7 @@ std::optional<StretchedRegion> mostStretchedRegion(const SampleSet& warped, floa
     std::optional<StretchedRegion> best;
     for (std::size_t c = 0; c < warped.cellCount(); ++c) {
         if (warped.cellSkip[c]) continue;
-        const Mat3d f = cellGradientOf(warped, c);
+        const Mat3d f = Mat3d::fromRowMajor(&warped.cellGradient[9 * c]);
         Vec3d lambda;
         Mat3d v;
         symmetricEigen3(f * f.transposed(), lambda, v); // F F^T: its eigenvectors are warped directions

@@ -78,14 +78,6 @@ private:
 // ---------------------------------------------------------------------------------------------
 // Device helpers
 
-__device__ Mat3d loadFilter(const double* f) // f: [9] row-major
-{
-    Mat3d m;
-    for (int a = 0; a < 3; ++a)
-        for (int b = 0; b < 3; ++b) m.m[a][b] = f[3 * a + b];
-    return m;
-}
-
 // ---------------------------------------------------------------------------------------------
 // Kernels: per Gaussian
 
@@ -96,7 +88,7 @@ __global__ void prepareKernel(std::size_t g, int perG, const float* params /* [G
     const std::size_t k = globalIndex();
     if (k >= g) return;
     out[k] = PreparedGaussian::from(
-        prepareParams(unpackParams(params + k * std::size_t(perG)), loadFilter(filter + 9 * k), double(cutoff)));
+        prepareParams(unpackParams(params + k * std::size_t(perG)), Mat3d::fromRowMajor(filter + 9 * k), double(cutoff)));
 }
 
 /// Padded coverage box and slabs of each moving Gaussian (stageTwoCoverageBox/Slabs, as the CPU).
@@ -107,7 +99,7 @@ __global__ void boxKernel(std::size_t g, int perG, const float* params /* [G,PER
     const std::size_t k = globalIndex();
     if (k >= g) return;
     const GaussianParams<double> p = unpackParams(params + k * std::size_t(perG));
-    const Mat3d f = loadFilter(filter + 9 * k);
+    const Mat3d f = Mat3d::fromRowMajor(filter + 9 * k);
     stageTwoCoverageBox(p, f, steps, move, options, lo + 3 * k, hi + 3 * k);
     stageTwoCoverageSlabs(p, f, steps, move, options, slabs[k]);
 }
@@ -120,7 +112,7 @@ __global__ void holdsKernel(std::size_t g, int perG, const float* params /* [G,P
 {
     const std::size_t k = globalIndex();
     if (k >= g) return;
-    if (!stageTwoCoverageHolds(unpackParams(params + k * std::size_t(perG)), loadFilter(filter + 9 * k), double(cutoff),
+    if (!stageTwoCoverageHolds(unpackParams(params + k * std::size_t(perG)), Mat3d::fromRowMajor(filter + 9 * k), double(cutoff),
                                lo + 3 * k, hi + 3 * k, slabs[k]))
         *allHold = 0;
 }
@@ -422,7 +414,7 @@ __global__ void adamKernel(std::size_t g, int perG, float* params /* [G,PER_G] *
     const std::size_t k = globalIndex();
     if (k >= g) return;
     const std::size_t i = k * std::size_t(perG);
-    adamStepRow(adam, lr, loadFilter(filter + 9 * k), maxMeanStep, perG, params + i, m + i, v + i, grad + i);
+    adamStepRow(adam, lr, Mat3d::fromRowMajor(filter + 9 * k), maxMeanStep, perG, params + i, m + i, v + i, grad + i);
 }
 
 // ---------------------------------------------------------------------------------------------

@@ -166,9 +166,7 @@ SPLATWARP_HOST_DEVICE Mat3d polarRotationFast(const Mat3d& m)
 ///        stretch), the square root of F^T F's largest eigenvalue.
 SPLATWARP_HOST_DEVICE double largestSingularValue(const float* f)
 {
-    Mat3d m;
-    for (int r = 0; r < 3; ++r)
-        for (int c = 0; c < 3; ++c) m[r][c] = double(f[3 * r + c]);
+    const Mat3d m = Mat3d::fromRowMajor(f);
     Vec3d lambda;
     Mat3d v;
     symmetricEigen3(m.transposed() * m, lambda, v);

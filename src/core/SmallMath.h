@@ -57,6 +57,15 @@ struct Mat3 {
             for (int j = 0; j < 3; ++j) r.m[i][j] = T(o.m[i][j]);
         return r;
     }
+    /// @brief From 9 values in row-major order (a cell gradient, a stored filter).
+    template <typename U>
+    SPLATWARP_HOST_DEVICE static Mat3 fromRowMajor(const U* a)
+    {
+        Mat3 r;
+        for (int i = 0; i < 3; ++i)
+            for (int j = 0; j < 3; ++j) r.m[i][j] = T(a[3 * i + j]);
+        return r;
+    }
     SPLATWARP_HOST_DEVICE T* operator[](int r) { return m[r]; }
     SPLATWARP_HOST_DEVICE const T* operator[](int r) const { return m[r]; }
     SPLATWARP_HOST_DEVICE Vec3<T> operator*(const Vec3<T>& v) const

@@ -100,11 +100,13 @@ SPLATWARP_HOST_DEVICE void stageOneAffineShape(const Mat3d& mr, const Mat3d& rr0
                                                Quatd& q, float* outLogScales)
 {
     const Mat3d b = rr0.transposed() * mr; // M R0 in the polar frame; M Sigma M^T = rr0 (b D b^T) rr0^T
+    double variance[3];
+    for (int a = 0; a < 3; ++a) variance[a] = std::exp(2.0 * double(logScales[a]));
     Mat3d c;
     for (int r = 0; r < 3; ++r)
         for (int k = 0; k < 3; ++k) {
             double sum = 0;
-            for (int a = 0; a < 3; ++a) sum += b[r][a] * b[k][a] * std::exp(2.0 * double(logScales[a]));
+            for (int a = 0; a < 3; ++a) sum += b[r][a] * b[k][a] * variance[a];
             c[r][k] = sum;
         }
     Vec3d lambda;
