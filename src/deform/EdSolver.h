@@ -16,7 +16,7 @@ struct EdOptions {
     double rotWeight = 1.0;      ///< E_rot: orthonormality of A's columns (Sumner et al.)
     double regWeight = 10.0;     ///< E_reg: neighbouring nodes agree on each other's positions
     double conWeight = 100.0;    ///< E_con: handle nodes reach their targets
-    int maxIterations = 30;      ///< Gauss-Newton iterations at most
+    int maxIterations = 100;     ///< Gauss-Newton iterations at most (lastchance + twist.json needs 44)
     double relativeStep = 1e-3;  ///< converged when |step| <= relativeStep * (|x| + relativeStep). Measured
                                  ///< against 1e-7: energy within 3e-6 (stripes bend) / 5e-6 (donut bend)
                                  ///< relative, handle residual within 0.1%, 7 vs 18 / 9 vs 25 iterations
