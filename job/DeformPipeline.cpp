@@ -7,6 +7,7 @@
 
 #include "deform/SampleWarp.h"
 #include "Judge.h"
+#include "StageTwoChoice.h"
 #include "StageTwoRounds.h"
 #include "StretchedView.h"
 #include "VdbExport.h"
@@ -185,6 +186,72 @@ GaussianCloud skipStageTwo(DeformRest& rest, const Deformation& deformation, con
     return stage1.deformed;
 }
 
+/// Stage II's cold start: Stage I's model with its moving flags and rest cells, and with the bent
+/// Gaussians split and moved again (--curve-split; report "curveSplit", judged when evaluating).
+struct ColdStart {
+    GaussianCloud model;
+    std::vector<std::uint8_t> moving;
+    std::vector<std::int32_t> cells;
+    std::size_t added = 0;
+};
+
+ColdStart coldStart(const DeformRest& rest, const Deformation& deformation, const StageOneResult& stage1,
+                    const DeformJobOptions& o, const FrameErrors& errors, nlohmann::json& report)
+{
+    ColdStart c{stage1.deformed, stage1.moving, rest.grid->gaussianCell(), 0};
+    if (!o.curveSplit) return c;
+    CurveSplitOptions co = o.curve;
+    co.threaded = o.grid.threaded;
+    const CurveSplitResult cs = curveSplit(rest.model, rest.rig, rest.graph, deformation.transforms,
+                                           deformation.nodeMoving, stage1, o.stage1, co);
+    report["curveSplit"] = {{"maxAdded", co.maxAdded}, {"rounds", co.rounds}, {"roundsUsed", cs.rounds},
+                            {"split", cs.split}, {"added", cs.added}, {"gaussians", cs.deformed.size()}, {"ms", cs.ms}};
+    report["timingsMs"]["curveSplit"] = cs.ms;
+    progress(msg("curve split: ", cs.split, " bent Gaussians split, ", cs.added, " added: ", cs.deformed.size(),
+                 " Gaussians (", int(cs.ms), " ms)"));
+    if (cs.added == 0) return c;
+    c.model = cs.deformed;
+    c.moving = cs.moving;
+    c.added = cs.added;
+    std::vector<std::int32_t> cells(cs.parent.size()); // children filter as their parent's rest cell
+    for (std::size_t i = 0; i < cs.parent.size(); ++i) cells[i] = c.cells[std::size_t(cs.parent[i])];
+    c.cells = std::move(cells);
+    if (errors.judge) errors.record(c.model, "Curve split", report["curveSplit"]);
+    return c;
+}
+
+/// --keep validated: Stage II's start, fit or their region mix, whichever the validation points
+/// judge best (job/StageTwoChoice.h; report stage2 "keep").
+GaussianCloud keepValidated(const DeformRest& rest, const Deformation& deformation, const GaussianCloud& startModel,
+                            GaussianCloud fitted, bool sameGaussians, const DeformJobOptions& o, nlohmann::json& report)
+{
+    const Judge validation(rest.model, *rest.validation, deformation, o.grid.threaded);
+    StageTwoChoice c;
+    fitted = chooseStageTwoModel(validation, startModel, std::move(fitted), sameGaussians, c);
+    report["stage2"]["keep"] = {{"kept", c.kept}, {"validationStart", c.start}, {"validationFit", c.fit},
+                                {"validationMix", c.mix}, {"regions", c.regions}, {"regionsFit", c.regionsFit},
+                                {"ms", c.ms}};
+    report["timingsMs"]["keep"] = c.ms;
+    return fitted;
+}
+
+/// stage2 "densify" and the Gaussians the kept model gained and lost: the curve split's and, unless
+/// --keep validated went back to the start, those of the split and prune inside Stage II.
+void recordGaussianCounts(const ColdStart& cold, const DensifyCounts& counts, const DeformJobOptions& o,
+                          const GaussianCloud& kept, nlohmann::json& stage2)
+{
+    const bool fitKept = !stage2.contains("keep") || stage2["keep"]["kept"] != "start";
+    stage2["densify"] = {{"split", o.densify.split ? "auto" : "off"}, {"splitStretch", o.densify.splitStretch},
+                         {"splitAfter", o.densify.splitAfter},       {"splitOffset", o.densify.splitOffset},
+                         {"pruneBelow", o.densify.pruneBelow},       {"ms", counts.ms}};
+    stage2["gaussiansAdded"] = cold.added + (fitKept ? counts.split : 0);
+    stage2["gaussiansRemoved"] = fitKept ? counts.pruned : 0;
+    stage2["gaussians"] = kept.size();
+    if (o.densify.split || o.densify.pruneBelow > 0)
+        progress(msg("Stage II: ", counts.split, " Gaussians added by splits, ", counts.pruned, " pruned", fitKept ? "" : " (not kept)",
+                     ": ", kept.size(), " Gaussians"));
+}
+
 /// Stage II on a warped copy of the rest samples, with the held-out errors; returns the fitted model.
 GaussianCloud stageTwo(DeformRest& rest, const Deformation& deformation, const StageOneResult& stage1,
                        const DeformJobOptions& o, const StageTwoStart& start, nlohmann::json& report)
@@ -204,8 +271,15 @@ GaussianCloud stageTwo(DeformRest& rest, const Deformation& deformation, const S
         report["timingsMs"]["evaluate"] = rest.heldOutMs + clock.ms();
     }
 
-    GaussianCloud fitted = stage1.deformed;
-    if (start.change) start.change(stage1, fitted);
+    const ColdStart cold = coldStart(rest, deformation, stage1, o, errors, report);
+    GaussianCloud fitted = cold.model;
+    if (start.change) { // a warm start corrects each Stage I Gaussian: a split start stays cold
+        GaussianCloud warm = stage1.deformed;
+        start.change(stage1, warm);
+        if (cold.added == 0) fitted = std::move(warm);
+    }
+    const bool warm = start.change && cold.added == 0;
+    const GaussianCloud startModel = o.keepValidated ? fitted : GaussianCloud();
     nlohmann::json curve = nlohmann::json::array();
     auto onEval = [&](int iteration, const GaussianCloud& current) {
         const FieldErrorReport e = errors.judge->fieldError(current);
@@ -218,10 +292,10 @@ GaussianCloud stageTwo(DeformRest& rest, const Deformation& deformation, const S
     s2.device = rest.device;
     DensifyCounts counts;
     auto fit = [&] {
-        progress(msg("Stage II: ", o.stage2.iterations, " iterations on ", stage1.movingCount, " moving Gaussians"));
+        progress(msg("Stage II: ", o.stage2.iterations, " iterations on ", stage1.movingCount + cold.added, " moving Gaussians"));
         curve = nlohmann::json::array();
         counts = DensifyCounts();
-        return fitInRounds(fitted, samples, stage1.moving, rest.grid->gaussianCell(), s2, o.densify,
+        return fitInRounds(fitted, samples, cold.moving, cold.cells, s2, o.densify,
                            o.evalEvery > 0 ? std::function<void(int, const GaussianCloud&)>(onEval)
                                            : std::function<void(int, const GaussianCloud&)>(),
                            o.evalEvery, counts);
@@ -229,28 +303,20 @@ GaussianCloud stageTwo(DeformRest& rest, const Deformation& deformation, const S
     StageTwoReport r2 = fit();
     std::optional<double> rejectedStart; // the warm start's energy when the frame went back to the cold start
     double rejectedMs = 0;
-    if (start.change && start.rejects && start.rejects(r2)) {
+    if (warm && start.rejects && start.rejects(r2)) {
         rejectedMs = r2.msTotal;
         rejectedStart = r2.energies.empty() ? 0.0 : r2.energies.front().total;
-        progress(msg("Stage II: the warm start (energy ", *rejectedStart, ") is rejected; fitting from the Stage I model"));
-        fitted = stage1.deformed;
+        progress(msg("Stage II: the warm start (energy ", *rejectedStart, ") is rejected; fitting from the cold start"));
+        fitted = cold.model;
         r2 = fit();
     }
     report["stage2"] = stageTwoJson(r2, *rest.grid, o.stage2);
-    report["stage2"]["densify"] = {{"split", o.densify.split ? "auto" : "off"},
-                                   {"splitStretch", o.densify.splitStretch},
-                                   {"splitAfter", o.densify.splitAfter},
-                                   {"splitOffset", o.densify.splitOffset},
-                                   {"pruneBelow", o.densify.pruneBelow},
-                                   {"ms", counts.ms}};
-    report["stage2"]["gaussiansAdded"] = counts.split;
-    report["stage2"]["gaussiansRemoved"] = counts.pruned;
-    report["stage2"]["gaussians"] = fitted.size();
-    if (o.densify.split || o.densify.pruneBelow > 0)
-        progress(msg("Stage II: ", counts.split, " Gaussians added by splits, ", counts.pruned, " pruned: ",
-                     fitted.size(), " Gaussians"));
+    if (o.keepValidated)
+        fitted = keepValidated(rest, deformation, rejectedStart ? cold.model : startModel, std::move(fitted),
+                               counts.split == 0 && counts.pruned == 0, o, report);
+    recordGaussianCounts(cold, counts, o, fitted, report["stage2"]);
     report["timingsMs"]["stage2"] = r2.msTotal + rejectedMs + counts.ms;
-    if (start.change) report["stage2"]["start"] = rejectedStart ? "cold" : "warm";
+    if (start.change) report["stage2"]["start"] = warm && !rejectedStart ? "warm" : "cold";
     if (rejectedStart) report["stage2"]["warmEnergy"] = *rejectedStart;
     if (o.evalEvery > 0) report["stage2"]["eval_curve"] = curve;
     if (errors.judge) errors.record(fitted, "Stage II", report["stage2"]);
@@ -307,6 +373,12 @@ std::unique_ptr<DeformRest> prepareDeformRest(const DeformJobOptions& o, const G
     gridOptions.extraBytesPerSample += stageTwoBytesPerSample(rest->model.shDegree);
     rest->grid = runStage("sample grid", [&] { return std::make_unique<SampleGrid>(rest->model, gridOptions); });
     rest->sampleGridMs = clock.ms();
+    if (o.keepValidated) {
+        HeldOutOptions validation = o.heldOut;
+        validation.device = rest->device;
+        validation.seed ^= kValidationSeedXor;
+        rest->validation = prepareJudgeRest(rest->model, validation);
+    }
     if (o.evaluate || o.evalEvery > 0) {
         clock.reset();
         HeldOutOptions heldOutOptions = o.heldOut;

@@ -15,6 +15,7 @@
 #include "Judge.h"
 #include "SampleGrid.h"
 #include "core/Device.h"
+#include "deform/CurveSplit.h"
 #include "deform/DeformSpec.h"
 #include "deform/StageOne.h"
 #include "deform/StageOneDevice.h"
@@ -39,6 +40,9 @@ struct DeformJobOptions {
     SampleGridOptions grid;
     StageTwoOptions stage2;
     DensifyJobOptions densify;
+    bool curveSplit = true;    ///< split the Gaussians Stage I cannot bend before Stage II (deform/CurveSplit.h)
+    CurveSplitOptions curve;
+    bool keepValidated = true; ///< keep Stage II's start, fit or their mix by validation points (StageTwoChoice.h)
     HeldOutOptions heldOut; ///< points and seed of the judge (and of the training-lattice error)
     bool evaluate = true;   ///< the judge's errors of Stage I and Stage II in the report (and the training-lattice error)
     int evalEvery = 0;      ///< also record the held-out error every K Stage II iterations (0 = off)
@@ -67,6 +71,7 @@ struct DeformRest {
     std::unique_ptr<StageOneUpdater> stageOne;
     std::unique_ptr<SampleGrid> grid;           ///< null with stage1Only
     std::optional<JudgeRest> judge;              ///< the fixed judge's points and rest features (eval's)
+    std::optional<JudgeRest> validation;         ///< the judge's rule with another seed: Stage II's choice
     std::optional<HeldOutPoints> latticePoints;  ///< training-lattice points X; warped per frame
     std::optional<FieldErrorTarget> latticeRest; ///< rest features at X with the grid's filter, not yet rotated
     double readMs = 0, graphMs = 0, rigMs = 0, sampleGridMs = 0, heldOutMs = 0;

@@ -110,6 +110,16 @@ FieldErrorReport Judge::fieldError(const GaussianCloud& deformed) const
     return evaluateHeldOut(mTarget, deformed, mPoints);
 }
 
+std::vector<double> Judge::pointScores(const GaussianCloud& deformed) const
+{
+    const FieldPointErrors e = fieldPointErrors(mTarget, deformed, mPoints.warped.data(), mPoints.features);
+    const double o = mTarget.sumOpacity > 0 ? 1.0 / mTarget.sumOpacity : 0.0;
+    const double c = mTarget.sumFeatures > 0 ? 1.0 / mTarget.sumFeatures : 0.0;
+    std::vector<double> scores(e.opacity.size());
+    for (std::size_t j = 0; j < scores.size(); ++j) scores[j] = e.opacity[j] * o + e.color[j] * c;
+    return scores;
+}
+
 JudgeReport Judge::judge(const GaussianCloud& deformed) const
 {
     JudgeReport r;

@@ -69,6 +69,10 @@ public:
     JudgeReport judge(const GaussianCloud& deformed) const;
     /// @brief The field error alone (the Stage II curve).
     FieldErrorReport fieldError(const GaussianCloud& deformed) const;
+    /// @brief Per point: opacity error over the target's sum plus colour error over its sum (the
+    ///        terms of fieldError()'s opacity + color).
+    std::vector<double> pointScores(const GaussianCloud& deformed) const;
+    const HeldOutPoints& points() const { return mPoints; }
     bool rigid() const { return !mTruth.empty(); }
 
 private:

@@ -7,5 +7,5 @@ study_setup() {
   models=("$@")
   [ ${#models[@]} -gt 0 ] || models=("$data/train-1000.ply" "$data/lastchance.splat" "$data/donut.ply" \
                                      "$data/playbot-31k-sh2.ply" "$data/guitar.compressed.ply")
-  bin=build/tools/splatwarp
+  bin=${SPLATWARP_BIN:-build/tools/splatwarp}
 }

@@ -21,6 +21,7 @@ struct DeformArgs {
     std::string fineCells = "off";
     std::string stage1Shape = "affine";
     std::string split = "off";
+    std::string curveSplit = "auto", keep = "validated";
     float fineBelow = 4.0f;
 };
 
@@ -65,6 +66,26 @@ inline void addDensifyOptions(CLI::App* sub, DeformArgs& args)
                     "sigma there is sqrt(1 - offset^2) x the parent's)")
         ->capture_default_str()
         ->check(inRange(0.05, double(kMaxSplitOffset)));
+    sub->add_option("--curve-split", args.curveSplit,
+                    "auto: before Stage II, split each Gaussian that the deformation bends more than one affine map can "
+                    "follow into three along the bent axis, in the rest pose, and move the children with Stage I again "
+                    "(most gain first, see --curve-split-max); off: Stage II starts from the Stage I model")
+        ->capture_default_str()
+        ->check(CLI::IsMember({"auto", "off"}));
+    sub->add_option("--curve-split-max", args.job.curve.maxAdded,
+                    "With --curve-split auto: at most this many Gaussians added, as a share of the model's")
+        ->capture_default_str()
+        ->check(inRange(0.0, 16.0));
+    sub->add_option("--curve-split-rounds", args.job.curve.rounds,
+                    "With --curve-split auto: children still bent are split again, up to this many rounds in all")
+        ->capture_default_str()
+        ->check(inRange(1, 8));
+    sub->add_option("--keep", args.keep,
+                    "validated: after Stage II keep its start, its fit or a mix of the two (per region of a 16-cell "
+                    "lattice), whichever is judged best on validation points (the judge's rule, another seed); fit: "
+                    "always keep the fit")
+        ->capture_default_str()
+        ->check(CLI::IsMember({"validated", "fit"}));
     sub->add_option("--prune-below", d.pruneBelow,
                     "Remove the moving Gaussians whose opacity Stage II leaves below this (before the split and at the "
                     "end; 0: keep every Gaussian)")
@@ -131,6 +152,8 @@ inline DeformJobOptions deformJobOptions(const DeformArgs& args, const CLI::App*
     job.stage1.shape = args.stage1Shape == "polar" ? StageOneShape::Polar : StageOneShape::Affine;
     job.evaluate = !args.noEval;
     job.densify.split = args.split == "auto";
+    job.curveSplit = args.curveSplit == "auto";
+    job.keepValidated = args.keep == "validated";
     return job;
 }
 

@@ -39,6 +39,19 @@ void checkStageOneInputs(const GaussianCloud& rest, const StageOneRig& rig, cons
                              " moving flags for a graph of ", graph.nodeCount(), " nodes"));
 }
 
+StageOneInputs stageOneInputs(const GaussianCloud& rest, const StageOneRig& rig, const NodeAffine* affines)
+{
+    StageOneInputs in;
+    in.means = rest.means.data();
+    in.rotations = rest.rotations.data();
+    in.logScales = rest.logScales.data();
+    in.nodes = rig.weights.nodes.data();
+    in.weights = rig.weights.weights.data();
+    in.k = std::size_t(rig.weights.k);
+    in.affines = affines;
+    return in;
+}
+
 StageOneRig prepareStageOne(const GaussianCloud& rest, const DeformationGraph& graph, const StageOneOptions& o)
 {
     rest.checkConsistent();
@@ -75,14 +88,7 @@ StageOneResult applyStageOneCpu(const GaussianCloud& rest, const StageOneRig& ri
     res.deformed = rest; // static Gaussians stay bit-exact
     res.moving.assign(n, 0);
     const std::vector<NodeAffine> affines = nodeAffines(graph, transforms);
-    StageOneInputs in;
-    in.means = rest.means.data();
-    in.rotations = rest.rotations.data();
-    in.logScales = rest.logScales.data();
-    in.nodes = rig.weights.nodes.data();
-    in.weights = rig.weights.weights.data();
-    in.k = std::size_t(rig.weights.k);
-    in.affines = affines.data();
+    StageOneInputs in = stageOneInputs(rest, rig, affines.data());
     in.nodeMoving = nodeMoving.data();
     in.shTables = &shRotationTables();
     in.shDegree = rest.shDegree;

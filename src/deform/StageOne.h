@@ -62,6 +62,12 @@ struct StageOneResult {
 };
 
 struct StageOneParams; // deform/StageOneMath.h
+struct StageOneInputs; // deform/StageOneMath.h
+struct NodeAffine;     // deform/SkinningMath.h
+
+/// @brief The update's read-only inputs on a rest model, its rig and node affines [J] (arrays
+///        borrowed, not copied); the caller sets nodeMoving and the SH tables where it needs them.
+StageOneInputs stageOneInputs(const GaussianCloud& rest, const StageOneRig& rig, const NodeAffine* affines);
 
 /// @brief The options and model extent as the per-Gaussian update takes them.
 StageOneParams stageOneParams(const StageOneOptions& options, double extent);

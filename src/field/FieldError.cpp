@@ -37,8 +37,8 @@ FieldErrorTarget fieldErrorTarget(const GaussianCloud& rest, const float* restPo
     return t;
 }
 
-FieldErrorReport fieldError(const FieldErrorTarget& t, const GaussianCloud& deformed, const float* warpedPoints,
-                            const FeatureOptions& options)
+FieldPointErrors fieldPointErrors(const FieldErrorTarget& t, const GaussianCloud& deformed, const float* warpedPoints,
+                                  const FeatureOptions& options)
 {
     if (t.shDegree != deformed.shDegree)
         throw InputError(msg("field error: rest SH degree ", t.shDegree, " differs from deformed ", deformed.shDegree));
@@ -46,17 +46,30 @@ FieldErrorReport fieldError(const FieldErrorTarget& t, const GaussianCloud& defo
     const int stride = deformed.shStride();
     std::vector<float> fDef(p * std::size_t(stride)), oDef(p);
     evaluateFeaturesOn(deformed, warpedPoints, p, options, fDef.data(), oDef.data());
-
-    FieldErrorReport r;
-    r.points = p;
-    double dO[2] = {0, 0}, dF[2] = {0, 0};
+    FieldPointErrors e;
+    e.opacity.resize(p);
+    e.color.assign(p, 0.0);
     for (std::size_t j = 0; j < p; ++j) {
         const double* target = t.features.data() + j * std::size_t(stride);
+        e.opacity[j] = std::fabs(double(oDef[j]) - double(t.opacity[j]));
+        const float* fd = fDef.data() + j * std::size_t(stride);
+        for (int s = 0; s < stride; ++s) e.color[j] += std::fabs(double(fd[s]) - target[s]);
+    }
+    return e;
+}
+
+FieldErrorReport fieldError(const FieldErrorTarget& t, const GaussianCloud& deformed, const float* warpedPoints,
+                            const FeatureOptions& options)
+{
+    const FieldPointErrors e = fieldPointErrors(t, deformed, warpedPoints, options);
+    FieldErrorReport r;
+    r.points = t.size();
+    double dO[2] = {0, 0}, dF[2] = {0, 0};
+    for (std::size_t j = 0; j < r.points; ++j) {
         const int side = t.opacity[j] > 0.0f ? 0 : 1;
         ++(side == 0 ? r.insidePoints : r.outsidePoints);
-        dO[side] += std::fabs(double(oDef[j]) - double(t.opacity[j]));
-        const float* fd = fDef.data() + j * std::size_t(stride);
-        for (int s = 0; s < stride; ++s) dF[side] += std::fabs(double(fd[s]) - target[s]);
+        dO[side] += e.opacity[j];
+        dF[side] += e.color[j];
     }
     auto ratio = [](double a, double b) { return b > 0 ? a / b : 0.0; };
     r.opacityInside = ratio(dO[0], t.sumOpacity);

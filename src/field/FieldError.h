@@ -43,6 +43,16 @@ FieldErrorTarget fieldErrorTarget(const GaussianCloud& rest, const float* restPo
 FieldErrorReport fieldError(const FieldErrorTarget& target, const GaussianCloud& deformed, const float* warpedPoints,
                             const FeatureOptions& options = {});
 
+/// @brief Per point j: |O_def - O_target| and sum over the SH stride of |F_def - F_target|, the
+///        terms fieldError() sums (over the target's sumOpacity and sumFeatures).
+struct FieldPointErrors {
+    std::vector<double> opacity, color;
+};
+
+/// @brief The per-point terms of fieldError() (same arguments).
+FieldPointErrors fieldPointErrors(const FieldErrorTarget& target, const GaussianCloud& deformed,
+                                  const float* warpedPoints, const FeatureOptions& options = {});
+
 /// @brief Held-out field error of a deformed model.
 /// @param rest, deformed  models (same SH degree)
 /// @param restPoints      [P,3] X

@@ -99,7 +99,8 @@ TEST(AnimateJob, FrameEqualsDeformWithItsSpecAndShardsEqualTheWholeRun)
     EXPECT_EQ(m["entries"][1]["files"][0]["bytes"].get<std::size_t>(), fx.frame("whole", 1).size());
     EXPECT_TRUE(m["entries"][2]["field_error"]["stage2"].contains("opacity"));
     EXPECT_EQ(m["specHash"], fnv1a64(kAnim));
-    EXPECT_GT(fs::file_size(fx.dir.file("sharded/sequence.zip")), 3 * fx.frame("whole", 1).size());
+    EXPECT_GT(fs::file_size(fx.dir.file("sharded/sequence.zip")),
+              fx.frame("whole", 0).size() + fx.frame("whole", 1).size() + fx.frame("whole", 2).size());
 }
 
 TEST(AnimateJob, ResumeRedoesOnlyFramesWhoseFilesOrEntriesAreMissing)
@@ -151,7 +152,9 @@ TEST(AnimateJob, WarmStartKeepsItsBytesWhateverTheShardsTheRangeOrAResume)
     const std::string spec = fx.dir.file("anim4.json");
     writeText(spec, four);
     auto animate = [&](const std::string& out, const std::string& extra) {
-        return runCli(msg("-q animate ", fx.model, " --spec ", spec, " -o ", fx.dir.file(out), " ", kFlags, " ", extra),
+        // --curve-split off: a frame whose split adds Gaussians starts cold, and this test needs warm ones.
+        return runCli(msg("-q animate ", fx.model, " --spec ", spec, " -o ", fx.dir.file(out), " ", kFlags,
+                          " --curve-split off ", extra),
                       fx.dir.file(out + ".log"));
     };
     ASSERT_EQ(animate("cold", ""), 0) << readBytes(fx.dir.file("cold.log"));

@@ -6,29 +6,12 @@
 #include "field/FeatureField.h"
 #include "core/Polar.h"
 #include "stage2/Densify.h"
+#include "support/TestGaussians.h"
 
 using namespace splatwarp;
+using splatwarp::test::threeGaussians;
 
 namespace {
-
-/// Three overlapping Gaussians of SH degree 1: rotated, anisotropic, opacities near 1, mid and low.
-GaussianCloud threeGaussians()
-{
-    GaussianCloud g;
-    g.resize(3, 1);
-    const float means[3][3] = {{0.0f, 0.0f, 0.0f}, {0.25f, -0.1f, 0.05f}, {-0.2f, 0.15f, -0.1f}};
-    const float scales[3][3] = {{0.30f, 0.12f, 0.08f}, {0.10f, 0.22f, 0.09f}, {0.09f, 0.10f, 0.18f}};
-    const float quats[3][4] = {{0.9f, 0.2f, -0.3f, 0.1f}, {0.7f, -0.1f, 0.5f, 0.4f}, {1.0f, 0.0f, 0.0f, 0.0f}};
-    const float alphas[3] = {0.97f, 0.5f, 0.06f};
-    for (std::size_t i = 0; i < 3; ++i) {
-        g.setMean(i, Vec3f{means[i][0], means[i][1], means[i][2]});
-        g.setRotation(i, Quatf{quats[i][0], quats[i][1], quats[i][2], quats[i][3]});
-        for (int a = 0; a < 3; ++a) g.logScales[3 * i + std::size_t(a)] = std::log(scales[i][a]);
-        g.opacities[i] = std::log(alphas[i] / (1.0f - alphas[i]));
-        for (int c = 0; c < g.shStride(); ++c) g.shOf(i)[c] = 0.3f * float(i + 1) - 0.07f * float(c);
-    }
-    return g;
-}
 
 /// Moments of the field on a lattice (midpoint rule): mass of O, its mean and covariance, and
 /// the integral of each F channel.
@@ -45,13 +28,7 @@ struct FieldMoments {
 /// and nearly the same before and after).
 FieldMoments moments(const GaussianCloud& g, float cutoff)
 {
-    const double h = 0.04, lo = -1.6;
-    const int n = 81;
-    std::vector<float> points;
-    for (int z = 0; z < n; ++z)
-        for (int y = 0; y < n; ++y)
-            for (int x = 0; x < n; ++x)
-                for (double v : {lo + h * x, lo + h * y, lo + h * z}) points.push_back(float(v));
+    const std::vector<float> points = splatwarp::test::latticePoints(0.04, -1.6, 81);
     const std::size_t m = points.size() / 3;
     FeatureOptions fo;
     fo.cutoff = cutoff;

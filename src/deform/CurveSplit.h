@@ -1,0 +1,71 @@
+#pragma once
+/// @file CurveSplit.h
+/// @brief Split the Gaussians that Stage I's single affine map cannot bend, in the rest pose, and
+///        move the children with Stage I again, so each child follows the deformation's curve with
+///        its own map. How bent a Gaussian is: phi's second-order term over one sigma of one of its
+///        axes (stageOneBending()), in its deformed sigmas; a flat Gaussian of a bent sheet, whose
+///        one affine copy leaves the curved surface at its ends, is bent by several of its (thin)
+///        sigmas. A split halves the bend; it pays when the L1 it saves on the Gaussian's mass exceeds
+///        what the split costs (the children's own L1 and the mass the dimmer children lose to the
+///        1/255 cutoff), and the Gaussians are split in order of that gain, within a budget.
+///
+///        The children: three along the bent axis at mean + {-d, 0, +d} sigma, that axis' sigma
+///        times kCurveChildSigma (halving the second-order term), amplitudes alpha times
+///        kCurveOuterWeight / kCurveCentreWeight, the parent's rotation, other scales and SH. The
+///        weights and d minimise the children's L1 distance to the parent along the axis (1.15% of
+///        its mass; scripts/curve-split-weights.py derives them); the field is a plain sum, so the
+///        other axes are untouched.
+#include <cstddef>
+#include <cstdint>
+#include <vector>
+
+#include "core/GaussianCloud.h"
+#include "deform/DeformationGraph.h"
+#include "deform/NodeTransforms.h"
+#include "deform/StageOne.h"
+
+namespace splatwarp {
+
+constexpr double kCurveChildSigma = 0.70710678; ///< sqrt(1/2): the second-order term halves
+constexpr double kCurveOffset = 1.0108;         ///< outer children at mean +- this x sigma
+constexpr double kCurveOuterWeight = 0.3136;    ///< outer children's alpha / parent's
+constexpr double kCurveCentreWeight = 0.7784;   ///< centre child's alpha / parent's
+constexpr double kCurveSplitL1 = 0.0115;        ///< the children's L1 distance from the parent / its mass
+
+/// @brief When and how much to split (deform --curve-split).
+struct CurveSplitOptions {
+    int rounds = 3;         ///< children are checked again, up to this many times
+    float maxAdded = 1.0f;  ///< at most this x the model's Gaussians are added (most bent first)
+    bool threaded = true;
+};
+
+/// @brief Stage I's model with every bent Gaussian replaced by its children (in place: the
+///        centre child takes the parent's slot, the outer ones are appended).
+struct CurveSplitResult {
+    GaussianCloud deformed;
+    std::vector<std::uint8_t> moving;  ///< [N'] Stage I's moving flag (children: their own)
+    std::vector<std::int32_t> parent;  ///< [N'] the rest Gaussian each one comes from
+    std::size_t split = 0, added = 0;  ///< Gaussians split (every round) and Gaussians added
+    int rounds = 0;                    ///< rounds that split something
+    double ms = 0;
+};
+
+/// @brief The three children of Gaussian i of g split along its own axis (0..2; see the file
+///        comment), appended to out (same SH degree): the centre child first, then +d, -d.
+void appendCurveChildren(const GaussianCloud& g, std::size_t i, int axis, GaussianCloud& out);
+
+/// @brief The bending of each Gaussian of `rest` moved by Stage I (deformed, moving as applyStageOneCpu()
+///        returned them): the largest stageOneBending() over its axes (0 for static ones) and, in
+///        axis, that axis.
+std::vector<float> stageOneBendingOf(const GaussianCloud& rest, const StageOneRig& rig, const DeformationGraph& graph,
+                                     const NodeTransforms& transforms, const GaussianCloud& deformed,
+                                     const std::vector<std::uint8_t>& moving, const StageOneOptions& stage1,
+                                     std::vector<std::uint8_t>& axis);
+
+/// @brief Split the bent Gaussians of Stage I's result (see the file comment), on the CPU.
+CurveSplitResult curveSplit(const GaussianCloud& rest, const StageOneRig& rig, const DeformationGraph& graph,
+                            const NodeTransforms& transforms, const std::vector<std::uint8_t>& nodeMoving,
+                            const StageOneResult& stage1, const StageOneOptions& stage1Options,
+                            const CurveSplitOptions& options);
+
+} // namespace splatwarp
