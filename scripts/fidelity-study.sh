@@ -13,7 +13,7 @@ shift
 source scripts/study-models.sh
 study_setup "$out" "$@"
 specs=(${SPECS:-bend twist stretch squash rigid})
-echo "| model | spec | Gaussians | Stage I opacity / colour (inside, outside) | Stage II opacity / colour (inside, outside) | ratio opacity / colour | Stage II s | rejected | eval = report | deform CPU s / peak MB |"
+echo "| model | spec | Gaussians before -> after | Stage I opacity / colour (inside, outside) | Stage II opacity / colour (inside, outside) | ratio opacity / colour | Stage II s | rejected | eval = report | deform CPU s / peak MB |"
 echo "|---|---|---|---|---|---|---|---|---|---|"
 for m in "${models[@]}"; do
   for s in "${specs[@]}"; do
@@ -38,7 +38,8 @@ def cell(f):
             f"{f['outside']['opacity']:.3g})")
 ratio = lambda k: f2[k] / f1[k] if f1[k] > 0 else float("nan")
 s2 = r["stage2"]
-moving = "Stage II skipped (rigid)" if "skipped" in s2 else f"{s2['movingGaussians']} moving"
+moving = ("Stage II skipped (rigid)" if "skipped" in s2 else
+          f"{r['input']['gaussians']} -> {s2['gaussians']} ({s2['movingGaussians']} moving)")
 print(f"| {model} | {spec} | {moving} | {cell(f1)} | {cell(f2)} | "
       f"{ratio('opacity'):.3f} / {ratio('color'):.3f} | {r['timingsMs']['stage2'] / 1000:.1f} | "
       f"{s2.get('rejectedSteps', '-')} | {same} | {float(user) + float(system):.1f} / {int(rss_kb) / 1024:.0f} |")
