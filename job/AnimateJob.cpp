@@ -53,6 +53,7 @@ json settingsJson(const DeformJobOptions& o)
             {"curveSplit", o.curveSplit},
             {"curveSplitMax", o.curve.maxAdded},
             {"curveSplitRounds", o.curve.rounds},
+            {"curveSplitFan", o.curve.fanAbove},
             {"keepValidated", o.keepValidated},
             {"dropInvalid", o.dropInvalid},
             {"evaluate", o.evaluate},

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <filesystem>
+#include <numeric>
 #include <sstream>
 
 #include "deform/SampleWarp.h"
@@ -195,17 +196,53 @@ struct ColdStart {
     std::size_t added = 0;
 };
 
+double validationScore(const Judge& validation, const GaussianCloud& model)
+{
+    const std::vector<double> scores = validation.pointScores(model);
+    return std::accumulate(scores.begin(), scores.end(), 0.0);
+}
+
+/// The curve split; with validation points, split with fans and without and keep the one they
+/// judge better (fans win where a few Gaussians are bent far beyond three halvings, playbot-31k;
+/// they lose where many thin ones are, guitar: docs/fidelity-study.md).
+CurveSplitResult curveSplitOf(const DeformRest& rest, const Deformation& deformation, const StageOneResult& stage1,
+                              const DeformJobOptions& o, const Judge* validation, nlohmann::json& report)
+{
+    CurveSplitOptions co = o.curve;
+    co.threaded = o.grid.threaded;
+    auto split = [&](double fanAbove) {
+        co.fanAbove = fanAbove;
+        return curveSplit(rest.model, rest.rig, rest.graph, deformation.transforms, deformation.nodeMoving, stage1,
+                          o.stage1, co);
+    };
+    CurveSplitResult cs = split(o.curve.fanAbove);
+    report["curveSplit"]["fans"] = "on";
+    if (validation && o.curve.fanAbove > 0) {
+        CurveSplitResult three = split(0.0);
+        const double withFans = validationScore(*validation, cs.deformed), without = validationScore(*validation, three.deformed);
+        report["curveSplit"]["validationWithFans"] = withFans;
+        report["curveSplit"]["validationWithoutFans"] = without;
+        if (without < withFans) {
+            cs.ms += three.ms;
+            three.ms = cs.ms;
+            cs = std::move(three);
+            report["curveSplit"]["fans"] = "off (validated)";
+        } else {
+            cs.ms += three.ms;
+        }
+    }
+    return cs;
+}
+
 ColdStart coldStart(const DeformRest& rest, const Deformation& deformation, const StageOneResult& stage1,
-                    const DeformJobOptions& o, const FrameErrors& errors, nlohmann::json& report)
+                    const DeformJobOptions& o, const FrameErrors& errors, const Judge* validation, nlohmann::json& report)
 {
     ColdStart c{stage1.deformed, stage1.moving, rest.grid->gaussianCell(), 0};
     if (!o.curveSplit) return c;
-    CurveSplitOptions co = o.curve;
-    co.threaded = o.grid.threaded;
-    const CurveSplitResult cs = curveSplit(rest.model, rest.rig, rest.graph, deformation.transforms,
-                                           deformation.nodeMoving, stage1, o.stage1, co);
-    report["curveSplit"] = {{"maxAdded", co.maxAdded}, {"rounds", co.rounds}, {"roundsUsed", cs.rounds},
-                            {"split", cs.split}, {"added", cs.added}, {"gaussians", cs.deformed.size()}, {"ms", cs.ms}};
+    const CurveSplitResult cs = curveSplitOf(rest, deformation, stage1, o, validation, report);
+    report["curveSplit"].update({{"maxAdded", o.curve.maxAdded}, {"rounds", o.curve.rounds},
+                                 {"fanAbove", o.curve.fanAbove}, {"roundsUsed", cs.rounds}, {"split", cs.split},
+                                 {"added", cs.added}, {"gaussians", cs.deformed.size()}, {"ms", cs.ms}});
     report["timingsMs"]["curveSplit"] = cs.ms;
     progress(msg("curve split: ", cs.split, " bent Gaussians split, ", cs.added, " added: ", cs.deformed.size(),
                  " Gaussians (", int(cs.ms), " ms)"));
@@ -222,10 +259,9 @@ ColdStart coldStart(const DeformRest& rest, const Deformation& deformation, cons
 
 /// --keep validated: Stage II's start, fit or their region mix, whichever the validation points
 /// judge best (job/StageTwoChoice.h; report stage2 "keep").
-GaussianCloud keepValidated(const DeformRest& rest, const Deformation& deformation, const GaussianCloud& startModel,
-                            GaussianCloud fitted, bool sameGaussians, const DeformJobOptions& o, nlohmann::json& report)
+GaussianCloud keepValidated(const Judge& validation, const GaussianCloud& startModel, GaussianCloud fitted,
+                            bool sameGaussians, nlohmann::json& report)
 {
-    const Judge validation(rest.model, *rest.validation, deformation, o.grid.threaded);
     StageTwoChoice c;
     fitted = chooseStageTwoModel(validation, startModel, std::move(fitted), sameGaussians, c);
     report["stage2"]["keep"] = {{"kept", c.kept}, {"validationStart", c.start}, {"validationFit", c.fit},
@@ -271,7 +307,9 @@ GaussianCloud stageTwo(DeformRest& rest, const Deformation& deformation, const S
         report["timingsMs"]["evaluate"] = rest.heldOutMs + clock.ms();
     }
 
-    const ColdStart cold = coldStart(rest, deformation, stage1, o, errors, report);
+    std::optional<Judge> validation; // --keep validated: the judge's rule with another seed
+    if (o.keepValidated) validation.emplace(rest.model, *rest.validation, deformation, o.grid.threaded);
+    const ColdStart cold = coldStart(rest, deformation, stage1, o, errors, validation ? &*validation : nullptr, report);
     GaussianCloud fitted = cold.model;
     if (start.change) { // a warm start corrects each Stage I Gaussian: a split start stays cold
         GaussianCloud warm = stage1.deformed;
@@ -312,8 +350,8 @@ GaussianCloud stageTwo(DeformRest& rest, const Deformation& deformation, const S
     }
     report["stage2"] = stageTwoJson(r2, *rest.grid, o.stage2);
     if (o.keepValidated)
-        fitted = keepValidated(rest, deformation, rejectedStart ? cold.model : startModel, std::move(fitted),
-                               counts.split == 0 && counts.pruned == 0, o, report);
+        fitted = keepValidated(*validation, rejectedStart ? cold.model : startModel, std::move(fitted),
+                               counts.split == 0 && counts.pruned == 0, report);
     recordGaussianCounts(cold, counts, o, fitted, report["stage2"]);
     report["timingsMs"]["stage2"] = r2.msTotal + rejectedMs + counts.ms;
     if (start.change) report["stage2"]["start"] = warm && !rejectedStart ? "warm" : "cold";

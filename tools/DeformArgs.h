@@ -80,6 +80,12 @@ inline void addDensifyOptions(CLI::App* sub, DeformArgs& args)
                     "With --curve-split auto: children still bent are split again, up to this many rounds in all")
         ->capture_default_str()
         ->check(inRange(1, 8));
+    sub->add_option("--curve-split-fan", args.job.curve.fanAbove,
+                    "With --curve-split auto: a Gaussian bent by more than this many of its sigmas is fanned into many "
+                    "thin children at once (three rounds of halving could not straighten it); with --keep validated the "
+                    "split is made with fans and without and the validation points keep the better; 0: never fan")
+        ->capture_default_str()
+        ->check(inRange(0.0, 1000.0));
     sub->add_option("--keep", args.keep,
                     "validated: after Stage II keep its start, its fit or a mix of the two (per region of a 16-cell "
                     "lattice), whichever is judged best on validation points (the judge's rule, another seed); fit: "

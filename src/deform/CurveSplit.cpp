@@ -14,6 +14,8 @@ namespace splatwarp {
 
 namespace {
 
+constexpr double kPiD = 3.14159265358979323846;
+
 /// Row j of `from` into row i of `to` (same SH degree).
 void copyRow(GaussianCloud& to, std::size_t i, const GaussianCloud& from, std::size_t j)
 {
@@ -47,21 +49,23 @@ double visibleMass(double peak)
 {
     if (!(peak > double(kDefaultCutoff))) return 0.0;
     const double x = 2.0 * std::log(peak / double(kDefaultCutoff));
-    return std::erf(std::sqrt(0.5 * x)) - std::sqrt(2.0 * x / 3.14159265358979323846) * std::exp(-0.5 * x);
+    return std::erf(std::sqrt(0.5 * x)) - std::sqrt(2.0 * x / kPiD) * std::exp(-0.5 * x);
 }
 
-/// What a split of Gaussian i bent by m is expected to save, in units of mass alpha s0 s1 s2: its
-/// visible mass times the drop of displacedL1 as the children's bend halves, less the visible
-/// mass the dimmer children lose to the cutoff and their 1.2% L1 distance from the parent. Near
-/// zero or negative for Gaussians far too bent for one split, too faint, or too thin to weigh.
-double splitGain(const GaussianCloud& g, std::size_t i, double m)
+/// What splitting Gaussian i (bent by m) by a pattern is expected to save per Gaussian added, in
+/// units of mass alpha s0 s1 s2: its visible mass times the drop of displacedL1 as the bend goes
+/// from m to m t^2, less the visible mass the dimmer children lose to the cutoff and the split's
+/// own L1 (taken as the three's 1.15% for a fan too). Near zero or negative for Gaussians too
+/// faint or too thin to weigh.
+double splitGain(const GaussianCloud& g, std::size_t i, double m, const CurveSplitPattern& p)
 {
     const Vec3f s = g.scale(i);
     const double alpha = g.alpha(i), mass = alpha * double(s.x) * double(s.y) * double(s.z);
     const double parent = visibleMass(alpha);
-    const double children = kCurveChildSigma * (kCurveCentreWeight * visibleMass(kCurveCentreWeight * alpha) +
-                                                2.0 * kCurveOuterWeight * visibleMass(kCurveOuterWeight * alpha));
-    return mass * (parent * (displacedL1(m) - displacedL1(0.5 * m)) - std::fabs(parent - children) - kCurveSplitL1);
+    double children = 0.0;
+    for (double w : p.weights) children += p.sigma * w * visibleMass(w * alpha);
+    const double saved = parent * (displacedL1(m) - displacedL1(m * p.sigma * p.sigma));
+    return mass * (saved - std::fabs(parent - children) - kCurveSplitL1) / double(p.offsets.size() - 1);
 }
 
 /// One generation of Gaussians to check: a rest cloud, its rig and Stage I result, and where each
@@ -75,21 +79,42 @@ struct Generation {
 
 } // namespace
 
-void appendCurveChildren(const GaussianCloud& g, std::size_t i, int axis, GaussianCloud& out)
+CurveSplitPattern curveSplitPattern(double bend, double fanAbove)
+{
+    CurveSplitPattern p;
+    if (!(fanAbove > 0.0 && bend > fanAbove)) {
+        p.offsets = {0.0, kCurveOffset, -kCurveOffset};
+        p.weights = {kCurveCentreWeight, kCurveOuterWeight, kCurveOuterWeight};
+        return p;
+    }
+    const double t = std::max(kFanMinSigma, std::sqrt(kFanChildBend / bend)), var = 1.0 - t * t, delta = 1.25 * t;
+    p.sigma = t;
+    const int half = int(std::floor(3.0 * std::sqrt(var) / delta));
+    for (int k = 0; k <= 2 * half; ++k) {
+        const int j = k == 0 ? 0 : (k % 2 ? (k + 1) / 2 : -(k / 2)); // 0, +1, -1, +2, -2, ...
+        const double u = j * delta;
+        p.offsets.push_back(u);
+        p.weights.push_back(delta / t * std::exp(-0.5 * u * u / var) / std::sqrt(2.0 * kPiD * var));
+    }
+    return p;
+}
+
+std::size_t appendCurveChildren(const GaussianCloud& g, std::size_t i, int axis, const CurveSplitPattern& pattern,
+                                GaussianCloud& out)
 {
     const Mat3f r = quatToMatrix(g.rotation(i));
     const float sigma = g.scale(i)[axis];
     const Vec3f u{r.m[0][axis], r.m[1][axis], r.m[2][axis]};
     const Vec3f m = g.mean(i);
-    const float offsets[3] = {0.0f, float(kCurveOffset), -float(kCurveOffset)};
-    for (int c = 0; c < 3; ++c) {
+    for (std::size_t c = 0; c < pattern.offsets.size(); ++c) {
         out.append(g, i);
         const std::size_t j = out.size() - 1;
-        const float d = offsets[c] * sigma;
+        const float d = float(pattern.offsets[c]) * sigma;
         out.setMean(j, Vec3f{m.x + d * u.x, m.y + d * u.y, m.z + d * u.z});
-        out.logScales[3 * j + std::size_t(axis)] += float(std::log(kCurveChildSigma));
-        out.opacities[j] = scaledLogit(g.opacities[i], c == 0 ? kCurveCentreWeight : kCurveOuterWeight);
+        out.logScales[3 * j + std::size_t(axis)] += float(std::log(pattern.sigma));
+        out.opacities[j] = scaledLogit(g.opacities[i], pattern.weights[c]);
     }
+    return pattern.offsets.size();
 }
 
 std::vector<float> stageOneBendingOf(const GaussianCloud& rest, const StageOneRig& rig, const DeformationGraph& graph,
@@ -143,25 +168,31 @@ CurveSplitResult curveSplit(const GaussianCloud& rest, const StageOneRig& rig, c
         std::vector<double> gain(bending.size(), 0.0);
         for (std::size_t i = 0; i < bending.size(); ++i) {
             if (!(bending[i] > 0.0f)) continue;
-            gain[i] = splitGain(gen.rest, i, bending[i]);
+            gain[i] = splitGain(gen.rest, i, bending[i], curveSplitPattern(bending[i], o.fanAbove));
             if (gain[i] > 0) bent.push_back(i);
         }
         if (bent.empty()) break;
         std::stable_sort(bent.begin(), bent.end(), [&](std::size_t a, std::size_t b) { return gain[a] > gain[b]; });
-        bent.resize(std::min(bent.size(), budget / 2));
-        budget -= 2 * bent.size();
-
         Generation next;
         next.rest.shDegree = rest.shDegree;
-        for (std::size_t i : bent) appendCurveChildren(gen.rest, i, axis[i], next.rest);
+        std::vector<std::size_t> counts, taken; // children per split, in the order of next.rest
+        for (std::size_t i : bent) {
+            const CurveSplitPattern p = curveSplitPattern(bending[i], o.fanAbove);
+            if (p.offsets.size() - 1 > budget) continue; // a smaller split may still fit
+            budget -= p.offsets.size() - 1;
+            counts.push_back(appendCurveChildren(gen.rest, i, axis[i], p, next.rest));
+            taken.push_back(i);
+        }
+        if (taken.empty()) break;
+        bent = std::move(taken);
         next.rig = prepareStageOne(next.rest, graph, childOptions);
         next.stage1 = applyStageOneCpu(next.rest, next.rig, graph, transforms, nodeMoving, childOptions);
         next.slot.resize(next.rest.size());
+        std::size_t child = 0;
         for (std::size_t c = 0; c < bent.size(); ++c) {
             const std::size_t parentSlot = gen.slot[bent[c]];
             const std::int32_t origin = res.parent[parentSlot];
-            for (std::size_t k = 0; k < 3; ++k) {
-                const std::size_t child = 3 * c + k;
+            for (std::size_t k = 0; k < counts[c]; ++k, ++child) {
                 std::size_t slot = parentSlot;
                 if (k > 0) {
                     res.deformed.append(next.stage1.deformed, child);
@@ -175,11 +206,11 @@ CurveSplitResult curveSplit(const GaussianCloud& rest, const StageOneRig& rig, c
                 next.slot[child] = slot;
             }
         }
+        const std::size_t added = next.rest.size() - bent.size();
         res.split += bent.size();
-        res.added += 2 * bent.size();
+        res.added += added;
         res.rounds = round + 1;
-        progress(msg("curve split round ", round + 1, ": ", bent.size(), " bent Gaussians split in three (largest bend ",
-                     bending[bent.front()], " sigmas)"));
+        progress(msg("curve split round ", round + 1, ": ", bent.size(), " bent Gaussians split, ", added, " added"));
         gen = std::move(next);
     }
     res.ms = clock.ms();

@@ -120,6 +120,11 @@ TEST(DeformPipeline, CurveSplitAndTheValidatedKeepAtTheDefaults)
     EXPECT_EQ(r["stage2"]["gaussians"].get<std::size_t>(), input + added);
     EXPECT_EQ(readGaussians(o.outDir + "/deformed.ply").size(), input + added);
     EXPECT_EQ(readGaussians(o.outDir + "/baseline.ply").size(), input);
+    // The split with fans or without, whichever the validation points judge better (here the
+    // same: no Gaussian of the stripes is bent beyond kFanAbove; both 0.1687).
+    const nlohmann::json& cs = r["curveSplit"];
+    const bool fans = cs["validationWithFans"].get<double>() <= cs["validationWithoutFans"].get<double>();
+    EXPECT_EQ(cs["fans"], fans ? "on" : "off (validated)");
     const nlohmann::json& keep = r["stage2"]["keep"];
     const double start = keep["validationStart"].get<double>(), fit = keep["validationFit"].get<double>(),
                  mix = keep["validationMix"].get<double>();
