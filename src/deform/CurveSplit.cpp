@@ -143,6 +143,51 @@ std::vector<float> stageOneBendingOf(const GaussianCloud& rest, const StageOneRi
     return bending;
 }
 
+namespace {
+
+/// The Gaussians of a generation worth splitting (bend > 0, positive gain), most gain first.
+std::vector<std::size_t> bentByGain(const GaussianCloud& rest, const std::vector<float>& bending, double fanAbove)
+{
+    std::vector<std::size_t> bent;
+    std::vector<double> gain(bending.size(), 0.0);
+    for (std::size_t i = 0; i < bending.size(); ++i) {
+        if (!(bending[i] > 0.0f)) continue;
+        gain[i] = splitGain(rest, i, bending[i], curveSplitPattern(bending[i], fanAbove));
+        if (gain[i] > 0) bent.push_back(i);
+    }
+    std::stable_sort(bent.begin(), bent.end(), [&](std::size_t a, std::size_t b) { return gain[a] > gain[b]; });
+    return bent;
+}
+
+/// Put the moved children of the split Gaussians gen[bent[c]] (counts[c] each, in next's order)
+/// into the result: the first takes its parent's slot, the others are appended; next.slot records
+/// where each one went.
+void placeChildren(const Generation& gen, const std::vector<std::size_t>& bent, const std::vector<std::size_t>& counts,
+                   Generation& next, CurveSplitResult& res)
+{
+    next.slot.resize(next.rest.size());
+    std::size_t child = 0;
+    for (std::size_t c = 0; c < bent.size(); ++c) {
+        const std::size_t parentSlot = gen.slot[bent[c]];
+        const std::int32_t origin = res.parent[parentSlot];
+        for (std::size_t k = 0; k < counts[c]; ++k, ++child) {
+            std::size_t slot = parentSlot;
+            if (k > 0) {
+                res.deformed.append(next.stage1.deformed, child);
+                res.moving.push_back(0);
+                res.parent.push_back(origin);
+                slot = res.deformed.size() - 1;
+            } else {
+                copyRow(res.deformed, slot, next.stage1.deformed, child);
+            }
+            res.moving[slot] = next.stage1.moving[child];
+            next.slot[child] = slot;
+        }
+    }
+}
+
+} // namespace
+
 CurveSplitResult curveSplit(const GaussianCloud& rest, const StageOneRig& rig, const DeformationGraph& graph,
                             const NodeTransforms& transforms, const std::vector<std::uint8_t>& nodeMoving,
                             const StageOneResult& stage1, const StageOneOptions& s1, const CurveSplitOptions& o)
@@ -164,15 +209,8 @@ CurveSplitResult curveSplit(const GaussianCloud& rest, const StageOneRig& rig, c
         std::vector<std::uint8_t> axis;
         const std::vector<float> bending = stageOneBendingOf(gen.rest, gen.rig, graph, transforms, gen.stage1.deformed,
                                                              gen.stage1.moving, childOptions, axis);
-        std::vector<std::size_t> bent;
-        std::vector<double> gain(bending.size(), 0.0);
-        for (std::size_t i = 0; i < bending.size(); ++i) {
-            if (!(bending[i] > 0.0f)) continue;
-            gain[i] = splitGain(gen.rest, i, bending[i], curveSplitPattern(bending[i], o.fanAbove));
-            if (gain[i] > 0) bent.push_back(i);
-        }
+        std::vector<std::size_t> bent = bentByGain(gen.rest, bending, o.fanAbove);
         if (bent.empty()) break;
-        std::stable_sort(bent.begin(), bent.end(), [&](std::size_t a, std::size_t b) { return gain[a] > gain[b]; });
         Generation next;
         next.rest.shDegree = rest.shDegree;
         std::vector<std::size_t> counts, taken; // children per split, in the order of next.rest
@@ -187,25 +225,7 @@ CurveSplitResult curveSplit(const GaussianCloud& rest, const StageOneRig& rig, c
         bent = std::move(taken);
         next.rig = prepareStageOne(next.rest, graph, childOptions);
         next.stage1 = applyStageOneCpu(next.rest, next.rig, graph, transforms, nodeMoving, childOptions);
-        next.slot.resize(next.rest.size());
-        std::size_t child = 0;
-        for (std::size_t c = 0; c < bent.size(); ++c) {
-            const std::size_t parentSlot = gen.slot[bent[c]];
-            const std::int32_t origin = res.parent[parentSlot];
-            for (std::size_t k = 0; k < counts[c]; ++k, ++child) {
-                std::size_t slot = parentSlot;
-                if (k > 0) {
-                    res.deformed.append(next.stage1.deformed, child);
-                    res.moving.push_back(0);
-                    res.parent.push_back(origin);
-                    slot = res.deformed.size() - 1;
-                } else {
-                    copyRow(res.deformed, slot, next.stage1.deformed, child);
-                }
-                res.moving[slot] = next.stage1.moving[child];
-                next.slot[child] = slot;
-            }
-        }
+        placeChildren(gen, bent, counts, next, res);
         const std::size_t added = next.rest.size() - bent.size();
         res.split += bent.size();
         res.added += added;
