@@ -7,6 +7,7 @@
 ///        deformed space, keeps each Gaussian from the side that wins its region, and returns
 ///        whichever of start, fit and that mix the validation points judge best.
 #include <cstddef>
+#include <cstdint>
 #include <string>
 
 #include "Judge.h"

@@ -9,8 +9,9 @@
 ///        what the split costs (the children's own L1 and the mass the dimmer children lose to the
 ///        1/255 cutoff), and the Gaussians are split in order of that gain, within a budget.
 ///
-///        The children (Gaussians bent by at most kFanAbove; more are fanned, CurveSplitPattern): three along the bent axis at mean + {-d, 0, +d} sigma, that axis' sigma
-///        times kCurveChildSigma (halving the second-order term), amplitudes alpha times
+///        The children of a Gaussian bent by at most kFanAbove (more are fanned, CurveSplitPattern):
+///        three along the bent axis at mean + {-d, 0, +d} sigma, that axis' sigma times
+///        kCurveChildSigma (halving the second-order term), amplitudes alpha times
 ///        kCurveOuterWeight / kCurveCentreWeight, the parent's rotation, other scales and SH. The
 ///        weights and d minimise the children's L1 distance to the parent along the axis (1.15% of
 ///        its mass; scripts/curve-split-weights.py derives them); the field is a plain sum, so the
