@@ -69,13 +69,7 @@ GaussianCloud chooseStageTwoModel(const Judge& validation, const GaussianCloud& 
         for (std::size_t i = 0; i < start.size(); ++i) {
             const Vec3f m = start.mean(i);
             const auto it = gain.find(lattice.key(m.x, m.y, m.z));
-            if (it == gain.end() || it->second > 0) continue; // no points, or the fit won: keep the fit
-            for (int c = 0; c < 3; ++c) mix.means[3 * i + std::size_t(c)] = start.means[3 * i + std::size_t(c)];
-            for (int c = 0; c < 4; ++c) mix.rotations[4 * i + std::size_t(c)] = start.rotations[4 * i + std::size_t(c)];
-            for (int c = 0; c < 3; ++c) mix.logScales[3 * i + std::size_t(c)] = start.logScales[3 * i + std::size_t(c)];
-            mix.opacities[i] = start.opacities[i];
-            const std::size_t stride = std::size_t(start.shStride());
-            std::copy_n(start.sh.begin() + std::ptrdiff_t(stride * i), stride, mix.sh.begin() + std::ptrdiff_t(stride * i));
+            if (it != gain.end() && !(it->second > 0)) mix.assign(i, start, i); // the start won its region
         }
         report.mix = total(validation.pointScores(mix));
         if (report.mix < std::min(report.start, report.fit)) {

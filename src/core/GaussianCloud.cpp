@@ -28,6 +28,15 @@ void GaussianCloud::append(const GaussianCloud& o, std::size_t i)
     sh.insert(sh.end(), o.shOf(i), o.shOf(i) + o.shStride());
 }
 
+void GaussianCloud::assign(std::size_t i, const GaussianCloud& o, std::size_t j)
+{
+    std::copy_n(o.means.begin() + std::ptrdiff_t(3 * j), 3, means.begin() + std::ptrdiff_t(3 * i));
+    std::copy_n(o.rotations.begin() + std::ptrdiff_t(4 * j), 4, rotations.begin() + std::ptrdiff_t(4 * i));
+    std::copy_n(o.logScales.begin() + std::ptrdiff_t(3 * j), 3, logScales.begin() + std::ptrdiff_t(3 * i));
+    opacities[i] = o.opacities[j];
+    std::copy_n(o.shOf(j), o.shStride(), shOf(i));
+}
+
 void GaussianCloud::checkConsistent() const
 {
     if (shDegree < 0 || shDegree > 3) throw InputError(msg("SH degree ", shDegree, " is outside 0..3"));

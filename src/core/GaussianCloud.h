@@ -35,6 +35,8 @@ struct GaussianCloud {
     void resize(std::size_t n, int degree);
     /// @brief Append Gaussian i of another cloud of the same SH degree.
     void append(const GaussianCloud& other, std::size_t i);
+    /// @brief Overwrite Gaussian i with Gaussian j of another cloud of the same SH degree.
+    void assign(std::size_t i, const GaussianCloud& other, std::size_t j);
     /// @brief Throws InputError if array sizes disagree or the degree is outside 0..3.
     void checkConsistent() const;
 

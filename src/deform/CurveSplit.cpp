@@ -16,19 +16,6 @@ namespace {
 
 constexpr double kPiD = 3.14159265358979323846;
 
-/// Row j of `from` into row i of `to` (same SH degree).
-void copyRow(GaussianCloud& to, std::size_t i, const GaussianCloud& from, std::size_t j)
-{
-    auto copy = [&](std::vector<float>& dst, const std::vector<float>& src, std::size_t width) {
-        std::copy_n(src.begin() + std::ptrdiff_t(width * j), width, dst.begin() + std::ptrdiff_t(width * i));
-    };
-    copy(to.means, from.means, 3);
-    copy(to.rotations, from.rotations, 4);
-    copy(to.logScales, from.logScales, 3);
-    copy(to.opacities, from.opacities, 1);
-    copy(to.sh, from.sh, std::size_t(from.shStride()));
-}
-
 /// logit(w alpha) for alpha = sigmoid(logit), w in (0, 1].
 float scaledLogit(float logit, double w)
 {
@@ -178,7 +165,7 @@ void placeChildren(const Generation& gen, const std::vector<std::size_t>& bent, 
                 res.parent.push_back(origin);
                 slot = res.deformed.size() - 1;
             } else {
-                copyRow(res.deformed, slot, next.stage1.deformed, child);
+                res.deformed.assign(slot, next.stage1.deformed, child);
             }
             res.moving[slot] = next.stage1.moving[child];
             next.slot[child] = slot;

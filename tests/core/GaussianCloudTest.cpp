@@ -1,0 +1,27 @@
+#include <gtest/gtest.h>
+
+#include "core/GaussianCloud.h"
+#include "support/TestGaussians.h"
+
+using namespace splatwarp;
+
+// assign(i, other, j) makes Gaussian i a copy of other's j, every array, and touches nothing else.
+TEST(GaussianCloud, AssignCopiesOneGaussianWhole)
+{
+    const GaussianCloud src = test::threeGaussians();
+    GaussianCloud dst = src;
+    dst.assign(0, src, 2);
+    for (std::size_t i : {std::size_t(0), std::size_t(2)}) {
+        for (int a = 0; a < 3; ++a) EXPECT_EQ(dst.mean(i)[a], src.mean(2)[a]);
+        EXPECT_EQ(dst.rotation(i).w, src.rotation(2).w);
+        EXPECT_EQ(dst.rotation(i).z, src.rotation(2).z);
+        EXPECT_EQ(dst.scale(i).y, src.scale(2).y);
+        EXPECT_EQ(dst.opacities[i], src.opacities[2]);
+        for (int c = 0; c < src.shStride(); ++c) EXPECT_EQ(dst.shOf(i)[c], src.shOf(2)[c]);
+    }
+    for (int a = 0; a < 3; ++a) EXPECT_EQ(dst.mean(1)[a], src.mean(1)[a]);
+    EXPECT_EQ(dst.opacities[1], src.opacities[1]);
+    for (int c = 0; c < src.shStride(); ++c) EXPECT_EQ(dst.shOf(1)[c], src.shOf(1)[c]);
+    EXPECT_EQ(dst.size(), src.size());
+    dst.checkConsistent();
+}
