@@ -37,6 +37,12 @@ void GaussianCloud::assign(std::size_t i, const GaussianCloud& o, std::size_t j)
     std::copy_n(o.shOf(j), o.shStride(), shOf(i));
 }
 
+float scaledOpacityLogit(float logit, double w)
+{
+    const double a = w / (1.0 + std::exp(-double(logit)));
+    return a > 0 ? float(std::log(a) - std::log1p(-a)) : float(double(logit) + std::log(w));
+}
+
 void GaussianCloud::checkConsistent() const
 {
     if (shDegree < 0 || shDegree > 3) throw InputError(msg("SH degree ", shDegree, " is outside 0..3"));

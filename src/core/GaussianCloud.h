@@ -58,6 +58,10 @@ struct GaussianCloud {
     const float* shOf(std::size_t i) const { return sh.data() + i * std::size_t(shStride()); }
 };
 
+/// @brief The opacity logit of w x alpha for alpha = sigmoid(logit), w in (0, 1] (a dimmer copy: split
+///        children), in double; where w alpha underflows, logit + log w (its limit).
+float scaledOpacityLogit(float logit, double w);
+
 /// @brief Axis-aligned bounding box of the centres (min, max). Empty cloud gives zeros.
 void centreBounds(const GaussianCloud& g, Vec3f& lo, Vec3f& hi);
 

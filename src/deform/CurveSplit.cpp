@@ -16,13 +16,6 @@ namespace {
 
 constexpr double kPiD = 3.14159265358979323846;
 
-/// logit(w alpha) for alpha = sigmoid(logit), w in (0, 1].
-float scaledLogit(float logit, double w)
-{
-    const double a = w / (1.0 + std::exp(-double(logit)));
-    return a > 0 ? float(std::log(a) - std::log1p(-a)) : float(double(logit) + std::log(w));
-}
-
 /// L1 distance between a unit Gaussian and its copy moved by m sigmas, over its mass: what one
 /// Gaussian bent by m of its sigmas roughly costs (0 at m = 0, 2 when the two no longer overlap).
 double displacedL1(double m)
@@ -99,7 +92,7 @@ std::size_t appendCurveChildren(const GaussianCloud& g, std::size_t i, int axis,
         const float d = float(pattern.offsets[c]) * sigma;
         out.setMean(j, Vec3f{m.x + d * u.x, m.y + d * u.y, m.z + d * u.z});
         out.logScales[3 * j + std::size_t(axis)] += float(std::log(pattern.sigma));
-        out.opacities[j] = scaledLogit(g.opacities[i], pattern.weights[c]);
+        out.opacities[j] = scaledOpacityLogit(g.opacities[i], pattern.weights[c]);
     }
     return pattern.offsets.size();
 }

@@ -24,14 +24,6 @@ std::vector<std::size_t> stretchedGaussians(const std::vector<std::uint8_t>& mov
 
 namespace {
 
-/// logit(alpha / c) for alpha = sigmoid(logit), in double; for an alpha that underflows,
-/// logit - log c (its limit).
-double childLogit(float logit, double c)
-{
-    const double a = 1.0 / (1.0 + std::exp(-double(logit))) / c;
-    return a > 0 ? std::log(a) - std::log1p(-a) : double(logit) - std::log(c);
-}
-
 /// The longest axis of Gaussian i (its index) and that axis' world direction.
 int longestAxis(const GaussianCloud& g, std::size_t i, Vec3f& direction)
 {
@@ -54,7 +46,7 @@ void splitGaussian(DensifyCloud& d, std::size_t i, float k)
     const float offset = k * g.scale(i)[axis];
     const float shrink = std::sqrt(1.0f - k * k);
     g.logScales[3 * i + std::size_t(axis)] += std::log(shrink);
-    g.opacities[i] = float(childLogit(g.opacities[i], 2.0 * double(shrink)));
+    g.opacities[i] = scaledOpacityLogit(g.opacities[i], 1.0 / (2.0 * double(shrink)));
     // The second child: a copy of the first, pushed value by value (a range insert from the vector
     // itself is not allowed).
     const std::size_t j = g.size();
