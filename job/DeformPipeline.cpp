@@ -3,7 +3,6 @@
 #include <algorithm>
 #include <cmath>
 #include <filesystem>
-#include <numeric>
 #include <sstream>
 
 #include "deform/SampleWarp.h"
@@ -196,12 +195,6 @@ struct ColdStart {
     std::size_t added = 0;
 };
 
-double validationScore(const Judge& validation, const GaussianCloud& model)
-{
-    const std::vector<double> scores = validation.pointScores(model);
-    return std::accumulate(scores.begin(), scores.end(), 0.0);
-}
-
 /// The curve split; with validation points, split with fans and without and keep the one they
 /// judge better (fans win where a few Gaussians are bent far beyond three halvings, playbot-31k;
 /// they lose where many thin ones are, guitar: docs/fidelity-study.md).
@@ -219,17 +212,15 @@ CurveSplitResult curveSplitOf(const DeformRest& rest, const Deformation& deforma
     report["curveSplit"]["fans"] = "on";
     if (validation && o.curve.fanAbove > 0) {
         CurveSplitResult three = split(0.0);
-        const double withFans = validationScore(*validation, cs.deformed), without = validationScore(*validation, three.deformed);
+        const double withFans = validation->score(cs.deformed), without = validation->score(three.deformed);
         report["curveSplit"]["validationWithFans"] = withFans;
         report["curveSplit"]["validationWithoutFans"] = without;
+        const double ms = cs.ms + three.ms; // both splits ran
         if (without < withFans) {
-            cs.ms += three.ms;
-            three.ms = cs.ms;
             cs = std::move(three);
             report["curveSplit"]["fans"] = "off (validated)";
-        } else {
-            cs.ms += three.ms;
         }
+        cs.ms = ms;
     }
     return cs;
 }

@@ -1,5 +1,7 @@
 #include "Judge.h"
 
+#include <numeric>
+
 #include <cmath>
 #include <cstdio>
 #include <limits>
@@ -118,6 +120,12 @@ std::vector<double> Judge::pointScores(const GaussianCloud& deformed) const
     std::vector<double> scores(e.opacity.size());
     for (std::size_t j = 0; j < scores.size(); ++j) scores[j] = e.opacity[j] * o + e.color[j] * c;
     return scores;
+}
+
+double Judge::score(const GaussianCloud& deformed) const
+{
+    const std::vector<double> scores = pointScores(deformed);
+    return std::accumulate(scores.begin(), scores.end(), 0.0);
 }
 
 JudgeReport Judge::judge(const GaussianCloud& deformed) const

@@ -72,6 +72,8 @@ public:
     /// @brief Per point: opacity error over the target's sum plus colour error over its sum (the
     ///        terms of fieldError()'s opacity + color).
     std::vector<double> pointScores(const GaussianCloud& deformed) const;
+    /// @brief The sum of pointScores(): opacity + colour relative L1 (a validation score).
+    double score(const GaussianCloud& deformed) const;
     const HeldOutPoints& points() const { return mPoints; }
     bool rigid() const { return !mTruth.empty(); }
 

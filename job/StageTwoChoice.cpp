@@ -41,11 +41,6 @@ private:
     double mSize = 0.0;
 };
 
-double total(const std::vector<double>& v)
-{
-    return std::accumulate(v.begin(), v.end(), 0.0);
-}
-
 } // namespace
 
 GaussianCloud chooseStageTwoModel(const Judge& validation, const GaussianCloud& start, GaussianCloud fit,
@@ -53,8 +48,8 @@ GaussianCloud chooseStageTwoModel(const Judge& validation, const GaussianCloud& 
 {
     const Stopwatch clock;
     const std::vector<double> a = validation.pointScores(start), b = validation.pointScores(fit);
-    report.start = total(a);
-    report.fit = total(b);
+    report.start = std::accumulate(a.begin(), a.end(), 0.0);
+    report.fit = std::accumulate(b.begin(), b.end(), 0.0);
     report.mix = report.fit;
     GaussianCloud best = report.start < report.fit ? start : fit;
     report.kept = report.start < report.fit ? "start" : "fit";
@@ -71,7 +66,7 @@ GaussianCloud chooseStageTwoModel(const Judge& validation, const GaussianCloud& 
             const auto it = gain.find(lattice.key(m.x, m.y, m.z));
             if (it != gain.end() && !(it->second > 0)) mix.assign(i, start, i); // the start won its region
         }
-        report.mix = total(validation.pointScores(mix));
+        report.mix = validation.score(mix);
         if (report.mix < std::min(report.start, report.fit)) {
             best = std::move(mix);
             report.kept = "mix";

@@ -56,13 +56,6 @@ struct Fixture {
     }
 };
 
-double score(const Judge& j, const GaussianCloud& g)
-{
-    double s = 0;
-    for (double v : j.pointScores(g)) s += v;
-    return s;
-}
-
 } // namespace
 
 // Start and fit each wrong on one half: the mix takes each region from the side that is right
@@ -77,8 +70,8 @@ TEST(StageTwoChoice, TheMixTakesEachRegionFromTheSideThatFitsIt)
     // Measured: start 1.169, fit 1.138, mix 0.327, Stage I itself 0.314 (the regions astride the
     // median keep one blank half); the fit won 256 of 704 regions.
     EXPECT_LT(c.mix, 0.5 * std::min(c.start, c.fit)) << c.start << " " << c.fit << " " << c.mix;
-    EXPECT_LT(c.mix, 1.1 * score(*fx.validation, fx.stage1));
-    EXPECT_NEAR(score(*fx.validation, kept), c.mix, 1e-12);
+    EXPECT_LT(c.mix, 1.1 * fx.validation->score(fx.stage1));
+    EXPECT_NEAR(fx.validation->score(kept), c.mix, 1e-12);
     EXPECT_GT(c.regionsFit, 0u);
     EXPECT_LT(c.regionsFit, c.regions);
     // Gaussians that are not the same ones on both sides never mix.
