@@ -55,6 +55,7 @@ json settingsJson(const DeformJobOptions& o)
             {"curveSplitRounds", o.curve.rounds},
             {"curveSplitFan", o.curve.fanAbove},
             {"keepValidated", o.keepValidated},
+            {"curveShift", o.curveShift ? nlohmann::json(*o.curveShift) : nlohmann::json("auto")},
             {"dropInvalid", o.dropInvalid},
             {"evaluate", o.evaluate},
             {"evalEvery", o.evalEvery},

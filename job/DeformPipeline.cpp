@@ -1,6 +1,7 @@
 #include "DeformPipeline.h"
 
 #include <algorithm>
+#include <cctype>
 #include <cmath>
 #include <filesystem>
 #include <sstream>
@@ -190,6 +191,7 @@ GaussianCloud skipStageTwo(DeformRest& rest, const Deformation& deformation, con
 /// Gaussians split and moved again (--curve-split; report "curveSplit", judged when evaluating).
 struct ColdStart {
     GaussianCloud model;
+    GaussianCloud shifted; ///< the curve shift of model (empty when off): a candidate of the keep
     std::vector<std::uint8_t> moving;
     std::vector<std::int32_t> cells;
     std::size_t added = 0;
@@ -225,49 +227,84 @@ CurveSplitResult curveSplitOf(const DeformRest& rest, const Deformation& deforma
     return cs;
 }
 
+/// The cold start's curve shift, a candidate of the validated keep (empty without validation
+/// points or with --curve-shift 0; report "curveShift", judged when evaluating).
+GaussianCloud curveShiftOf(const GaussianCloud& start, const std::vector<float>& curve, const DeformJobOptions& o,
+                           const FrameErrors& errors, const Judge* validation, nlohmann::json& report)
+{
+    if (!validation || o.curveShift == 0.0) return {};
+    const std::vector<double> shares =
+        o.curveShift ? std::vector<double>{*o.curveShift} : std::vector<double>(std::begin(kCurveShares), std::end(kCurveShares));
+    CurveShiftChoice c = chooseCurveShift(*validation, start, curve, shares);
+    report["curveShift"] = {{"share", c.share}, {"auto", !o.curveShift}, {"ms", c.ms}};
+    for (std::size_t i = 0; i < shares.size(); ++i)
+        report["curveShift"]["validation"][msg(shares[i])] = c.scores[i];
+    report["timingsMs"]["curveShift"] = c.ms;
+    progress(msg("curve shift: share ", c.share, " of the second-order offset (", int(c.ms), " ms)"));
+    if (errors.judge) errors.record(c.model, "Curve shift", report["curveShift"]);
+    return std::move(c.model);
+}
+
 ColdStart coldStart(const DeformRest& rest, const Deformation& deformation, const StageOneResult& stage1,
                     const DeformJobOptions& o, const FrameErrors& errors, const Judge* validation, nlohmann::json& report)
 {
-    ColdStart c{stage1.deformed, stage1.moving, rest.grid->gaussianCell(), 0};
-    if (!o.curveSplit) return c;
-    const CurveSplitResult cs = curveSplitOf(rest, deformation, stage1, o, validation, report);
-    report["curveSplit"].update({{"maxAdded", o.curve.maxAdded}, {"rounds", o.curve.rounds},
-                                 {"fanAbove", o.curve.fanAbove}, {"roundsUsed", cs.rounds}, {"split", cs.split},
-                                 {"added", cs.added}, {"gaussians", cs.deformed.size()}, {"ms", cs.ms}});
-    report["timingsMs"]["curveSplit"] = cs.ms;
-    progress(msg("curve split: ", cs.split, " bent Gaussians split, ", cs.added, " added: ", cs.deformed.size(),
-                 " Gaussians (", int(cs.ms), " ms)"));
-    if (cs.added == 0) return c;
-    c.model = cs.deformed;
-    c.moving = cs.moving;
-    c.added = cs.added;
-    std::vector<std::int32_t> cells(cs.parent.size()); // children filter as their parent's rest cell
-    for (std::size_t i = 0; i < cs.parent.size(); ++i) cells[i] = c.cells[std::size_t(cs.parent[i])];
-    c.cells = std::move(cells);
-    if (errors.judge) errors.record(c.model, "Curve split", report["curveSplit"]);
+    ColdStart c{stage1.deformed, {}, stage1.moving, rest.grid->gaussianCell(), 0};
+    std::vector<float> curve; // phi's second-order offsets of c.model's Gaussians
+    if (o.curveSplit) {
+        CurveSplitResult cs = curveSplitOf(rest, deformation, stage1, o, validation, report);
+        report["curveSplit"].update({{"maxAdded", o.curve.maxAdded}, {"rounds", o.curve.rounds},
+                                     {"fanAbove", o.curve.fanAbove}, {"roundsUsed", cs.rounds}, {"split", cs.split},
+                                     {"added", cs.added}, {"gaussians", cs.deformed.size()}, {"ms", cs.ms}});
+        report["timingsMs"]["curveSplit"] = cs.ms;
+        progress(msg("curve split: ", cs.split, " bent Gaussians split, ", cs.added, " added: ", cs.deformed.size(),
+                     " Gaussians (", int(cs.ms), " ms)"));
+        if (cs.added > 0) {
+            c.model = std::move(cs.deformed);
+            c.moving = std::move(cs.moving);
+            c.added = cs.added;
+            std::vector<std::int32_t> cells(cs.parent.size()); // children filter as their parent's rest cell
+            for (std::size_t i = 0; i < cs.parent.size(); ++i) cells[i] = c.cells[std::size_t(cs.parent[i])];
+            c.cells = std::move(cells);
+            if (errors.judge) errors.record(c.model, "Curve split", report["curveSplit"]);
+        }
+        curve = std::move(cs.curve);
+    } else if (validation && o.curveShift != 0.0) {
+        curve = stageOneBendingOf(rest.model, rest.rig, rest.graph, deformation.transforms, stage1.deformed,
+                                  stage1.moving, o.stage1).curve;
+    }
+    c.shifted = curveShiftOf(c.model, curve, o, errors, validation, report);
     return c;
 }
 
-/// --keep validated: Stage II's start, fit or their region mix, whichever the validation points
-/// judge best (job/StageTwoChoice.h; report stage2 "keep").
-GaussianCloud keepValidated(const Judge& validation, const GaussianCloud& startModel, GaussianCloud fitted,
-                            bool sameGaussians, nlohmann::json& report)
+/// --keep validated: Stage II's start, its curve shift (when made), the fit or a region mix of them,
+/// whichever the validation points judge best (job/StageTwoChoice.h; report stage2 "keep").
+GaussianCloud keepValidated(const Judge& validation, const GaussianCloud& startModel, const GaussianCloud* shifted,
+                            GaussianCloud fitted, bool sameGaussians, nlohmann::json& report)
 {
     StageTwoChoice c;
-    fitted = chooseStageTwoModel(validation, startModel, std::move(fitted), sameGaussians, c);
-    report["stage2"]["keep"] = {{"kept", c.kept}, {"validationStart", c.start}, {"validationFit", c.fit},
-                                {"validationMix", c.mix}, {"regions", c.regions}, {"regionsFit", c.regionsFit},
-                                {"ms", c.ms}};
+    std::vector<StageTwoCandidate> candidates{{"start", &startModel}};
+    if (shifted && !shifted->empty()) candidates.push_back({"shifted", shifted});
+    candidates.push_back({"fit", &fitted});
+    GaussianCloud kept = chooseStageTwoModel(validation, candidates, sameGaussians, c);
+    nlohmann::json& k = report["stage2"]["keep"];
+    k = {{"kept", c.kept}, {"regions", c.regions}, {"ms", c.ms}};
+    if (std::isfinite(c.mix)) k.update({{"validationMix", c.mix}, {"mixOf", c.mixOf}});
+    for (std::size_t i = 0; i < candidates.size(); ++i) {
+        std::string name = candidates[i].name;
+        name[0] = char(std::toupper(name[0]));
+        k["validation" + name] = c.scores[i];
+        k["regions" + name] = c.regionsWon[i];
+    }
     report["timingsMs"]["keep"] = c.ms;
-    return fitted;
+    return kept;
 }
 
 /// stage2 "densify" and the Gaussians the kept model gained and lost: the curve split's and, unless
-/// --keep validated went back to the start, those of the split and prune inside Stage II.
+/// --keep validated went back to a start, those of the split and prune inside Stage II.
 void recordGaussianCounts(const ColdStart& cold, const DensifyCounts& counts, const DeformJobOptions& o,
                           const GaussianCloud& kept, nlohmann::json& stage2)
 {
-    const bool fitKept = !stage2.contains("keep") || stage2["keep"]["kept"] != "start";
+    const bool fitKept = !stage2.contains("keep") || stage2["keep"]["kept"] == "fit" || stage2["keep"]["kept"] == "mix";
     stage2["densify"] = {{"split", o.densify.split ? "auto" : "off"}, {"splitStretch", o.densify.splitStretch},
                          {"splitAfter", o.densify.splitAfter},       {"splitOffset", o.densify.splitOffset},
                          {"pruneBelow", o.densify.pruneBelow},       {"ms", counts.ms}};
@@ -341,7 +378,7 @@ GaussianCloud stageTwo(DeformRest& rest, const Deformation& deformation, const S
     }
     report["stage2"] = stageTwoJson(r2, *rest.grid, o.stage2);
     if (o.keepValidated)
-        fitted = keepValidated(*validation, rejectedStart ? cold.model : startModel, std::move(fitted),
+        fitted = keepValidated(*validation, rejectedStart ? cold.model : startModel, &cold.shifted, std::move(fitted),
                                counts.split == 0 && counts.pruned == 0, report);
     recordGaussianCounts(cold, counts, o, fitted, report["stage2"]);
     report["timingsMs"]["stage2"] = r2.msTotal + rejectedMs + counts.ms;

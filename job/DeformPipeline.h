@@ -42,6 +42,10 @@ struct DeformJobOptions {
     DensifyJobOptions densify;
     bool curveSplit = true;    ///< split the Gaussians Stage I cannot bend before Stage II (deform/CurveSplit.h)
     CurveSplitOptions curve;
+    /// With --keep validated, the start with its means moved by this share of phi's second-order
+    /// offset is one more candidate (deform/CurveSplit.h curveShifted()); nullopt: the share of
+    /// kCurveShares the validation points judge best; 0: no such candidate.
+    std::optional<double> curveShift;
     bool keepValidated = true; ///< keep Stage II's start, fit or their mix by validation points (StageTwoChoice.h)
     HeldOutOptions heldOut; ///< points and seed of the judge (and of the training-lattice error)
     bool evaluate = true;   ///< the judge's errors of Stage I and Stage II in the report (and the training-lattice error)

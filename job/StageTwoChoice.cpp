@@ -6,6 +6,7 @@
 #include <unordered_map>
 
 #include "core/Progress.h"
+#include "deform/CurveSplit.h"
 
 namespace splatwarp {
 
@@ -41,42 +42,122 @@ private:
     double mSize = 0.0;
 };
 
+/// Per region of the lattice, the sum of each candidate's point scores there.
+using RegionSums = std::unordered_map<std::int64_t, std::vector<double>>;
+
+RegionSums regionSums(const RegionLattice& lattice, const std::vector<float>& x, const std::vector<std::vector<double>>& points)
+{
+    RegionSums sums;
+    for (std::size_t j = 0; j < points[0].size(); ++j) {
+        std::vector<double>& s = sums[lattice.key(x[3 * j], x[3 * j + 1], x[3 * j + 2])];
+        s.resize(points.size(), 0.0);
+        for (std::size_t c = 0; c < points.size(); ++c) s[c] += points[c][j];
+    }
+    return sums;
+}
+
+/// Per region, the candidate of `members` (a bit mask) that scores lowest there (ties: the earlier).
+std::unordered_map<std::int64_t, std::size_t> regionWinners(const RegionSums& sums, unsigned members)
+{
+    std::unordered_map<std::int64_t, std::size_t> winners;
+    for (const auto& [key, s] : sums) {
+        std::size_t best = s.size();
+        for (std::size_t c = 0; c < s.size(); ++c)
+            if ((members >> c & 1u) && (best == s.size() || s[c] < s[best])) best = c;
+        winners[key] = best;
+    }
+    return winners;
+}
+
+bool mixable(const std::vector<StageTwoCandidate>& candidates)
+{
+    for (const StageTwoCandidate& c : candidates)
+        if (c.model->size() != candidates[0].model->size() || c.model->shDegree != candidates[0].model->shDegree)
+            return false;
+    return candidates.size() > 1 && candidates.size() < 8;
+}
+
+/// The Gaussians of the first candidate's regions taken from each region's winner.
+GaussianCloud mixOf(const std::vector<StageTwoCandidate>& candidates, const RegionLattice& lattice,
+                    const std::unordered_map<std::int64_t, std::size_t>& winners)
+{
+    const GaussianCloud& first = *candidates[0].model;
+    GaussianCloud mix = first;
+    for (std::size_t i = 0; i < first.size(); ++i) {
+        const Vec3f m = first.mean(i);
+        const auto it = winners.find(lattice.key(m.x, m.y, m.z));
+        if (it != winners.end() && it->second != 0) mix.assign(i, *candidates[it->second].model, i);
+    }
+    return mix;
+}
+
 } // namespace
 
-GaussianCloud chooseStageTwoModel(const Judge& validation, const GaussianCloud& start, GaussianCloud fit,
+GaussianCloud chooseStageTwoModel(const Judge& validation, const std::vector<StageTwoCandidate>& candidates,
                                   bool sameGaussians, StageTwoChoice& report)
 {
     const Stopwatch clock;
-    const std::vector<double> a = validation.pointScores(start), b = validation.pointScores(fit);
-    report.start = std::accumulate(a.begin(), a.end(), 0.0);
-    report.fit = std::accumulate(b.begin(), b.end(), 0.0);
-    report.mix = report.fit;
-    GaussianCloud best = report.start < report.fit ? start : fit;
-    report.kept = report.start < report.fit ? "start" : "fit";
-    if (sameGaussians && start.size() == fit.size() && start.shDegree == fit.shDegree) {
+    std::vector<std::vector<double>> points;
+    report.scores.clear();
+    for (const StageTwoCandidate& c : candidates) {
+        points.push_back(validation.pointScores(*c.model));
+        report.scores.push_back(std::accumulate(points.back().begin(), points.back().end(), 0.0));
+    }
+    const std::size_t best = std::size_t(std::min_element(report.scores.begin(), report.scores.end()) - report.scores.begin());
+    GaussianCloud kept = *candidates[best].model;
+    report.kept = candidates[best].name;
+    report.mix = INFINITY;
+    report.regionsWon.assign(candidates.size(), 0);
+    if (sameGaussians && mixable(candidates)) {
+        // Every mix of two or more candidates: a region's winner also changes its neighbours' points
+        // (Gaussians reach across), so with more candidates the widest mix is not always the best.
         const std::vector<float>& x = validation.points().warped;
         const RegionLattice lattice(x);
-        std::unordered_map<std::int64_t, double> gain; // sum over the region's points of start - fit
-        for (std::size_t j = 0; j < a.size(); ++j) gain[lattice.key(x[3 * j], x[3 * j + 1], x[3 * j + 2])] += a[j] - b[j];
-        report.regions = gain.size();
-        for (const auto& [key, g] : gain) report.regionsFit += g > 0 ? 1 : 0;
-        GaussianCloud mix = fit;
-        for (std::size_t i = 0; i < start.size(); ++i) {
-            const Vec3f m = start.mean(i);
-            const auto it = gain.find(lattice.key(m.x, m.y, m.z));
-            if (it != gain.end() && !(it->second > 0)) mix.assign(i, start, i); // the start won its region
-        }
-        report.mix = validation.score(mix);
-        if (report.mix < std::min(report.start, report.fit)) {
-            best = std::move(mix);
-            report.kept = "mix";
+        const RegionSums sums = regionSums(lattice, x, points);
+        report.regions = sums.size();
+        for (unsigned members = 3; members < (1u << candidates.size()); ++members) {
+            if ((members & (members - 1)) == 0) continue; // a single candidate
+            const auto winners = regionWinners(sums, members);
+            GaussianCloud mix = mixOf(candidates, lattice, winners);
+            const double score = validation.score(mix);
+            if (!(score < report.mix)) continue;
+            report.mix = score;
+            report.mixOf.clear();
+            for (std::size_t c = 0; c < candidates.size(); ++c)
+                if (members >> c & 1u) report.mixOf += (report.mixOf.empty() ? "" : "+") + candidates[c].name;
+            report.regionsWon.assign(candidates.size(), 0);
+            for (const auto& [key, c] : winners) ++report.regionsWon[c];
+            if (score < report.scores[best]) {
+                kept = std::move(mix);
+                report.kept = "mix";
+            }
         }
     }
     report.ms = clock.ms();
-    progress(msg("Stage II choice on validation points (opacity + colour error): start ", report.start, ", fit ",
-                 report.fit, ", mix ", report.mix, " (fit in ", report.regionsFit, " of ", report.regions,
-                 " regions): keeping the ", report.kept));
-    return best;
+    std::string line = "Stage II choice on validation points (opacity + colour error):";
+    for (std::size_t c = 0; c < candidates.size(); ++c) line += msg(" ", candidates[c].name, " ", report.scores[c], ",");
+    progress(msg(line, " mix of ", report.mixOf, " ", report.mix, " (", report.regions, " regions): keeping the ",
+                 report.kept));
+    return kept;
+}
+
+CurveShiftChoice chooseCurveShift(const Judge& validation, const GaussianCloud& start, const std::vector<float>& curve,
+                                  const std::vector<double>& shares)
+{
+    const Stopwatch clock;
+    CurveShiftChoice c;
+    double best = INFINITY;
+    for (double share : shares) {
+        GaussianCloud shifted = curveShifted(start, curve, share);
+        c.scores.push_back(validation.score(shifted));
+        if (c.scores.back() < best) {
+            best = c.scores.back();
+            c.share = share;
+            c.model = std::move(shifted);
+        }
+    }
+    c.ms = clock.ms();
+    return c;
 }
 
 } // namespace splatwarp

@@ -9,6 +9,7 @@
 #include <cstddef>
 #include <cstdint>
 #include <string>
+#include <vector>
 
 #include "Judge.h"
 #include "core/GaussianCloud.h"
@@ -21,17 +22,42 @@ constexpr std::uint32_t kValidationSeedXor = 0x5bd1e995u;
 /// Regions along the validation points' largest warped extent.
 constexpr int kChoiceRegions = 16;
 
+/// @brief A model the choice may keep: Stage II's start, its fit, or another start.
+struct StageTwoCandidate {
+    std::string name;
+    const GaussianCloud* model = nullptr;
+};
+
 /// @brief Which model the choice kept and the validation scores (opacity + colour relative L1).
 struct StageTwoChoice {
-    std::string kept = "fit"; ///< "start", "fit" or "mix"
-    double start = 0, fit = 0, mix = 0;
-    std::size_t regions = 0, regionsFit = 0; ///< regions with validation points, those where the fit won
+    std::string kept; ///< a candidate's name or "mix"
+    std::vector<double> scores;          ///< per candidate
+    std::vector<std::size_t> regionsWon; ///< per candidate: the regions the best mix takes from it
+    std::string mixOf;                   ///< the candidates of the best mix, "start+fit"
+    double mix = 0;                      ///< its score (infinite when none could mix)
+    std::size_t regions = 0; ///< regions with validation points
     double ms = 0;
 };
 
-/// @brief Choose between Stage II's start and fit (see the file comment). `sameGaussians`: Gaussian
-///        i of the fit is Gaussian i of the start (no split or prune inside Stage II), so they can mix.
-GaussianCloud chooseStageTwoModel(const Judge& validation, const GaussianCloud& start, GaussianCloud fit,
+/// @brief Choose among Stage II's candidates (see the file comment); the first one's means place
+///        the Gaussians in regions. `sameGaussians`: Gaussian i is the same one in every candidate
+///        (no split or prune inside Stage II), so they can mix.
+GaussianCloud chooseStageTwoModel(const Judge& validation, const std::vector<StageTwoCandidate>& candidates,
                                   bool sameGaussians, StageTwoChoice& report);
+
+/// Shares of the curve shift --curve-shift auto tries (deform/CurveSplit.h curveShifted()).
+constexpr double kCurveShares[] = {0.25, 0.5, 0.75, 1.0};
+
+/// @brief The curve shift the validation points judge best.
+struct CurveShiftChoice {
+    double share = 0.0;
+    GaussianCloud model;      ///< start shifted by share
+    std::vector<double> scores; ///< per share tried
+    double ms = 0;
+};
+
+/// @brief The share (of `shares`) whose shifted start the validation points score lowest.
+CurveShiftChoice chooseCurveShift(const Judge& validation, const GaussianCloud& start, const std::vector<float>& curve,
+                                  const std::vector<double>& shares);
 
 } // namespace splatwarp

@@ -2,6 +2,7 @@
 /// @file DeformArgs.h
 /// @brief The Stage I / Stage II / evaluation flags shared by `deform` and `animate` (one definition).
 #include <cstdint>
+#include <cstdlib>
 #include <memory>
 #include <string>
 
@@ -21,7 +22,7 @@ struct DeformArgs {
     std::string fineCells = "off";
     std::string stage1Shape = "affine";
     std::string split = "off";
-    std::string curveSplit = "auto", keep = "validated";
+    std::string curveSplit = "auto", keep = "validated", curveShift = "auto";
     float fineBelow = 4.0f;
 };
 
@@ -86,6 +87,21 @@ inline void addDensifyOptions(CLI::App* sub, DeformArgs& args)
                     "split is made with fans and without and the validation points keep the better; 0: never fan")
         ->capture_default_str()
         ->check(inRange(0.0, 1000.0));
+    sub->add_option("--curve-shift", args.curveShift,
+                    "With --keep validated: one more candidate of the keep, the start with each moving Gaussian's mean "
+                    "moved by this share of the deformation's second-order offset along its axes (where its mass goes "
+                    "on a curve); auto: the share of 0.25, 0.5, 0.75, 1 the validation points judge best; 0: none")
+        ->capture_default_str()
+        ->check(CLI::Validator(
+            [](std::string& word) {
+                if (word == "auto") return std::string();
+                char* end = nullptr;
+                const double v = std::strtod(word.c_str(), &end);
+                return end != word.c_str() && *end == '\0' && v >= 0.0 && v <= 2.0
+                           ? std::string()
+                           : "must be auto or a number from 0 to 2, not '" + word + "'";
+            },
+            "auto|SHARE"));
     sub->add_option("--keep", args.keep,
                     "validated: after Stage II keep its start, its fit or a mix of the two (per region of a 16-cell "
                     "lattice), whichever is judged best on validation points (the judge's rule, another seed); fit: "
@@ -160,6 +176,7 @@ inline DeformJobOptions deformJobOptions(const DeformArgs& args, const CLI::App*
     job.densify.split = args.split == "auto";
     job.curveSplit = args.curveSplit == "auto";
     job.keepValidated = args.keep == "validated";
+    if (args.curveShift != "auto") job.curveShift = std::strtod(args.curveShift.c_str(), nullptr);
     return job;
 }
 

@@ -97,10 +97,9 @@ std::size_t appendCurveChildren(const GaussianCloud& g, std::size_t i, int axis,
     return pattern.offsets.size();
 }
 
-std::vector<float> stageOneBendingOf(const GaussianCloud& rest, const StageOneRig& rig, const DeformationGraph& graph,
-                                     const NodeTransforms& transforms, const GaussianCloud& deformed,
-                                     const std::vector<std::uint8_t>& moving, const StageOneOptions& o,
-                                     std::vector<std::uint8_t>& axis)
+StageOneBends stageOneBendingOf(const GaussianCloud& rest, const StageOneRig& rig, const DeformationGraph& graph,
+                                const NodeTransforms& transforms, const GaussianCloud& deformed,
+                                const std::vector<std::uint8_t>& moving, const StageOneOptions& o)
 {
     const std::size_t n = rest.size();
     if (deformed.size() != n || moving.size() != n || rig.size() != n)
@@ -109,18 +108,28 @@ std::vector<float> stageOneBendingOf(const GaussianCloud& rest, const StageOneRi
     const std::vector<NodeAffine> affines = nodeAffines(graph, transforms);
     const StageOneInputs in = stageOneInputs(rest, rig, affines.data());
     const StageOneParams params = stageOneParams(o, rig.extent);
-    std::vector<float> bending(n, 0.0f);
-    axis.assign(n, 0);
+    StageOneBends out{std::vector<float>(n, 0.0f), std::vector<std::uint8_t>(n, 0), std::vector<float>(3 * n, 0.0f)};
     parallelFor(n, 256, o.threaded, [&](std::size_t i) {
         if (!moving[i]) return;
-        const Vec3d b = stageOneBending(in, params, i, deformed.rotations.data() + 4 * i, deformed.logScales.data() + 3 * i);
+        const StageOneCurvature c = stageOneCurvature(in, params, i);
+        const Vec3d b = stageOneBending(c, deformed.rotations.data() + 4 * i, deformed.logScales.data() + 3 * i);
         int a = 0;
-        for (int c = 1; c < 3; ++c)
-            if (b[c] > b[a]) a = c;
-        bending[i] = float(b[a]);
-        axis[i] = std::uint8_t(a);
+        for (int k = 1; k < 3; ++k)
+            if (b[k] > b[a]) a = k;
+        out.bend[i] = float(b[a]);
+        out.axis[i] = std::uint8_t(a);
+        const Vec3d sum = c.sum();
+        for (int k = 0; k < 3; ++k) out.curve[3 * i + std::size_t(k)] = float(sum[k]);
     });
-    return bending;
+    return out;
+}
+
+GaussianCloud curveShifted(GaussianCloud deformed, const std::vector<float>& curve, double share)
+{
+    if (curve.size() != deformed.means.size())
+        throw InputError(msg("curve shift: ", curve.size() / 3, " offsets for ", deformed.size(), " Gaussians"));
+    for (std::size_t j = 0; j < curve.size(); ++j) deformed.means[j] += float(share * double(curve[j]));
+    return deformed;
 }
 
 namespace {
@@ -166,6 +175,14 @@ void placeChildren(const Generation& gen, const std::vector<std::size_t>& bent, 
     }
 }
 
+/// Each Gaussian of a generation's curvature offset into its result slot (res.curve).
+void recordCurves(const StageOneBends& bends, const Generation& gen, CurveSplitResult& res)
+{
+    res.curve.resize(3 * res.deformed.size(), 0.0f);
+    for (std::size_t j = 0; j < gen.slot.size(); ++j)
+        std::copy_n(bends.curve.begin() + std::ptrdiff_t(3 * j), 3, res.curve.begin() + std::ptrdiff_t(3 * gen.slot[j]));
+}
+
 } // namespace
 
 CurveSplitResult curveSplit(const GaussianCloud& rest, const StageOneRig& rig, const DeformationGraph& graph,
@@ -185,10 +202,17 @@ CurveSplitResult curveSplit(const GaussianCloud& rest, const StageOneRig& rig, c
     Generation gen{rest, rig, stage1, {}};
     gen.slot.resize(rest.size());
     std::iota(gen.slot.begin(), gen.slot.end(), std::size_t(0));
+    bool measured = false; // gen's bends are recorded
+    StageOneBends bends;
+    auto measure = [&] {
+        bends = stageOneBendingOf(gen.rest, gen.rig, graph, transforms, gen.stage1.deformed, gen.stage1.moving,
+                                  childOptions);
+        recordCurves(bends, gen, res);
+        measured = true;
+    };
     for (int round = 0; round < o.rounds && budget >= 2; ++round) {
-        std::vector<std::uint8_t> axis;
-        const std::vector<float> bending = stageOneBendingOf(gen.rest, gen.rig, graph, transforms, gen.stage1.deformed,
-                                                             gen.stage1.moving, childOptions, axis);
+        measure();
+        const std::vector<float>& bending = bends.bend;
         std::vector<std::size_t> bent = bentByGain(gen.rest, bending, o.fanAbove);
         if (bent.empty()) break;
         Generation next;
@@ -198,7 +222,7 @@ CurveSplitResult curveSplit(const GaussianCloud& rest, const StageOneRig& rig, c
             const CurveSplitPattern p = curveSplitPattern(bending[i], o.fanAbove);
             if (p.offsets.size() - 1 > budget) continue; // a smaller split may still fit
             budget -= p.offsets.size() - 1;
-            counts.push_back(appendCurveChildren(gen.rest, i, axis[i], p, next.rest));
+            counts.push_back(appendCurveChildren(gen.rest, i, bends.axis[i], p, next.rest));
             taken.push_back(i);
         }
         if (taken.empty()) break;
@@ -212,7 +236,9 @@ CurveSplitResult curveSplit(const GaussianCloud& rest, const StageOneRig& rig, c
         res.rounds = round + 1;
         progress(msg("curve split round ", round + 1, ": ", bent.size(), " bent Gaussians split, ", added, " added"));
         gen = std::move(next);
+        measured = false;
     }
+    if (!measured) measure();
     res.ms = clock.ms();
     return res;
 }

@@ -54,6 +54,7 @@ struct CurveSplitResult {
     GaussianCloud deformed;
     std::vector<std::uint8_t> moving;  ///< [N'] Stage I's moving flag (children: their own)
     std::vector<std::int32_t> parent;  ///< [N'] the rest Gaussian each one comes from
+    std::vector<float> curve;          ///< [N',3] phi's second-order offset sum_a h_a (StageOneBends)
     std::size_t split = 0, added = 0;  ///< Gaussians split (every round) and Gaussians added
     int rounds = 0;                    ///< rounds that split something
     double ms = 0;
@@ -79,13 +80,25 @@ CurveSplitPattern curveSplitPattern(double bend, double fanAbove = kFanAbove);
 std::size_t appendCurveChildren(const GaussianCloud& g, std::size_t i, int axis, const CurveSplitPattern& pattern,
                                 GaussianCloud& out);
 
-/// @brief The bending of each Gaussian of `rest` moved by Stage I (deformed, moving as applyStageOneCpu()
-///        returned them): the largest stageOneBending() over its axes (0 for static ones) and, in
-///        axis, that axis.
-std::vector<float> stageOneBendingOf(const GaussianCloud& rest, const StageOneRig& rig, const DeformationGraph& graph,
-                                     const NodeTransforms& transforms, const GaussianCloud& deformed,
-                                     const std::vector<std::uint8_t>& moving, const StageOneOptions& stage1,
-                                     std::vector<std::uint8_t>& axis);
+/// @brief How Stage I bends each Gaussian of a model (static ones: 0).
+struct StageOneBends {
+    std::vector<float> bend;          ///< [N] the largest stageOneBending() over its axes
+    std::vector<std::uint8_t> axis;   ///< [N] that axis
+    std::vector<float> curve;         ///< [N,3] sum_a h_a of stageOneCurvature(), world units
+};
+
+/// @brief The bending of each Gaussian of `rest` moved by Stage I (deformed, moving as
+///        applyStageOneCpu() returned them).
+StageOneBends stageOneBendingOf(const GaussianCloud& rest, const StageOneRig& rig, const DeformationGraph& graph,
+                                const NodeTransforms& transforms, const GaussianCloud& deformed,
+                                const std::vector<std::uint8_t>& moving, const StageOneOptions& stage1);
+
+/// @brief The curve shift: `deformed` with every mean moved by `share` times its second-order
+///        offset sum_a h_a (curve [N,3], StageOneBends or CurveSplitResult). phi moves a
+///        Gaussian's mass by h_a on average (E[x_a^2] = sigma_a^2) while Stage I keeps the skinned
+///        centre; for one Gaussian bent by b <= 1 of its sigmas the L1-closest shift is about
+///        0.45 h (scripts/curve-shift-l1.py), but overlapping models prefer more.
+GaussianCloud curveShifted(GaussianCloud deformed, const std::vector<float>& curve, double share);
 
 /// @brief Split the bent Gaussians of Stage I's result (see the file comment), on the CPU.
 CurveSplitResult curveSplit(const GaussianCloud& rest, const StageOneRig& rig, const DeformationGraph& graph,

@@ -149,25 +149,40 @@ struct StageOneOutputs {
     std::uint8_t* moving = nullptr; ///< [N] 1 if any of its 7 points has weight on a moving node
 };
 
-/// @brief How far the skinning bends Gaussian i away from its affine Stage I shape: for each own
-///        axis a, the midpoint of the skinned endpoints +-c sigma_a minus the skinned centre, over
-///        c^2, is phi's second-order term h_a = 1/2 sigma_a^2 d^2 phi / dr_a^2 (zero for an affine
-///        phi), the offset at one sigma along a that one Gaussian cannot follow. Returns |h_a| in
-///        the deformed Gaussian's own sigmas (rotation q, logScales: Stage I's output for i).
-SPLATWARP_HOST_DEVICE Vec3d stageOneBending(const StageOneInputs& in, const StageOneParams& p, std::size_t i,
-                                            const float* q, const float* logScales)
+/// @brief phi's second-order term along each own axis a of Gaussian i, h_a = 1/2 sigma_a^2
+///        d^2 phi / dr_a^2 (world units; zero for an affine phi): the midpoint of the skinned
+///        endpoints +-c sigma_a minus the skinned centre, over c^2. It is the offset at one sigma
+///        along a that one Gaussian cannot follow.
+struct StageOneCurvature {
+    Vec3d h[3];
+    SPLATWARP_HOST_DEVICE Vec3d sum() const { return h[0] + h[1] + h[2]; }
+};
+
+SPLATWARP_HOST_DEVICE StageOneCurvature stageOneCurvature(const StageOneInputs& in, const StageOneParams& p, std::size_t i)
 {
     const StageOneRestFrame f = stageOneRestFrame(in.means, in.rotations, in.logScales, i, p);
     const std::size_t base = i * kStageOnePoints;
     const Vec3d centre = skinAffinePoint(in.affines, in.nodes, in.weights, in.k, base, f.centre);
-    const Mat3d r = quatToMatrix(Quatd{double(q[0]), double(q[1]), double(q[2]), double(q[3])});
-    Vec3d out;
+    StageOneCurvature c;
     for (int a = 0; a < 3; ++a) {
         const Vec3d plus = skinAffinePoint(in.affines, in.nodes, in.weights, in.k, base + 1 + std::size_t(2 * a),
                                            stageOneEndpoint(f, 2 * a, p.endpointSigmas));
         const Vec3d minus = skinAffinePoint(in.affines, in.nodes, in.weights, in.k, base + 2 + std::size_t(2 * a),
                                             stageOneEndpoint(f, 2 * a + 1, p.endpointSigmas));
-        const Vec3d h = ((plus + minus) * 0.5 - centre) / (p.endpointSigmas * p.endpointSigmas);
+        c.h[a] = ((plus + minus) * 0.5 - centre) / (p.endpointSigmas * p.endpointSigmas);
+    }
+    return c;
+}
+
+/// @brief How far the skinning bends Gaussian i away from its affine Stage I shape: |h_a|
+///        (stageOneCurvature) in the deformed Gaussian's own sigmas (rotation q, logScales: Stage
+///        I's output for i), per own axis a.
+SPLATWARP_HOST_DEVICE Vec3d stageOneBending(const StageOneCurvature& c, const float* q, const float* logScales)
+{
+    const Mat3d r = quatToMatrix(Quatd{double(q[0]), double(q[1]), double(q[2]), double(q[3])});
+    Vec3d out;
+    for (int a = 0; a < 3; ++a) {
+        const Vec3d& h = c.h[a];
         double sum = 0;
         for (int b = 0; b < 3; ++b) {
             const double along = (r[0][b] * h[0] + r[1][b] * h[1] + r[2][b] * h[2]) * std::exp(-double(logScales[b]));

@@ -127,9 +127,16 @@ TEST(DeformPipeline, CurveSplitAndTheValidatedKeepAtTheDefaults)
     EXPECT_EQ(cs["fans"], fans ? "on" : "off (validated)");
     const nlohmann::json& keep = r["stage2"]["keep"];
     const double start = keep["validationStart"].get<double>(), fit = keep["validationFit"].get<double>(),
-                 mix = keep["validationMix"].get<double>();
+                 shifted = keep["validationShifted"].get<double>(), mix = keep["validationMix"].get<double>();
+    const double best = std::min({start, shifted, fit});
     const std::string kept = keep["kept"].get<std::string>();
-    EXPECT_EQ(kept, mix < std::min(start, fit) ? "mix" : (start < fit ? "start" : "fit"));
+    EXPECT_EQ(kept, mix < best ? "mix" : (start == best ? "start" : (shifted == best ? "shifted" : "fit")));
+    // The curve shift: the share whose shifted start the validation points judge best.
+    const nlohmann::json& shift = r["curveShift"];
+    double lowest = INFINITY;
+    for (const auto& [share, score] : shift["validation"].items()) lowest = std::min(lowest, score.get<double>());
+    EXPECT_EQ(shift["validation"][msg(shift["share"].get<double>())].get<double>(), lowest);
+    EXPECT_NEAR(keep["validationShifted"].get<double>(), lowest, 1e-12);
     // Measured (judge, opacity): Stage I 0.141, curve split 0.086, kept (the mix, fit in 116 of 727
     // regions) 0.084; validation start 0.169, fit 0.218, mix 0.155.
     EXPECT_LT(r["curveSplit"]["field_error"]["opacity"].get<double>(), 0.8 * err(r, "stage1", "opacity"));
