@@ -136,8 +136,8 @@ GaussianCloud chooseStageTwoModel(const Judge& validation, const std::vector<Sta
     report.ms = clock.ms();
     std::string line = "Stage II choice on validation points (opacity + colour error):";
     for (std::size_t c = 0; c < candidates.size(); ++c) line += msg(" ", candidates[c].name, " ", report.scores[c], ",");
-    progress(msg(line, " mix of ", report.mixOf, " ", report.mix, " (", report.regions, " regions): keeping the ",
-                 report.kept));
+    if (std::isfinite(report.mix)) line += msg(" mix of ", report.mixOf, " ", report.mix, " (", report.regions, " regions):");
+    progress(msg(line, " keeping the ", report.kept));
     return kept;
 }
 
