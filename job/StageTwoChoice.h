@@ -2,10 +2,11 @@
 /// @file StageTwoChoice.h
 /// @brief Stage II fits a low-pass filtered field; where the Gaussians are far thinner than its
 ///        filter (captured models) the fit can make the unfiltered field worse than its start.
-///        The choice judges the start and the fit on validation points (the judge's rule with
-///        another seed, so never the judge's points) per region of a coarse lattice in the
-///        deformed space, keeps each Gaussian from the side that wins its region, and returns
-///        whichever of start, fit and that mix the validation points judge best.
+///        The choice judges its candidates (the start, the curve-shifted start, the fit) on
+///        validation points (the judge's rule with another seed, so never the judge's points) per
+///        region of a coarse lattice in the deformed space; each mix of two or more takes every
+///        Gaussian from the one that wins its region, and the candidate or mix the validation
+///        points judge best is returned.
 #include <cstddef>
 #include <cstdint>
 #include <string>

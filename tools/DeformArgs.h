@@ -103,9 +103,9 @@ inline void addDensifyOptions(CLI::App* sub, DeformArgs& args)
             },
             "auto|SHARE"));
     sub->add_option("--keep", args.keep,
-                    "validated: after Stage II keep its start, its fit or a mix of the two (per region of a 16-cell "
-                    "lattice), whichever is judged best on validation points (the judge's rule, another seed); fit: "
-                    "always keep the fit")
+                    "validated: after Stage II keep its start, the curve-shifted start (--curve-shift), its fit or a "
+                    "mix of them (per region of a 16-cell lattice), whichever is judged best on validation points (the "
+                    "judge's rule, another seed); fit: always keep the fit")
         ->capture_default_str()
         ->check(CLI::IsMember({"validated", "fit"}));
     sub->add_option("--prune-below", d.pruneBelow,
