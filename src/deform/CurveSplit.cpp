@@ -14,8 +14,6 @@ namespace splatwarp {
 
 namespace {
 
-constexpr double kPiD = 3.14159265358979323846;
-
 /// L1 distance between a unit Gaussian and its copy moved by m sigmas, over its mass: what one
 /// Gaussian bent by m of its sigmas roughly costs (0 at m = 0, 2 when the two no longer overlap).
 double displacedL1(double m)
@@ -29,7 +27,7 @@ double visibleMass(double peak)
 {
     if (!(peak > double(kDefaultCutoff))) return 0.0;
     const double x = 2.0 * std::log(peak / double(kDefaultCutoff));
-    return std::erf(std::sqrt(0.5 * x)) - std::sqrt(2.0 * x / kPiD) * std::exp(-0.5 * x);
+    return std::erf(std::sqrt(0.5 * x)) - std::sqrt(2.0 * x / M_PI) * std::exp(-0.5 * x);
 }
 
 /// What splitting Gaussian i (bent by m) by a pattern is expected to save per Gaussian added, in
@@ -74,7 +72,7 @@ CurveSplitPattern curveSplitPattern(double bend, double fanAbove)
         const int j = k == 0 ? 0 : (k % 2 ? (k + 1) / 2 : -(k / 2)); // 0, +1, -1, +2, -2, ...
         const double u = j * delta;
         p.offsets.push_back(u);
-        p.weights.push_back(delta / t * std::exp(-0.5 * u * u / var) / std::sqrt(2.0 * kPiD * var));
+        p.weights.push_back(delta / t * std::exp(-0.5 * u * u / var) / std::sqrt(2.0 * M_PI * var));
     }
     return p;
 }
