@@ -1,21 +1,37 @@
 #pragma once
 /// @file RenderArgs.h
 /// @brief Parsing of the flag values shared by `render` and `bench render` (--size, --background).
+#include <cctype>
+#include <cerrno>
 #include <cstdio>
+#include <cstdlib>
 #include <string>
 
+#include "core/Camera.h"
 #include "core/Error.h"
 #include "core/SmallMath.h"
 
 namespace splatwarp::cli {
 
-/// @brief "WxH" -> width, height (both positive). @throws UsageError otherwise.
+/// @brief "WxH" -> width, height (each in [1, kMaxImageSide]). @throws UsageError otherwise.
 inline void parseImageSize(const std::string& text, int& width, int& height)
 {
-    char x = 0, rest = 0;
-    if (std::sscanf(text.c_str(), "%d%c%d%c", &width, &x, &height, &rest) != 3 || (x != 'x' && x != 'X') ||
-        width <= 0 || height <= 0)
-        throw UsageError(msg("--size must be WIDTHxHEIGHT with positive integers, got '", text, "'"));
+    // strtol, not sscanf("%d"): an out-of-range %d is undefined, strtol saturates and says so.
+    const auto side = [&](const char* from, char** end) {
+        errno = 0;
+        const long v = std::strtol(from, end, 10);
+        const bool ok = *end != from && errno == 0 && v >= 1 && v <= kMaxImageSide && std::isdigit((unsigned char)*from);
+        if (!ok)
+            throw UsageError(msg("--size must be WIDTHxHEIGHT, each a whole number from 1 to ", kMaxImageSide,
+                                 ", got '", text, "'"));
+        return int(v);
+    };
+    char* end = nullptr;
+    width = side(text.c_str(), &end);
+    if (*end != 'x' && *end != 'X')
+        throw UsageError(msg("--size must be WIDTHxHEIGHT, e.g. 800x600, got '", text, "'"));
+    height = side(end + 1, &end);
+    if (*end != '\0') throw UsageError(msg("--size must be WIDTHxHEIGHT, e.g. 800x600, got '", text, "'"));
 }
 
 /// @brief "r,g,b" (linear, each in [0, 1]) -> colour. @throws UsageError otherwise.

@@ -8,6 +8,10 @@
 
 namespace splatwarp {
 
+/// Largest image side a camera file or --size may ask for: a 16384^2 RGBA float picture is 4 GiB,
+/// beyond it a typo (or a hostile file) would only fail later in an allocation or an int overflow.
+constexpr int kMaxImageSide = 16384;
+
 /// @brief A pinhole camera: x_cam = rotation * x_world + translation, pixel = (fx x/z + cx, fy y/z + cy)
 ///        with pixel (i, j) sampled at (i + 0.5, j + 0.5).
 struct Camera {

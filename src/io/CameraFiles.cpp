@@ -60,6 +60,13 @@ struct JsonReader {
         }
         return out;
     }
+    /// An image side: a whole number of pixels in [1, kMaxImageSide] (an int cast of 8e9 is undefined).
+    int imageSide(double v, const char* key, const std::string& where) const
+    {
+        if (!(v >= 1 && v <= kMaxImageSide && v == std::floor(v)))
+            fail(where, msg("'", key, "' must be a whole number of pixels from 1 to ", kMaxImageSide, ", got ", v));
+        return int(v);
+    }
     void checkIntrinsics(const Camera& c, const std::string& where) const
     {
         if (!(c.fx > 0 && c.fy > 0)) fail(where, "focal lengths must be positive");
@@ -80,8 +87,8 @@ std::vector<Camera> readGraphdeco(const JsonReader& r, const Json& list)
         Mat3d c2w;
         for (int k = 0; k < 9; ++k) c2w.m[k / 3][k % 3] = rot[std::size_t(k)];
         Camera cam = Camera::fromCameraToWorld(c2w, Vec3d(pos[0].get<double>(), pos[1].get<double>(), pos[2].get<double>()));
-        cam.width = int(r.number(e, "width", where));
-        cam.height = int(r.number(e, "height", where));
+        cam.width = r.imageSide(r.number(e, "width", where), "width", where);
+        cam.height = r.imageSide(r.number(e, "height", where), "height", where);
         cam.fx = r.number(e, "fx", where);
         cam.fy = r.number(e, "fy", where);
         // graphdeco cameras have a centred principal point.
@@ -111,8 +118,8 @@ std::vector<Camera> readTransforms(const JsonReader& r, const Json& top, const C
             for (int col = 0; col < 3; ++col) c2w.m[row][col] = m[std::size_t(4 * row + col)] * (col == 0 ? 1.0 : -1.0);
         Camera cam = Camera::fromCameraToWorld(c2w, Vec3d(m[3], m[7], m[11]));
         const double w = r.optionalNumber(f, top, "w", where), h = r.optionalNumber(f, top, "h", where);
-        cam.width = std::isnan(w) ? o.width : int(w);
-        cam.height = std::isnan(h) ? o.height : int(h);
+        cam.width = std::isnan(w) ? o.width : r.imageSide(w, "w", where);
+        cam.height = std::isnan(h) ? o.height : r.imageSide(h, "h", where);
         if (cam.width <= 0 || cam.height <= 0)
             r.fail(where, "no image size ('w', 'h') in the file; give one (render --size WxH)");
         const double flx = r.optionalNumber(f, top, "fl_x", where), fly = r.optionalNumber(f, top, "fl_y", where);

@@ -111,6 +111,13 @@ TEST(CameraFilesTest, MalformedFilesNameTheProblem)
     expectError("empty.json", "[]", "no cameras");
     // Found by fuzz_cameras: a number beyond double made nlohmann throw out_of_range, not parse_error.
     expectError("overflow.json", R"({"camera_angle_x": 4.8, "w": 10e2222, "frames": []})", "not valid JSON");
+    // Found by fuzz_cameras: 'w' of 8.4e9 was cast to int (undefined behaviour) before any check.
+    expectError("hugew.json", R"({"camera_angle_x": 1, "w": 8.44444e9, "h": 4, "frames": [{"transform_matrix": [[1,0,0,0],[0,1,0,0],[0,1,0,0],[0,0,0,1]]}]})",
+                "frame 0: 'w' must be a whole number of pixels from 1 to 16384");
+    expectError("halfh.json", R"([{"width": 4, "height": 2.5, "position": [0,0,0], "rotation": [[1,0,0],[0,1,0],[0,0,1]], "fx": 1, "fy": 1}])",
+                "camera 0: 'height' must be a whole number of pixels");
+    expectError("zerow.json", R"([{"width": 0, "height": 4, "position": [0,0,0], "rotation": [[1,0,0],[0,1,0],[0,0,1]], "fx": 1, "fy": 1}])",
+                "camera 0: 'width' must be a whole number of pixels");
     EXPECT_THROW(readCameraFile(dir.file("missing.json")), IoError);
 }
 

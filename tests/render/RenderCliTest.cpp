@@ -67,7 +67,8 @@ TEST_F(RenderCliTest, CameraFileAndErrors)
     EXPECT_NE(slurp(log).find("bad.json"), std::string::npos);
     EXPECT_FALSE(std::filesystem::exists(mDir.file("x.png")));
     EXPECT_EQ(test::runCli("render " + model() + " --orbit 2 -o " + mDir.file("x.png")), 2);
-    EXPECT_EQ(test::runCli("render " + model() + " --size 12 -o " + mDir.file("x.png")), 2);
+    for (const char* size : {"12", "99999999999x5", "16385x2", "0x4", "4x4junk", "+4x4", " 4x4", "4x"})
+        EXPECT_EQ(test::runCli("render " + model() + " --size '" + size + "' -o " + mDir.file("x.png")), 2) << size;
     EXPECT_EQ(test::runCli("render " + model() + " --background 2,0,0 -o " + mDir.file("x.png")), 2);
     EXPECT_EQ(test::runCli("render " + model() + " --orbit 2 --camera " + cams + " -o " + mDir.file("d")), 2);
 }
