@@ -61,7 +61,7 @@ struct StageTwoOptions {
     bool rejectSteps = true;
     /// Stop after this many steps rejected in a row (the rates are then 2^-stallStop of the
     /// schedule's): rigid specs, where Stage I is already exact, and converged runs end early.
-    /// 0: never stop early.
+    /// Twice this many before the first accepted step. 0: never stop early.
     int stallStop = 6;
     /// Also stop when the held energy fell by less than this fraction over the last stallWindow
     /// iterations (0: off; `--iterations auto` turns it on with a high iteration cap).

@@ -162,17 +162,41 @@ TEST(StageTwoLoop, EndsOnTheAcceptedIterateWhenTheLastStepClimbs)
 
 TEST(StageTwoLoop, StopsAfterStallStopRejectionsInARow)
 {
-    // A rigid spec: Stage I is exact, every step climbs.
+    // A rigid spec: Stage I is exact, every step climbs. Before the first accepted step the run
+    // allows twice stallStop rejections (Adam's first step may need 2^-7 of the rates).
     ScriptedSolver s({1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12});
     GaussianCloud cloud;
     const StageTwoReport r = runStageTwoLoop(s, cloud, rejecting(10, 3));
-    EXPECT_EQ(r.stoppedAt, 3);
+    EXPECT_EQ(r.stoppedAt, 6);
     EXPECT_EQ(r.stopReason, "steps rejected in a row");
-    EXPECT_EQ(r.rejectedSteps, 3);
+    EXPECT_EQ(r.rejectedSteps, 6);
     EXPECT_EQ(r.bestIteration, 0);
     EXPECT_EQ(cloud.opacities, std::vector<float>{0.0f});
-    ASSERT_EQ(s.steps.size(), 3u);
-    EXPECT_EQ(s.steps[2].rateScale, 0.25f);
+    ASSERT_EQ(s.steps.size(), 6u);
+    EXPECT_EQ(s.steps[5].rateScale, 1.0f / 32.0f);
+
+    // One step accepted, then stallStop rejections end the run.
+    ScriptedSolver t({5, 4, 6, 7, 8, 9, 10});
+    const StageTwoReport q = runStageTwoLoop(t, cloud, rejecting(10, 3));
+    EXPECT_EQ(q.stoppedAt, 4);
+    EXPECT_EQ(q.rejectedSteps, 3);
+    EXPECT_EQ(q.bestIteration, 1);
+    EXPECT_EQ(cloud.opacities, std::vector<float>{1.0f});
+}
+
+TEST(StageTwoLoop, AFirstStepThatDescendsOnlyAtSmallRatesIsFound)
+{
+    // The first step climbs at rates 1 ... 2^-4 and descends at 2^-5: stallStop 3 alone would have
+    // ended the run after 3 rejections (train-1000 bend --cells 80 needed 2^-6 with stallStop 6).
+    ScriptedSolver s({10, 20, 19, 18, 17, 16, 9, 8});
+    GaussianCloud cloud;
+    const StageTwoReport r = runStageTwoLoop(s, cloud, rejecting(7, 3));
+    ASSERT_EQ(s.steps.size(), 7u);
+    EXPECT_EQ(s.steps[5].rateScale, 1.0f / 32.0f);
+    EXPECT_EQ(r.rejectedSteps, 5);
+    EXPECT_EQ(r.stopReason, "");
+    EXPECT_EQ(r.bestEnergy, 8.0);
+    EXPECT_EQ(cloud.opacities, std::vector<float>{7.0f});
 }
 
 TEST(StageTwoLoop, NonFiniteEnergyIsARejectedStep)
