@@ -39,9 +39,9 @@ public:
     const char* stalled() const
     {
         // Before the first accepted step the limit doubles: Adam's first step moves every parameter
-        // by its whole rate, and from a Stage I start it may descend only at 2^-7 of the rates
-        // (train-1000 bend --cells 80: energy 68.8 at the start, 69.1 at 2^-5).
-        const int limit = mAccepted > 1 ? mOptions.stallStop : 2 * mOptions.stallStop;
+        // by its whole rate, and from a Stage I start it may descend only at 2^-6 of the rates
+        // (train-1000 bend --cells 80: energy 68.8 at the start, 69.1 at 2^-5, accepted at 2^-6).
+        const int limit = mAccepted > 1 ? mOptions.stallStop : 2 * mOptions.stallStop; // iteration 0 counts as one
         if (mOptions.stallStop > 0 && mRejectedInARow >= limit) return "steps rejected in a row";
         const std::size_t w = std::size_t(std::max(mOptions.stallWindow, 1)), n = mHeld.size();
         if (mOptions.stallTolerance > 0 && n > w &&

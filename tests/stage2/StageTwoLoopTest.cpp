@@ -163,7 +163,7 @@ TEST(StageTwoLoop, EndsOnTheAcceptedIterateWhenTheLastStepClimbs)
 TEST(StageTwoLoop, StopsAfterStallStopRejectionsInARow)
 {
     // A rigid spec: Stage I is exact, every step climbs. Before the first accepted step the run
-    // allows twice stallStop rejections (Adam's first step may need 2^-7 of the rates).
+    // allows twice stallStop rejections (Adam's first step may need 2^-6 of the rates).
     ScriptedSolver s({1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12});
     GaussianCloud cloud;
     const StageTwoReport r = runStageTwoLoop(s, cloud, rejecting(10, 3));
