@@ -8,8 +8,10 @@
 
 #include "deform/SampleWarp.h"
 #include "Judge.h"
+#include "GaussianChoice.h"
 #include "StageTwoChoice.h"
 #include "StageTwoRounds.h"
+#include "ValidatedSplit.h"
 #include "StretchedView.h"
 #include "VdbExport.h"
 #include "core/AtomicFile.h"
@@ -245,6 +247,24 @@ GaussianCloud curveShiftOf(const GaussianCloud& start, const std::vector<float>&
     return std::move(c.model);
 }
 
+/// --validated-split: the splits the validation points measure to pay, within what is left of the
+/// curve split's budget (report "validatedSplit").
+void splitByValidation(const DeformRest& rest, const Deformation& deformation, const StageOneResult& stage1,
+                       const DeformJobOptions& o, const Judge& validation, std::vector<float>& curve, ColdStart& c,
+                       nlohmann::json& report)
+{
+    const std::size_t allowed = std::size_t(double(o.curve.maxAdded) * double(rest.model.size()));
+    const std::size_t budget = allowed > c.added ? allowed - c.added : 0;
+    StageOneOptions s1 = o.stage1;
+    s1.threaded = o.grid.threaded;
+    const ValidatedSplitReport r =
+        validatedSplit(validation, rest.model, deformation, s1, stage1.deformed, budget, {c.model, c.moving, c.cells, curve});
+    c.added += r.added;
+    report["validatedSplit"] = {{"tried", r.tried}, {"split", r.split}, {"added", r.added}, {"budget", budget},
+                                {"validationBefore", r.before}, {"validationAfter", r.after}, {"ms", r.ms}};
+    report["timingsMs"]["validatedSplit"] = r.ms;
+}
+
 ColdStart coldStart(const DeformRest& rest, const Deformation& deformation, const StageOneResult& stage1,
                     const DeformJobOptions& o, const FrameErrors& errors, const Judge* validation, nlohmann::json& report)
 {
@@ -272,6 +292,7 @@ ColdStart coldStart(const DeformRest& rest, const Deformation& deformation, cons
         curve = stageOneBendingOf(rest.model, rest.rig, rest.graph, deformation.transforms, stage1.deformed,
                                   stage1.moving, o.stage1).curve;
     }
+    if (validation && o.validatedSplit) splitByValidation(rest, deformation, stage1, o, *validation, curve, c, report);
     c.shifted = curveShiftOf(c.model, curve, o, errors, validation, report);
     return c;
 }
@@ -279,7 +300,7 @@ ColdStart coldStart(const DeformRest& rest, const Deformation& deformation, cons
 /// --keep validated: Stage II's start, its curve shift (when made), the fit or a region mix of them,
 /// whichever the validation points judge best (job/StageTwoChoice.h; report stage2 "keep").
 GaussianCloud keepValidated(const Judge& validation, const GaussianCloud& startModel, const GaussianCloud* shifted,
-                            GaussianCloud fitted, bool sameGaussians, nlohmann::json& report)
+                            GaussianCloud fitted, bool sameGaussians, bool perGaussian, nlohmann::json& report)
 {
     StageTwoChoice c;
     std::vector<StageTwoCandidate> candidates{{"start", &startModel}};
@@ -296,6 +317,12 @@ GaussianCloud keepValidated(const Judge& validation, const GaussianCloud& startM
         k["regions" + name] = c.regionsWon[i];
     }
     report["timingsMs"]["keep"] = c.ms;
+    if (!perGaussian || !sameGaussians || kept.size() != startModel.size()) return kept;
+    GaussianChoiceReport g;
+    kept = chooseEachGaussian(validation, candidates, std::move(kept), g);
+    k["perGaussian"] = {{"swapped", g.swapped}, {"tried", g.tried}, {"validationBefore", g.before},
+                        {"validationAfter", g.after}, {"ms", g.ms}};
+    report["timingsMs"]["keep"] = c.ms + g.ms;
     return kept;
 }
 
@@ -379,7 +406,7 @@ GaussianCloud stageTwo(DeformRest& rest, const Deformation& deformation, const S
     report["stage2"] = stageTwoJson(r2, *rest.grid, o.stage2);
     if (o.keepValidated)
         fitted = keepValidated(*validation, rejectedStart ? cold.model : startModel, &cold.shifted, std::move(fitted),
-                               counts.split == 0 && counts.pruned == 0, report);
+                               counts.split == 0 && counts.pruned == 0, o.keepPerGaussian, report);
     recordGaussianCounts(cold, counts, o, fitted, report["stage2"]);
     report["timingsMs"]["stage2"] = r2.msTotal + rejectedMs + counts.ms;
     if (start.change) report["stage2"]["start"] = warm && !rejectedStart ? "warm" : "cold";
@@ -443,7 +470,7 @@ std::unique_ptr<DeformRest> prepareDeformRest(const DeformJobOptions& o, const G
         HeldOutOptions validation = o.heldOut;
         validation.device = rest->device;
         validation.seed ^= kValidationSeedXor;
-        rest->validation = prepareJudgeRest(rest->model, validation);
+        rest->validation = prepareValidationRest(rest->model, validation);
     }
     if (o.evaluate || o.evalEvery > 0) {
         clock.reset();

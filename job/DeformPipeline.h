@@ -47,6 +47,8 @@ struct DeformJobOptions {
     /// kCurveShares the validation points judge best; 0: no such candidate.
     std::optional<double> curveShift;
     bool keepValidated = true; ///< keep Stage II's start, fit or their mix by validation points (StageTwoChoice.h)
+    bool validatedSplit = true; ///< split what the validation points measure to pay (ValidatedSplit.h)
+    bool keepPerGaussian = true; ///< then each Gaussian's version by validation points (GaussianChoice.h)
     HeldOutOptions heldOut; ///< points and seed of the judge (and of the training-lattice error)
     bool evaluate = true;   ///< the judge's errors of Stage I and Stage II in the report (and the training-lattice error)
     int evalEvery = 0;      ///< also record the held-out error every K Stage II iterations (0 = off)

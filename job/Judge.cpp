@@ -1,6 +1,8 @@
 #include "Judge.h"
 
+#include <algorithm>
 #include <numeric>
+#include <random>
 
 #include <cmath>
 #include <cstdio>
@@ -88,6 +90,51 @@ JudgeRest prepareJudgeRest(const GaussianCloud& rest, const HeldOutOptions& opti
     j.points = drawJudgePoints(rest, options);
     j.unrotated = unrotatedTarget(rest, j.points);
     return j;
+}
+
+namespace {
+
+/// Append point j of one draw, with its weight, to a validation side.
+void appendPoint(const JudgeRest& from, std::size_t j, float weight, JudgeRest& to)
+{
+    const std::size_t stride = from.unrotated.features.size() / std::max<std::size_t>(from.unrotated.size(), 1);
+    to.points.rest.insert(to.points.rest.end(), &from.points.rest[3 * j], &from.points.rest[3 * j] + 3);
+    to.points.warped.insert(to.points.warped.end(), &from.points.warped[3 * j], &from.points.warped[3 * j] + 3);
+    to.points.rotations.insert(to.points.rotations.end(), &from.points.rotations[9 * j], &from.points.rotations[9 * j] + 9);
+    const double* f = &from.unrotated.features[stride * j];
+    to.unrotated.features.insert(to.unrotated.features.end(), f, f + stride);
+    to.unrotated.opacity.push_back(from.unrotated.opacity[j]);
+    to.unrotated.weight.push_back(weight);
+    to.unrotated.sumOpacity += double(weight) * double(from.unrotated.opacity[j]);
+    for (std::size_t s = 0; s < stride; ++s) to.unrotated.sumFeatures += double(weight) * std::fabs(f[s]);
+}
+
+} // namespace
+
+JudgeRest prepareValidationRest(const GaussianCloud& rest, const HeldOutOptions& options, int draws)
+{
+    JudgeRest out;
+    out.unrotated.shDegree = rest.shDegree;
+    std::mt19937_64 rng(options.seed ^ 0x9e3779b97f4a7c15ull);
+    std::uniform_real_distribution<double> unit(0.0, 1.0);
+    for (int d = 0; d < draws; ++d) {
+        HeldOutOptions o = options;
+        o.seed = options.seed + std::uint32_t(d);
+        const JudgeRest draw = prepareJudgeRest(rest, o);
+        if (d == 0) out.points.features = draw.points.features;
+        std::size_t inside = 0;
+        for (float x : draw.unrotated.opacity) inside += x > 0.0f;
+        const std::size_t outside = draw.unrotated.size() - inside;
+        const double perDraw = double(options.points) / double(draws);
+        const double keepIn = inside ? std::min(1.0, kValidationInside * perDraw / double(inside)) : 1.0;
+        const double keepOut = outside ? std::min(1.0, kValidationOutside * perDraw / double(outside)) : 1.0;
+        for (std::size_t j = 0; j < draw.unrotated.size(); ++j) {
+            const double keep = draw.unrotated.opacity[j] > 0.0f ? keepIn : keepOut;
+            if (keep < 1.0 && !(unit(rng) < keep)) continue;
+            appendPoint(draw, j, float(1.0 / keep), out);
+        }
+    }
+    return out;
 }
 
 Judge::Judge(const GaussianCloud& restModel, const JudgeRest& rest, const Deformation& deformation, bool threaded)

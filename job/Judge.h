@@ -56,6 +56,21 @@ struct JudgeRest {
 /// @brief drawJudgePoints() and the rest features there, on options.device.
 JudgeRest prepareJudgeRest(const GaussianCloud& rest, const HeldOutOptions& options);
 
+/// Draws of the judge's rule behind the validation points (kValidationDraws x the judge's points).
+constexpr int kValidationDraws = 10;
+/// Points the validation keeps, in the judge's points: this many inside the rest model (O_rest > 0)...
+constexpr double kValidationInside = 1.6;
+/// ...and this many outside it.
+constexpr double kValidationOutside = 0.4;
+
+/// @brief The validation side (Stage II's choices): `draws` point sets of the judge's rule (seeds
+///        options.seed, +1, ...), thinned to about kValidationInside x options.points inside the
+///        rest model and kValidationOutside x outside it, each point weighted by one over its keep
+///        probability, so the scores estimate the judge's sums. On captured scenes most of the
+///        judge's region is empty (train-1000: 6% of the points inside), and the choices among
+///        candidates need many more points where the Gaussians are than the judge's count gives.
+JudgeRest prepareValidationRest(const GaussianCloud& rest, const HeldOutOptions& options, int draws = kValidationDraws);
+
 /// @brief The judge of one deformation: the points warped and the rest side rotated once; for a
 ///        rigid spec, the ground-truth images rendered once. Everything runs on the device of
 ///        the rest side's points (points.features.device).
@@ -75,6 +90,8 @@ public:
     /// @brief The sum of pointScores(): opacity + colour relative L1 (a validation score).
     double score(const GaussianCloud& deformed) const;
     const HeldOutPoints& points() const { return mPoints; }
+    /// The rest side at the points, SH rotated (what pointScores() compares with).
+    const FieldErrorTarget& target() const { return mTarget; }
     bool rigid() const { return !mTruth.empty(); }
 
 private:

@@ -22,7 +22,7 @@ struct DeformArgs {
     std::string fineCells = "off";
     std::string stage1Shape = "affine";
     std::string split = "off";
-    std::string curveSplit = "auto", keep = "validated", curveShift = "auto";
+    std::string curveSplit = "auto", validatedSplit = "auto", keep = "validated", curveShift = "auto";
     float fineBelow = 4.0f;
 };
 
@@ -73,8 +73,16 @@ inline void addDensifyOptions(CLI::App* sub, DeformArgs& args)
                     "(most gain first, see --curve-split-max); off: Stage II starts from the Stage I model")
         ->capture_default_str()
         ->check(CLI::IsMember({"auto", "off"}));
+    sub->add_option("--validated-split", args.validatedSplit,
+                    "auto: after the curve split, split each moving Gaussian still as Stage I left it in three along "
+                    "the one of its axes that helps most, where the exact drop of the validation score (the judge's rule, "
+                    "other seeds) says it pays, largest drops first (needs --keep validated or regions; shares "
+                    "--curve-split-max); off: no such split")
+        ->capture_default_str()
+        ->check(CLI::IsMember({"auto", "off"}));
     sub->add_option("--curve-split-max", args.job.curve.maxAdded,
-                    "With --curve-split auto: at most this many Gaussians added, as a share of the model's")
+                    "At most this many Gaussians added by the curve split and the validated split together, as a share "
+                    "of the model's")
         ->capture_default_str()
         ->check(inRange(0.0, 16.0));
     sub->add_option("--curve-split-rounds", args.job.curve.rounds,
@@ -105,9 +113,10 @@ inline void addDensifyOptions(CLI::App* sub, DeformArgs& args)
     sub->add_option("--keep", args.keep,
                     "validated: after Stage II keep its start, the curve-shifted start (--curve-shift), its fit or a "
                     "mix of them (per region of a 16-cell lattice), whichever is judged best on validation points (the "
-                    "judge's rule, another seed); fit: always keep the fit")
+                    "judge's rule, other seeds), then let each moving Gaussian, heaviest first, take the candidate's "
+                    "version of it that lowers the validation score; regions: the region mix only; fit: always keep the fit")
         ->capture_default_str()
-        ->check(CLI::IsMember({"validated", "fit"}));
+        ->check(CLI::IsMember({"validated", "regions", "fit"}));
     sub->add_option("--prune-below", d.pruneBelow,
                     "Remove the moving Gaussians whose opacity Stage II leaves below this (before the split and at the "
                     "end; 0: keep every Gaussian)")
@@ -175,7 +184,9 @@ inline DeformJobOptions deformJobOptions(const DeformArgs& args, const CLI::App*
     job.evaluate = !args.noEval;
     job.densify.split = args.split == "auto";
     job.curveSplit = args.curveSplit == "auto";
-    job.keepValidated = args.keep == "validated";
+    job.keepValidated = args.keep != "fit";
+    job.validatedSplit = args.validatedSplit == "auto";
+    job.keepPerGaussian = args.keep == "validated";
     if (args.curveShift != "auto") job.curveShift = std::strtod(args.curveShift.c_str(), nullptr);
     return job;
 }

@@ -54,6 +54,10 @@ FieldPointErrors fieldPointErrors(const FieldErrorTarget& t, const GaussianCloud
         e.opacity[j] = std::fabs(double(oDef[j]) - double(t.opacity[j]));
         const float* fd = fDef.data() + j * std::size_t(stride);
         for (int s = 0; s < stride; ++s) e.color[j] += std::fabs(double(fd[s]) - target[s]);
+        if (!t.weight.empty()) {
+            e.opacity[j] *= double(t.weight[j]);
+            e.color[j] *= double(t.weight[j]);
+        }
     }
     return e;
 }

@@ -31,7 +31,11 @@ struct FieldErrorTarget {
     std::vector<double> features; ///< [P,stride] R_p F_rest(X)
     double sumOpacity = 0.0;      ///< sum O_rest(X)
     double sumFeatures = 0.0;     ///< sum |F_rest(X)|_1
+    /// [P] each point's weight in every sum (a thinned point set: one over its keep probability);
+    /// empty: every point 1.
+    std::vector<float> weight;
     std::size_t size() const { return opacity.size(); }
+    double weightOf(std::size_t j) const { return weight.empty() ? 1.0 : double(weight[j]); }
 };
 
 /// @brief The rest features at X, SH rotated by R_p (arguments as fieldError()).
@@ -43,8 +47,8 @@ FieldErrorTarget fieldErrorTarget(const GaussianCloud& rest, const float* restPo
 FieldErrorReport fieldError(const FieldErrorTarget& target, const GaussianCloud& deformed, const float* warpedPoints,
                             const FeatureOptions& options = {});
 
-/// @brief Per point j: |O_def - O_target| and sum over the SH stride of |F_def - F_target|, the
-///        terms fieldError() sums (over the target's sumOpacity and sumFeatures).
+/// @brief Per point j: |O_def - O_target| and sum over the SH stride of |F_def - F_target|, times
+///        the point's weight: the terms fieldError() sums (over the target's sumOpacity and sumFeatures).
 struct FieldPointErrors {
     std::vector<double> opacity, color;
 };

@@ -152,9 +152,9 @@ TEST(AnimateJob, WarmStartKeepsItsBytesWhateverTheShardsTheRangeOrAResume)
     const std::string spec = fx.dir.file("anim4.json");
     writeText(spec, four);
     auto animate = [&](const std::string& out, const std::string& extra) {
-        // --curve-split off: a frame whose split adds Gaussians starts cold, and this test needs warm ones.
+        // No split: a frame whose split adds Gaussians starts cold, and this test needs warm ones.
         return runCli(msg("-q animate ", fx.model, " --spec ", spec, " -o ", fx.dir.file(out), " ", kFlags,
-                          " --curve-split off ", extra),
+                          " --curve-split off --validated-split off ", extra),
                       fx.dir.file(out + ".log"));
     };
     ASSERT_EQ(animate("cold", ""), 0) << readBytes(fx.dir.file("cold.log"));

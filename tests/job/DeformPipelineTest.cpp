@@ -113,9 +113,13 @@ TEST(DeformPipeline, CurveSplitAndTheValidatedKeepAtTheDefaults)
     const DeformJobOptions o = smallJob(dir, "bend.json", 30);
     const nlohmann::json r = runDeformJob(o);
     const std::size_t input = readGaussians(o.input).size();
-    const std::size_t added = r["curveSplit"]["added"].get<std::size_t>();
-    EXPECT_GT(added, 0u);
-    EXPECT_EQ(r["curveSplit"]["gaussians"].get<std::size_t>(), input + added);
+    const std::size_t curveAdded = r["curveSplit"]["added"].get<std::size_t>();
+    EXPECT_GT(curveAdded, 0u);
+    EXPECT_EQ(r["curveSplit"]["gaussians"].get<std::size_t>(), input + curveAdded);
+    const nlohmann::json& vs = r["validatedSplit"];
+    EXPECT_EQ(vs["added"].get<std::size_t>(), 2 * vs["split"].get<std::size_t>());
+    EXPECT_LE(vs["added"].get<std::size_t>(), vs["budget"].get<std::size_t>());
+    const std::size_t added = curveAdded + vs["added"].get<std::size_t>();
     EXPECT_EQ(r["stage2"]["gaussiansAdded"].get<std::size_t>(), added);
     EXPECT_EQ(r["stage2"]["gaussians"].get<std::size_t>(), input + added);
     EXPECT_EQ(readGaussians(o.outDir + "/deformed.ply").size(), input + added);
@@ -131,6 +135,11 @@ TEST(DeformPipeline, CurveSplitAndTheValidatedKeepAtTheDefaults)
     const double best = std::min({start, shifted, fit});
     const std::string kept = keep["kept"].get<std::string>();
     EXPECT_EQ(kept, mix < best ? "mix" : (start == best ? "start" : (shifted == best ? "shifted" : "fit")));
+    // Then each Gaussian's version: from the kept model's score down.
+    const nlohmann::json& each = keep["perGaussian"];
+    EXPECT_NEAR(each["validationBefore"].get<double>(), std::min(best, mix), 1e-6 * best);
+    EXPECT_LE(each["validationAfter"].get<double>(), each["validationBefore"].get<double>());
+    EXPECT_LE(each["swapped"].get<std::size_t>(), each["tried"].get<std::size_t>());
     // The curve shift: the share whose shifted start the validation points judge best.
     const nlohmann::json& shift = r["curveShift"];
     double lowest = INFINITY;
@@ -141,6 +150,15 @@ TEST(DeformPipeline, CurveSplitAndTheValidatedKeepAtTheDefaults)
     // regions) 0.084; validation start 0.169, fit 0.218, mix 0.155.
     EXPECT_LT(r["curveSplit"]["field_error"]["opacity"].get<double>(), 0.8 * err(r, "stage1", "opacity"));
     for (const char* what : {"opacity", "color"}) EXPECT_LT(err(r, "stage2", what), 0.8 * err(r, "stage1", what)) << what;
+    // --keep regions --validated-split off: neither step runs.
+    DeformJobOptions off = o;
+    off.outDir = dir.file("off");
+    off.keepPerGaussian = false;
+    off.validatedSplit = false;
+    const nlohmann::json q = runDeformJob(off);
+    EXPECT_FALSE(q.contains("validatedSplit"));
+    EXPECT_FALSE(q["stage2"]["keep"].contains("perGaussian"));
+    EXPECT_EQ(q["stage2"]["gaussians"].get<std::size_t>(), input + curveAdded);
 }
 
 TEST(DeformPipeline, RigidSpecStageTwoDoesNotRaiseTheError)

@@ -3,67 +3,18 @@
 #include <algorithm>
 #include <vector>
 
-#include "DeformPipeline.h"
+#include "ChoiceFixture.h"
 #include "StageTwoChoice.h"
 #include "deform/CurveSplit.h"
-#include "demo/DemoModels.h"
-#include "io/GaussianIO.h"
-#include "support/TestSupport.h"
 
 using namespace splatwarp;
 using namespace splatwarp::test;
-
-namespace {
-
-/// The stripes bend's Stage I model, its deformation and a validation judge.
-struct Fixture {
-    TempDir dir;
-    std::unique_ptr<DeformRest> rest;
-    Deformation deformation;
-    GaussianCloud stage1;
-    std::unique_ptr<Judge> validation;
-
-    Fixture()
-    {
-        DemoModelOptions so;
-        so.count = 2000;
-        writePly(dir.file("in.ply"), makeDemoModel("stripes", so));
-        DeformJobOptions o;
-        o.input = dir.file("in.ply");
-        o.specPath = std::string(SPLATWARP_SOURCE_DIR) + "/samples/specs/bend.json";
-        o.nodes = 48;
-        o.stage1Only = true;
-        const DeformSpec spec = loadDeformSpec(o.specPath);
-        rest = prepareDeformRest(o, graphOptionsOf(spec, o));
-        deformation = solveDeformation(rest->graph, rest->model, spec, o.ed);
-        stage1 = rest->stageOne->apply(deformation.transforms, deformation.nodeMoving).deformed;
-        HeldOutOptions h;
-        h.points = 20000;
-        h.seed = 7;
-        validation = std::make_unique<Judge>(rest->model, prepareJudgeRest(rest->model, h), deformation);
-    }
-
-    /// Stage I's model with every Gaussian on one side of the median deformed x made invisible.
-    GaussianCloud blanked(bool left) const
-    {
-        std::vector<float> xs;
-        for (std::size_t i = 0; i < stage1.size(); ++i) xs.push_back(stage1.mean(i).x);
-        std::nth_element(xs.begin(), xs.begin() + std::ptrdiff_t(xs.size() / 2), xs.end());
-        const float median = xs[xs.size() / 2];
-        GaussianCloud g = stage1;
-        for (std::size_t i = 0; i < g.size(); ++i)
-            if ((g.mean(i).x < median) == left) g.opacities[i] = -30.0f;
-        return g;
-    }
-};
-
-} // namespace
 
 // Start and fit each wrong on one half: the mix takes each region from the side that is right
 // there, and is far better than either.
 TEST(StageTwoChoice, TheMixTakesEachRegionFromTheSideThatFitsIt)
 {
-    const Fixture fx;
+    const ChoiceFixture fx;
     const GaussianCloud start = fx.blanked(true), fit = fx.blanked(false);
     StageTwoChoice c;
     const GaussianCloud kept = chooseStageTwoModel(*fx.validation, {{"start", &start}, {"fit", &fit}}, true, c);
@@ -87,7 +38,7 @@ TEST(StageTwoChoice, TheMixTakesEachRegionFromTheSideThatFitsIt)
 // region from the one right there.
 TEST(StageTwoChoice, TheMixTakesEachRegionFromTheBestOfThreeCandidates)
 {
-    const Fixture fx;
+    const ChoiceFixture fx;
     std::vector<float> xs;
     for (std::size_t i = 0; i < fx.stage1.size(); ++i) xs.push_back(fx.stage1.mean(i).x);
     std::sort(xs.begin(), xs.end());
@@ -121,7 +72,7 @@ TEST(StageTwoChoice, TheMixTakesEachRegionFromTheBestOfThreeCandidates)
 // it is the start, not below it).
 TEST(StageTwoChoice, AFitWorseThanItsStartIsDropped)
 {
-    const Fixture fx;
+    const ChoiceFixture fx;
     StageTwoChoice c;
     const GaussianCloud blank = fx.blanked(true);
     const GaussianCloud kept = chooseStageTwoModel(*fx.validation, {{"start", &fx.stage1}, {"fit", &blank}}, true, c);
@@ -137,7 +88,7 @@ TEST(StageTwoChoice, AFitWorseThanItsStartIsDropped)
 // that model is the start with every mean moved by the share of its second-order offset.
 TEST(StageTwoChoice, TheCurveShiftTakesTheShareTheValidationPointsPrefer)
 {
-    const Fixture fx;
+    const ChoiceFixture fx;
     const StageOneResult s1 = fx.rest->stageOne->apply(fx.deformation.transforms, fx.deformation.nodeMoving);
     const std::vector<float> curve = stageOneBendingOf(fx.rest->model, fx.rest->rig, fx.rest->graph,
                                                        fx.deformation.transforms, s1.deformed, s1.moving, {})

@@ -3,6 +3,7 @@
 #include <cmath>
 #include <set>
 
+#include "ChoiceFixture.h"
 #include "DeformPipeline.h"
 #include "WarmStart.h"
 #include "demo/DemoModels.h"
@@ -93,17 +94,12 @@ namespace {
 /// A small stripes bar bent by the sample spec, few iterations (about a second a fit).
 DeformJobOptions smallBend(const TempDir& dir)
 {
-    DemoModelOptions so;
-    so.count = 1500;
-    writePly(dir.file("in.ply"), makeDemoModel("stripes", so));
-    DeformJobOptions o;
-    o.input = dir.file("in.ply");
-    o.specPath = std::string(SPLATWARP_SOURCE_DIR) + "/samples/specs/bend.json";
-    o.nodes = 48;
+    DeformJobOptions o = stripesBend(dir, 1500);
     o.grid.cells = 12;
     o.stage2.iterations = 3;
     o.heldOut.points = 3000;
     o.curveSplit = false; // a split frame starts cold: these tests need the warm start
+    o.validatedSplit = false;
     return o;
 }
 

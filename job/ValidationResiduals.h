@@ -1,0 +1,67 @@
+#pragma once
+/// @file ValidationResiduals.h
+/// @brief A model's residuals at the validation points (its features minus the rest target's) and
+///        the exact change of the validation score (Judge::score(): opacity + colour relative L1)
+///        when some of its Gaussians are replaced by others. The field is a plain sum over
+///        Gaussians, so a swap changes only the points the old and new cutoff boxes reach.
+#include <cstddef>
+#include <cstdint>
+#include <unordered_map>
+#include <utility>
+#include <vector>
+
+#include "Judge.h"
+#include "core/GaussianCloud.h"
+
+namespace splatwarp {
+
+/// @brief Gaussian `index` of `cloud`.
+struct GaussianRef {
+    const GaussianCloud* cloud = nullptr;
+    std::size_t index = 0;
+};
+
+/// @brief The validation points bucketed in a uniform grid, to visit the ones near a box.
+class PointBuckets {
+public:
+    PointBuckets(const std::vector<float>& points, int cellsAlong);
+    /// Calls f(j) for each point j in the buckets overlapping [lo, hi] (the caller tests the box).
+    template <typename F>
+    void forEachNear(const float* lo, const float* hi, F&& f) const;
+
+private:
+    std::int64_t cellOf(double x, int a) const;
+    std::int64_t key(std::int64_t i, std::int64_t j, std::int64_t k) const { return (i * mCount[1] + j) * mCount[2] + k; }
+
+    double mLo[3] = {0, 0, 0};
+    double mCell = 0.0;
+    std::int64_t mCount[3] = {1, 1, 1};
+    std::vector<std::size_t> mOrder; ///< point indices by bucket
+    std::unordered_map<std::int64_t, std::pair<std::size_t, std::size_t>> mRanges;
+};
+
+/// @brief See the file comment.
+class ValidationResiduals {
+public:
+    ValidationResiduals(const Judge& validation, const GaussianCloud& model);
+    /// The validation score of the model with every swap applied so far.
+    double score() const;
+    /// The score change if the Gaussians `out` (of the current model) are replaced by `in`.
+    double change(const std::vector<GaussianRef>& out, const std::vector<GaussianRef>& in) const;
+    /// Record that swap.
+    void apply(const std::vector<GaussianRef>& out, const std::vector<GaussianRef>& in);
+
+private:
+    template <typename F>
+    void visit(const std::vector<GaussianRef>& out, const std::vector<GaussianRef>& in, F&& f) const;
+
+    const std::vector<float>& mX;
+    FeatureOptions mOptions;
+    int mStride;
+    PointBuckets mBuckets;
+    std::vector<double> mO, mF; ///< [P], [P,stride]
+    std::vector<double> mWeight; ///< [P] each point's weight (the target's) over the normalising sums
+    double mWeightO = 0, mWeightF = 0;
+};
+
+} // namespace splatwarp
