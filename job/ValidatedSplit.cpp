@@ -20,7 +20,7 @@ bool sameGaussian(const GaussianCloud& a, std::size_t i, const GaussianCloud& b,
            std::memcmp(&a.logScales[3 * i], &b.logScales[3 * j], 12) == 0 && a.opacities[i] == b.opacities[j];
 }
 
-/// The Gaussians that may split: moving, still Stage I's, heaviest (alpha s0 s1 s2) first.
+/// The Gaussians that may split: moving, still Stage I's, the heaviest (alpha s0 s1 s2), heaviest first.
 std::vector<std::size_t> splittable(const GaussianCloud& rest, const GaussianCloud& stage1, const SplitStart& s)
 {
     std::vector<std::size_t> out;
@@ -32,6 +32,7 @@ std::vector<std::size_t> splittable(const GaussianCloud& rest, const GaussianClo
         out.push_back(i);
     }
     std::stable_sort(out.begin(), out.end(), [&](std::size_t a, std::size_t b) { return mass[a] > mass[b]; });
+    if (out.size() > kValidatedSplitMaxTried) out.resize(kValidatedSplitMaxTried);
     return out;
 }
 

@@ -21,6 +21,9 @@ namespace splatwarp {
 
 /// A split is kept when it lowers the validation score by more than this share of the score.
 constexpr double kValidatedSplitMinGain = 1e-4;
+/// At most this many Gaussians, the heaviest, are tried: their nine children are held at once
+/// (about 140 MB at SH degree 3).
+constexpr std::size_t kValidatedSplitMaxTried = 65536;
 
 /// @brief Stage II's start: the model, its moving flags, each Gaussian's rest cell and phi's
 ///        second-order offsets [N,3] (empty: not kept), changed in place.
@@ -39,7 +42,8 @@ struct ValidatedSplitReport {
 };
 
 /// @brief Split (see the file comment) the Gaussians i < rest.size() of `start` that are still
-///        Stage I's (equal to stage1Deformed's i), adding at most `budget` Gaussians.
+///        Stage I's (equal to stage1Deformed's i; the kValidatedSplitMaxTried heaviest), adding at
+///        most `budget` Gaussians.
 ValidatedSplitReport validatedSplit(const Judge& validation, const GaussianCloud& rest, const Deformation& deformation,
                                     const StageOneOptions& stage1, const GaussianCloud& stage1Deformed,
                                     std::size_t budget, SplitStart start);
