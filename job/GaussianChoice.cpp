@@ -1,7 +1,6 @@
 #include "GaussianChoice.h"
 
 #include <algorithm>
-#include <cstring>
 
 #include "ValidationResiduals.h"
 #include "core/Progress.h"
@@ -10,15 +9,6 @@ namespace splatwarp {
 
 namespace {
 
-bool sameGaussian(const GaussianCloud& a, const GaussianCloud& b, std::size_t i)
-{
-    auto same = [i](const std::vector<float>& x, const std::vector<float>& y, std::size_t n) {
-        return std::memcmp(x.data() + n * i, y.data() + n * i, n * sizeof(float)) == 0;
-    };
-    return same(a.means, b.means, 3) && same(a.rotations, b.rotations, 4) && same(a.logScales, b.logScales, 3) &&
-           same(a.opacities, b.opacities, 1) && same(a.sh, b.sh, std::size_t(a.shStride()));
-}
-
 /// Gaussians some candidate holds another version of, heaviest (alpha s0 s1 s2) first.
 std::vector<std::size_t> heaviestFirst(const std::vector<StageTwoCandidate>& candidates, const GaussianCloud& kept)
 {
@@ -26,7 +16,7 @@ std::vector<std::size_t> heaviestFirst(const std::vector<StageTwoCandidate>& can
     std::vector<double> mass(kept.size(), 0.0);
     for (std::size_t i = 0; i < kept.size(); ++i) {
         bool differs = false;
-        for (const StageTwoCandidate& c : candidates) differs = differs || !sameGaussian(*c.model, kept, i);
+        for (const StageTwoCandidate& c : candidates) differs = differs || !kept.sameGaussian(i, *c.model, i);
         if (!differs) continue;
         const Vec3f s = kept.scale(i);
         mass[i] = double(kept.alpha(i)) * double(s.x) * double(s.y) * double(s.z);
@@ -50,7 +40,7 @@ GaussianCloud chooseEachGaussian(const Judge& validation, const std::vector<Stag
         const GaussianCloud* best = nullptr;
         double bestChange = 0.0;
         for (const StageTwoCandidate& c : candidates) {
-            if (sameGaussian(*c.model, kept, i)) continue;
+            if (kept.sameGaussian(i, *c.model, i)) continue;
             const double d = residuals.change({{&kept, i}}, {{c.model, i}});
             if (d < bestChange) {
                 bestChange = d;

@@ -5,6 +5,7 @@
 #include <numeric>
 #include <unordered_map>
 
+#include "ValidationResiduals.h"
 #include "core/Progress.h"
 #include "deform/CurveSplit.h"
 
@@ -17,16 +18,9 @@ class RegionLattice {
 public:
     explicit RegionLattice(const std::vector<float>& points)
     {
-        for (int a = 0; a < 3; ++a) {
-            mLo[a] = INFINITY;
-            double hi = -INFINITY;
-            for (std::size_t j = a; j < points.size(); j += 3) {
-                mLo[a] = std::min(mLo[a], double(points[j]));
-                hi = std::max(hi, double(points[j]));
-            }
-            mSize = std::max(mSize, (hi - mLo[a]) / kChoiceRegions);
-        }
-        if (!(mSize > 0)) mSize = 1.0;
+        const PointLattice lattice(points, kChoiceRegions);
+        std::copy_n(lattice.lo, 3, mLo);
+        mSize = lattice.cell;
     }
 
     std::int64_t key(double x, double y, double z) const

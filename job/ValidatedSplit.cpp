@@ -2,7 +2,6 @@
 
 #include <algorithm>
 #include <cmath>
-#include <cstring>
 #include <numeric>
 
 #include "ValidationResiduals.h"
@@ -14,19 +13,13 @@ namespace splatwarp {
 
 namespace {
 
-bool sameGaussian(const GaussianCloud& a, std::size_t i, const GaussianCloud& b, std::size_t j)
-{
-    return std::memcmp(&a.means[3 * i], &b.means[3 * j], 12) == 0 && std::memcmp(&a.rotations[4 * i], &b.rotations[4 * j], 16) == 0 &&
-           std::memcmp(&a.logScales[3 * i], &b.logScales[3 * j], 12) == 0 && a.opacities[i] == b.opacities[j];
-}
-
 /// The Gaussians that may split: moving, still Stage I's, the heaviest (alpha s0 s1 s2), heaviest first.
 std::vector<std::size_t> splittable(const GaussianCloud& rest, const GaussianCloud& stage1, const SplitStart& s)
 {
     std::vector<std::size_t> out;
     std::vector<double> mass(rest.size(), 0.0);
     for (std::size_t i = 0; i < rest.size() && i < s.model.size(); ++i) {
-        if (!s.moving[i] || !sameGaussian(s.model, i, stage1, i)) continue;
+        if (!s.moving[i] || !s.model.sameGaussian(i, stage1, i)) continue;
         const Vec3f sc = rest.scale(i);
         mass[i] = double(rest.alpha(i)) * double(sc.x) * double(sc.y) * double(sc.z);
         out.push_back(i);

@@ -9,21 +9,29 @@
 
 namespace splatwarp {
 
+PointLattice::PointLattice(const std::vector<float>& x, int cellsAlong)
+{
+    for (int a = 0; a < 3; ++a) {
+        lo[a] = INFINITY;
+        hi[a] = -INFINITY;
+        for (std::size_t j = std::size_t(a); j < x.size(); j += 3) {
+            lo[a] = std::min(lo[a], double(x[j]));
+            hi[a] = std::max(hi[a], double(x[j]));
+        }
+        cell = std::max(cell, (hi[a] - lo[a]) / cellsAlong);
+    }
+    if (!(cell > 0)) cell = 1.0;
+}
+
 PointBuckets::PointBuckets(const std::vector<float>& x, int cellsAlong)
 {
     const std::size_t n = x.size() / 3;
-    double hi[3];
+    const PointLattice lattice(x, cellsAlong);
+    mCell = lattice.cell;
     for (int a = 0; a < 3; ++a) {
-        mLo[a] = INFINITY;
-        hi[a] = -INFINITY;
-        for (std::size_t j = 0; j < n; ++j) {
-            mLo[a] = std::min(mLo[a], double(x[3 * j + std::size_t(a)]));
-            hi[a] = std::max(hi[a], double(x[3 * j + std::size_t(a)]));
-        }
-        mCell = std::max(mCell, (hi[a] - mLo[a]) / cellsAlong);
+        mLo[a] = lattice.lo[a];
+        mCount[a] = n ? std::int64_t(std::floor((lattice.hi[a] - mLo[a]) / mCell)) + 1 : 1;
     }
-    if (!(mCell > 0)) mCell = 1.0;
-    for (int a = 0; a < 3; ++a) mCount[a] = n ? std::int64_t(std::floor((hi[a] - mLo[a]) / mCell)) + 1 : 1;
     std::vector<std::int64_t> keys(n);
     for (std::size_t j = 0; j < n; ++j)
         keys[j] = key(cellOf(x[3 * j], 0), cellOf(x[3 * j + 1], 1), cellOf(x[3 * j + 2], 2));

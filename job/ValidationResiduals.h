@@ -21,6 +21,15 @@ struct GaussianRef {
     std::size_t index = 0;
 };
 
+/// @brief The bounds of points [P,3] and the cell edge that puts `cellsAlong` cells along their
+///        largest extent (1 when they have no extent): the lattices the Stage II choices lay over
+///        the validation points.
+struct PointLattice {
+    PointLattice(const std::vector<float>& points, int cellsAlong);
+    double lo[3], hi[3];
+    double cell = 0.0;
+};
+
 /// @brief The validation points bucketed in a uniform grid, to visit the ones near a box.
 class PointBuckets {
 public:

@@ -1,6 +1,7 @@
 #include "core/GaussianCloud.h"
 
 #include <algorithm>
+#include <cstring>
 #include <cmath>
 
 #include "core/Error.h"
@@ -35,6 +36,14 @@ void GaussianCloud::assign(std::size_t i, const GaussianCloud& o, std::size_t j)
     std::copy_n(o.logScales.begin() + std::ptrdiff_t(3 * j), 3, logScales.begin() + std::ptrdiff_t(3 * i));
     opacities[i] = o.opacities[j];
     std::copy_n(o.shOf(j), o.shStride(), shOf(i));
+}
+
+bool GaussianCloud::sameGaussian(std::size_t i, const GaussianCloud& o, std::size_t j) const
+{
+    auto same = [](const float* a, const float* b, std::size_t n) { return std::memcmp(a, b, n * sizeof(float)) == 0; };
+    return shDegree == o.shDegree && same(&means[3 * i], &o.means[3 * j], 3) &&
+           same(&rotations[4 * i], &o.rotations[4 * j], 4) && same(&logScales[3 * i], &o.logScales[3 * j], 3) &&
+           same(&opacities[i], &o.opacities[j], 1) && same(shOf(i), o.shOf(j), std::size_t(shStride()));
 }
 
 float scaledOpacityLogit(float logit, double w)

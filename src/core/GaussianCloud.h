@@ -37,6 +37,8 @@ struct GaussianCloud {
     void append(const GaussianCloud& other, std::size_t i);
     /// @brief Overwrite Gaussian i with Gaussian j of another cloud of the same SH degree.
     void assign(std::size_t i, const GaussianCloud& other, std::size_t j);
+    /// @brief Whether Gaussian i holds exactly (bit for bit) the values of Gaussian j of another cloud.
+    bool sameGaussian(std::size_t i, const GaussianCloud& other, std::size_t j) const;
     /// @brief Throws InputError if array sizes disagree or the degree is outside 0..3.
     void checkConsistent() const;
 

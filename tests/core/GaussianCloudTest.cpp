@@ -25,3 +25,22 @@ TEST(GaussianCloud, AssignCopiesOneGaussianWhole)
     EXPECT_EQ(dst.size(), src.size());
     dst.checkConsistent();
 }
+
+// sameGaussian(i, other, j) is bitwise equality of every array of the two Gaussians.
+TEST(GaussianCloud, SameGaussianComparesEveryArray)
+{
+    const GaussianCloud src = test::threeGaussians();
+    GaussianCloud dst = src;
+    dst.assign(0, src, 2);
+    EXPECT_TRUE(dst.sameGaussian(0, src, 2));
+    EXPECT_TRUE(dst.sameGaussian(1, src, 1));
+    EXPECT_FALSE(dst.sameGaussian(0, src, 0));
+    for (auto change : {+[](GaussianCloud& g) { g.means[1] += 1e-6f; }, +[](GaussianCloud& g) { g.rotations[3] += 1e-6f; },
+                        +[](GaussianCloud& g) { g.logScales[2] += 1e-6f; }, +[](GaussianCloud& g) { g.opacities[0] += 1e-6f; },
+                        +[](GaussianCloud& g) { g.sh[std::size_t(g.shStride() - 1)] += 1e-6f; }}) {
+        GaussianCloud c = src;
+        change(c);
+        EXPECT_FALSE(c.sameGaussian(0, src, 0));
+        EXPECT_TRUE(c.sameGaussian(1, src, 1));
+    }
+}
