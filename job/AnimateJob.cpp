@@ -31,7 +31,7 @@ json settingsJson(const DeformJobOptions& o)
             {"seed", o.seed ? std::int64_t(*o.seed) : std::int64_t(-1)},
             {"cells", o.grid.cells},
             {"cellSize", o.grid.cellSize},
-            {"samplesPerCell", o.grid.samplesPerAxis},
+            {"samplesPerCell", o.grid.samplesPerAxis == kAutoSamplesPerAxis ? json("auto") : json(o.grid.samplesPerAxis)},
             {"cutoff", o.grid.cutoff},
             {"fineBelow", o.grid.fineBelow},
             {"fineNeighbours", o.grid.fineNeighbours},

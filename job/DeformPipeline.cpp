@@ -46,6 +46,7 @@ nlohmann::json stageTwoJson(const StageTwoReport& r, const SampleGrid& grid, con
     return {{"energies", energies},
             {"movingGaussians", r.movingGaussians},
             {"activeCells", grid.stats().cells},
+            {"samplesPerCell", grid.options().samplesPerAxis},
             {"skippedCells", grid.stats().skippedCells},
             {"samples", grid.stats().samples},
             {"fineCells", grid.stats().fineCells},

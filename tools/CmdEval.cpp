@@ -91,6 +91,7 @@ const CommandRegistrar reg(35, [](CLI::App& app) {
     addVolumeOptions(sub, *a);
     sub->add_option("--points", a->heldOut.points, "Held-out points")->capture_default_str()->check(positive());
     sub->add_option("--seed", a->heldOut.seed, "Seed of the held-out points")->capture_default_str();
+    a->grid.samplesPerAxis = kAutoSamplesPerAxis; // --lattice: deform's training lattice by default
     addGridOptions(sub, a->grid);
     addDropInvalidFlag(sub, a->dropInvalid);
     sub->add_flag("--json", a->json, "Print JSON (keys opacity, color, points, inside, outside; image_psnr for rigid specs)");

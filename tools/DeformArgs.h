@@ -146,6 +146,7 @@ inline void addDeformOptions(CLI::App* sub, DeformArgs& args)
                     "axis (the paper: 2)")
         ->capture_default_str()
         ->check(CLI::Range(0.1, 5.0));
+    job.grid.samplesPerAxis = kAutoSamplesPerAxis;
     addGridOptions(sub, job.grid);
     addFineCellOptions(sub, args);
     addDensifyOptions(sub, args);

@@ -105,8 +105,8 @@ void checkGridInputs(const GaussianCloud& cloud, const SampleGridOptions& o)
 {
     cloud.checkConsistent();
     if (cloud.empty()) throw InputError("sample grid: the model has no Gaussians");
-    if (o.samplesPerAxis < 2 || o.samplesPerAxis > 16)
-        throw InputError(msg("sample grid: samples per cell axis must be in 2..16, got ", o.samplesPerAxis));
+    if (o.samplesPerAxis != kAutoSamplesPerAxis && (o.samplesPerAxis < 2 || o.samplesPerAxis > 16))
+        throw InputError(msg("sample grid: samples per cell axis must be in 2..16 (or auto), got ", o.samplesPerAxis));
     if (!(o.cutoff > 0.0f && o.cutoff < 1.0f)) throw InputError(msg("sample grid: cutoff must be in (0, 1), got ", o.cutoff));
     if (!(o.lambdaLpf >= 0.0f)) throw InputError(msg("sample grid: lambdaLpf must be >= 0, got ", o.lambdaLpf));
     if (!(o.cellSize >= 0.0f) || (o.cellSize <= 0.0f && o.cells < 1))
@@ -384,6 +384,33 @@ openvdb::Coord SampleGrid::Impl::cellOf(const Vec3d& p) const
     return openvdb::Coord(cellCoordOf(p.x), cellCoordOf(p.y), cellCoordOf(p.z));
 }
 
+namespace {
+
+/// samplesPerAxis auto (SampleGridOptions): the cells of the kAutoSamplesMin lattice, then the
+/// densest n within the sample and memory budgets. A finer n's smaller filter only shrinks the
+/// Gaussians' boxes, so its grid has at most these cells.
+int autoSamplesPerAxis(SampleGrid::Impl& im, const GaussianCloud& cloud, double h)
+{
+    im.options.samplesPerAxis = kAutoSamplesMin;
+    setLattice(im.set, cloud.shDegree, kAutoSamplesMin, h);
+    const double spacing = h / kAutoSamplesMin;
+    const SampleGridOptions& o = im.options;
+    const double cells = double(
+        activeCells(im, prepareCloud(cloud, double(o.lambdaLpf) * spacing * spacing, o.cutoff, o.threaded), h, cloud.shDegree)
+            ->activeVoxelCount());
+    int n = kAutoSamplesMin;
+    for (int m = n + 1; m <= kAutoSamplesMax; ++m) {
+        SampleGridOptions finer = o;
+        finer.samplesPerAxis = m;
+        if (cells * m * m * m > double(o.autoSampleBudget)) break;
+        if (o.maxMemoryBytes > 0 && cells * double(sampleGridBytesPerCell(finer, cloud.shDegree)) > double(o.maxMemoryBytes)) break;
+        n = m;
+    }
+    return n;
+}
+
+} // namespace
+
 int SampleGrid::Impl::cellCoordOf(double x) const { return int(std::floor(x / double(set.cellSize))); }
 
 SampleGrid::SampleGrid(const GaussianCloud& cloud, const SampleGridOptions& options) : mImpl(std::make_unique<Impl>())
@@ -394,8 +421,10 @@ SampleGrid::SampleGrid(const GaussianCloud& cloud, const SampleGridOptions& opti
     im.options = options;
     Stopwatch watch;
     const double h = cellEdge(cloud, options);
-    setLattice(im.set, cloud.shDegree, options.samplesPerAxis, h);
-    const double spacing = h / options.samplesPerAxis;
+    if (options.samplesPerAxis == kAutoSamplesPerAxis) im.options.samplesPerAxis = autoSamplesPerAxis(im, cloud, h);
+    const int n = im.options.samplesPerAxis;
+    setLattice(im.set, cloud.shDegree, n, h);
+    const double spacing = h / n;
     const double filterVariance = double(options.lambdaLpf) * spacing * spacing;
 
     const openvdb::MaskTree::Ptr topology =
@@ -406,10 +435,11 @@ SampleGrid::SampleGrid(const GaussianCloud& cloud, const SampleGridOptions& opti
     placeSamples(im, h);
     im.stats.samples = im.set.sampleCell.size();
     im.stats.topologyMs = watch.ms();
-    progress(msg("sample grid: ", im.stats.cells, " cells of ", h, " (", options.samplesPerAxis, "^3 samples each, ",
+    progress(msg("sample grid: ", im.stats.cells, " cells of ", h, " (", n, "^3 samples each",
+                 options.samplesPerAxis == kAutoSamplesPerAxis ? " by --samples-per-cell auto" : "", ", ",
                  im.stats.samples, " samples) in ", int(im.stats.topologyMs), " ms"));
     if (!im.set.uniform())
-        progress(msg("sample grid: ", im.stats.fineCells, " fine cells (", 2 * options.samplesPerAxis, "^3 samples: ",
+        progress(msg("sample grid: ", im.stats.fineCells, " fine cells (", 2 * n, "^3 samples: ",
                      im.stats.fineSamplesAdded, " samples added)"));
 
     watch.reset();

@@ -187,6 +187,7 @@ TEST(DeformPipeline, TheJudgeIgnoresTrainingFlagsAndEvalPrintsTheReport)
     DeformJobOptions b = a;
     b.outDir = dir.file("out12");
     b.grid.cells = 12;
+    b.grid.samplesPerAxis = kAutoSamplesPerAxis; // the CLI's default
     const nlohmann::json rb = runDeformJob(b);
     // Stage I does not depend on the lattice: the same baseline.ply, judged the same; the error
     // at the training lattice does depend on it.
@@ -203,9 +204,13 @@ TEST(DeformPipeline, TheJudgeIgnoresTrainingFlagsAndEvalPrintsTheReport)
     // A lattice flag without --lattice is a usage error; with it, eval gives the lattice error
     // (same graph, lattice and points as run a).
     EXPECT_EQ(runCli(eval + a.outDir + "/baseline.ply --cells 20"), 2);
-    const nlohmann::json lattice = evalJson(dir, eval + a.outDir + "/baseline.ply --lattice --cells 20");
+    const nlohmann::json lattice = evalJson(dir, eval + a.outDir + "/baseline.ply --lattice --cells 20 --samples-per-cell 4");
     EXPECT_EQ(lattice["opacity"], ra["stage1"]["lattice_error"]["opacity"]);
     EXPECT_EQ(lattice["color"], ra["stage1"]["lattice_error"]["color"]);
+    // --samples-per-cell auto (both commands' default) resolves to the same lattice in eval as in deform.
+    EXPECT_GT(rb["stage2"]["samplesPerCell"].get<int>(), 4);
+    const nlohmann::json autoLattice = evalJson(dir, eval + b.outDir + "/deformed.ply --lattice --cells 12");
+    EXPECT_EQ(autoLattice["opacity"], rb["stage2"]["lattice_error"]["opacity"]);
     // A missing spec file is bad input: exit 1.
     EXPECT_EQ(runCli("eval --rest " + a.input + " --deformed " + a.outDir + "/baseline.ply --spec " + dir.file("missing.json")), 1);
 }
@@ -217,7 +222,7 @@ TEST(DeformPipeline, FineCellsFromTheCommandLine)
     TempDir dir;
     const DeformJobOptions a = smallJob(dir, "bend.json", 1);
     const std::string base = "-q deform " + a.input + " --spec " + a.specPath + " --nodes 64 --cells 20 --iterations 1 "
-                             "--no-eval --device cpu --fine-cells ";
+                             "--samples-per-cell 4 --no-eval --device cpu --fine-cells ";
     auto stage2 = [&](const std::string& mode) {
         const std::string out = dir.file("out-" + mode);
         EXPECT_EQ(runCli(base + mode + " -o " + out), 0) << mode;

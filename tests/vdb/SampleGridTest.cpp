@@ -220,3 +220,37 @@ TEST(SampleGrid, CellSizeFollowsCellsOrExplicitSizeAndBadOptionsThrow)
     EXPECT_THROW(SampleGrid(g, o), InputError);
     EXPECT_THROW(SampleGrid(GaussianCloud{}, SampleGridOptions{}), InputError);
 }
+
+// --samples-per-cell auto: the densest n in [4, 8] whose grid fits the sample budget (and the
+// memory budget), counted on the 4^3 lattice's cells; the grid is then exactly the explicit n's.
+TEST(SampleGrid, AutoSamplesPerCellIsTheDensestWithinTheBudgets)
+{
+    const GaussianCloud g = makeDemoModel("stripes", {400, 6});
+    SampleGridOptions o;
+    o.cells = 12;
+    const std::size_t cells4 = SampleGrid(g, o).stats().cells;
+    auto resolved = [&](std::size_t budget, std::size_t memory) {
+        SampleGridOptions a = o;
+        a.samplesPerAxis = kAutoSamplesPerAxis;
+        a.autoSampleBudget = budget;
+        a.maxMemoryBytes = memory;
+        return SampleGrid(g, a);
+    };
+    const SampleGrid six = resolved(cells4 * 7 * 7 * 7 - 1, 0);
+    ASSERT_EQ(six.options().samplesPerAxis, 6);
+    o.samplesPerAxis = 6;
+    const SampleGrid explicitSix(g, o);
+    EXPECT_LE(six.stats().samples, cells4 * 6 * 6 * 6);
+    EXPECT_EQ(six.cellCoords(), explicitSix.cellCoords());
+    EXPECT_EQ(six.samples().restPositions, explicitSix.samples().restPositions);
+    EXPECT_EQ(six.samples().targetO, explicitSix.samples().targetO);
+    EXPECT_FLOAT_EQ(six.targetOptions().filterVariance, explicitSix.targetOptions().filterVariance);
+
+    EXPECT_EQ(resolved(std::size_t(1) << 40, 0).options().samplesPerAxis, 8);          // never past 8
+    EXPECT_EQ(resolved(cells4 * 5 * 5 * 5 - 1, 0).options().samplesPerAxis, 4);         // 5^3 would not fit
+    EXPECT_EQ(resolved(1, 0).options().samplesPerAxis, 4);                               // never below 4
+    SampleGridOptions five = o;
+    five.samplesPerAxis = 5;
+    const std::size_t memoryForFive = cells4 * sampleGridBytesPerCell(five, g.shDegree);
+    EXPECT_EQ(resolved(std::size_t(1) << 40, memoryForFive).options().samplesPerAxis, 5); // memory decides
+}
