@@ -34,6 +34,11 @@ CLI::Validator openInterval(double lo, double hi);
 CLI::Validator inRange(double lo, double hi);
 CLI::Validator positive();
 CLI::Validator nonNegative();
+/// @brief `word` as a whole number in [lo, hi] (decimal, nothing after it), or nothing.
+bool parseWholeNumber(const std::string& word, long lo, long hi, long& n);
+/// @brief An `auto|N` flag: "auto" or a whole number in [lo, hi] (usage error: "must be auto or a
+///        whole number from lo to hi, not '...'").
+CLI::Validator autoOrWholeNumber(long lo, long hi, const std::string& label);
 
 /// @brief The `bench` parent command (created on first use): each benchmark registers
 ///        `bench NAME` with `benchCommand(app)->add_subcommand(...)` from a CommandRegistrar

@@ -1,7 +1,6 @@
 #pragma once
 /// @file GridArgs.h
 /// @brief The sample-grid flags shared by `to-vdb`, `deform` and `eval` (one definition).
-#include <cstdlib>
 #include <string>
 
 #include "Command.h"
@@ -29,16 +28,7 @@ inline void addGridOptions(CLI::App* sub, SampleGridOptions& grid)
                ": small models get a finer lattice and filter"))
         ->type_name("auto|N")
         ->default_str(grid.samplesPerAxis == kAutoSamplesPerAxis ? "auto" : std::to_string(grid.samplesPerAxis))
-        ->check(CLI::Validator(
-            [](std::string& word) {
-                if (word == "auto") return std::string();
-                char* end = nullptr;
-                const long v = std::strtol(word.c_str(), &end, 10);
-                return end != word.c_str() && *end == '\0' && v >= 2 && v <= 16
-                           ? std::string()
-                           : "must be auto or a whole number from 2 to 16, not '" + word + "'";
-            },
-            ""));
+        ->check(autoOrWholeNumber(2, 16, ""));
     sub->add_option("--cutoff", grid.cutoff, "A Gaussian contributes where alpha*G >= cutoff (1e-3 for thin structures)")
         ->capture_default_str()
         ->check(inRange(1e-8, 0.999));

@@ -3,8 +3,6 @@
 /// @brief Flags that several commands take, each declared once: `--device` (every command that
 ///        computes on a device), `--iterations`, `--max-mean-step` and the coverage flags (every
 ///        command that runs Stage II).
-#include <cerrno>
-#include <cstdlib>
 #include <sstream>
 #include <string>
 
@@ -42,17 +40,11 @@ inline std::string iterationsHelp()
 ///        too keeps its value. Anything but auto or a whole number in [0, 1000000] is a usage error.
 inline void addIterationsOption(CLI::App* sub, StageTwoOptions& stageTwo)
 {
-    const auto count = [](const std::string& word, long& n) {
-        errno = 0;
-        char* end = nullptr;
-        n = std::strtol(word.c_str(), &end, 10);
-        return !word.empty() && errno == 0 && end && *end == '\0' && n >= 0 && n <= 1000000;
-    };
     sub->add_option_function<std::string>(
            "--iterations",
-           [sub, &stageTwo, count](const std::string& word) {
+           [sub, &stageTwo](const std::string& word) {
                long n = 0;
-               if (word != "auto" && count(word, n)) {
+               if (word != "auto" && parseWholeNumber(word, 0, 1000000, n)) {
                    stageTwo.iterations = int(n);
                    stageTwo.scheduleIterations = 0;
                    return;
@@ -63,13 +55,7 @@ inline void addIterationsOption(CLI::App* sub, StageTwoOptions& stageTwo)
            },
            iterationsHelp())
         ->default_str(std::to_string(stageTwo.iterations))
-        ->check(CLI::Validator(
-            [count](std::string& word) {
-                long n = 0;
-                return word == "auto" || count(word, n) ? std::string()
-                                                        : "must be auto or a whole number from 0 to 1000000, not '" + word + "'";
-            },
-            "auto|N"));
+        ->check(autoOrWholeNumber(0, 1000000, "auto|N"));
 }
 
 /// @brief `--max-mean-step` into the Stage II options (default: the options' value).

@@ -1,8 +1,10 @@
 /// The `splatwarp` command line: parse, call the library, map errors to exit codes
 /// (0 success, 1 bad input or failed job, 2 usage error).
 #include <algorithm>
+#include <cerrno>
 #include <cmath>
 #include <cstdio>
+#include <cstdlib>
 #include <memory>
 #include <new>
 #include <tbb/global_control.h>
@@ -94,6 +96,26 @@ CLI::Validator inRange(double lo, double hi)
 CLI::Validator positive() { return numberCheck([](double v) { return v > 0; }, "positive", "POSITIVE"); }
 
 CLI::Validator nonNegative() { return numberCheck([](double v) { return v >= 0; }, "non-negative", "NONNEGATIVE"); }
+
+bool parseWholeNumber(const std::string& word, long lo, long hi, long& n)
+{
+    errno = 0;
+    char* end = nullptr;
+    n = std::strtol(word.c_str(), &end, 10);
+    return !word.empty() && errno == 0 && end && *end == '\0' && n >= lo && n <= hi;
+}
+
+CLI::Validator autoOrWholeNumber(long lo, long hi, const std::string& label)
+{
+    return CLI::Validator(
+        [lo, hi](std::string& word) {
+            long n = 0;
+            return word == "auto" || parseWholeNumber(word, lo, hi, n)
+                       ? std::string()
+                       : msg("must be auto or a whole number from ", lo, " to ", hi, ", not '", word, "'");
+        },
+        label);
+}
 
 void addCommonChecks(CLI::App& app)
 {
