@@ -386,27 +386,34 @@ openvdb::Coord SampleGrid::Impl::cellOf(const Vec3d& p) const
 
 namespace {
 
-/// samplesPerAxis auto (SampleGridOptions): the cells of the kAutoSamplesMin lattice, then the
-/// densest n within the sample and memory budgets. A finer n's smaller filter only shrinks the
-/// Gaussians' boxes, so its grid has at most these cells.
-int autoSamplesPerAxis(SampleGrid::Impl& im, const GaussianCloud& cloud, double h)
+/// samplesPerAxis auto (SampleGridOptions): the n chosen, and the kAutoSamplesMin lattice's
+/// active cells it was counted on (the grid's own topology when n stays kAutoSamplesMin).
+struct AutoSamples {
+    int n = kAutoSamplesMin;
+    openvdb::MaskTree::Ptr topology;
+};
+
+/// The cells of the kAutoSamplesMin lattice, then the densest n within the sample and memory
+/// budgets. A finer n's smaller filter only shrinks the Gaussians' boxes, so its grid has at most
+/// these cells.
+AutoSamples autoSamplesPerAxis(SampleGrid::Impl& im, const GaussianCloud& cloud, double h)
 {
     im.options.samplesPerAxis = kAutoSamplesMin;
     setLattice(im.set, cloud.shDegree, kAutoSamplesMin, h);
     const double spacing = h / kAutoSamplesMin;
     const SampleGridOptions& o = im.options;
-    const double cells = double(
-        activeCells(im, prepareCloud(cloud, double(o.lambdaLpf) * spacing * spacing, o.cutoff, o.threaded), h, cloud.shDegree)
-            ->activeVoxelCount());
-    int n = kAutoSamplesMin;
-    for (int m = n + 1; m <= kAutoSamplesMax; ++m) {
+    AutoSamples a;
+    a.topology =
+        activeCells(im, prepareCloud(cloud, double(o.lambdaLpf) * spacing * spacing, o.cutoff, o.threaded), h, cloud.shDegree);
+    const double cells = double(a.topology->activeVoxelCount());
+    for (int m = a.n + 1; m <= kAutoSamplesMax; ++m) {
         SampleGridOptions finer = o;
         finer.samplesPerAxis = m;
         if (cells * m * m * m > double(o.autoSampleBudget)) break;
         if (o.maxMemoryBytes > 0 && cells * double(sampleGridBytesPerCell(finer, cloud.shDegree)) > double(o.maxMemoryBytes)) break;
-        n = m;
+        a.n = m;
     }
-    return n;
+    return a;
 }
 
 } // namespace
@@ -421,14 +428,18 @@ SampleGrid::SampleGrid(const GaussianCloud& cloud, const SampleGridOptions& opti
     im.options = options;
     Stopwatch watch;
     const double h = cellEdge(cloud, options);
-    if (options.samplesPerAxis == kAutoSamplesPerAxis) im.options.samplesPerAxis = autoSamplesPerAxis(im, cloud, h);
+    openvdb::MaskTree::Ptr topology; // auto keeping n = kAutoSamplesMin: the one it counted
+    if (options.samplesPerAxis == kAutoSamplesPerAxis) {
+        AutoSamples a = autoSamplesPerAxis(im, cloud, h);
+        im.options.samplesPerAxis = a.n;
+        if (a.n == kAutoSamplesMin) topology = std::move(a.topology);
+    }
     const int n = im.options.samplesPerAxis;
     setLattice(im.set, cloud.shDegree, n, h);
     const double spacing = h / n;
     const double filterVariance = double(options.lambdaLpf) * spacing * spacing;
 
-    const openvdb::MaskTree::Ptr topology =
-        activeCells(im, prepareCloud(cloud, filterVariance, options.cutoff, options.threaded), h, cloud.shDegree);
+    if (!topology) topology = activeCells(im, prepareCloud(cloud, filterVariance, options.cutoff, options.threaded), h, cloud.shDegree);
     im.stats.cells = indexCells(im, *topology, h, cloud.shDegree);
     locateGaussians(im, cloud);
     chooseFineCells(im, cloud, h, cloud.shDegree);

@@ -228,7 +228,8 @@ TEST(SampleGrid, AutoSamplesPerCellIsTheDensestWithinTheBudgets)
     const GaussianCloud g = makeDemoModel("stripes", {400, 6});
     SampleGridOptions o;
     o.cells = 12;
-    const std::size_t cells4 = SampleGrid(g, o).stats().cells;
+    const SampleGrid explicitFour(g, o);
+    const std::size_t cells4 = explicitFour.stats().cells;
     auto resolved = [&](std::size_t budget, std::size_t memory) {
         SampleGridOptions a = o;
         a.samplesPerAxis = kAutoSamplesPerAxis;
@@ -247,7 +248,10 @@ TEST(SampleGrid, AutoSamplesPerCellIsTheDensestWithinTheBudgets)
     EXPECT_FLOAT_EQ(six.targetOptions().filterVariance, explicitSix.targetOptions().filterVariance);
 
     EXPECT_EQ(resolved(std::size_t(1) << 40, 0).options().samplesPerAxis, 8);          // never past 8
-    EXPECT_EQ(resolved(cells4 * 5 * 5 * 5 - 1, 0).options().samplesPerAxis, 4);         // 5^3 would not fit
+    const SampleGrid four = resolved(cells4 * 5 * 5 * 5 - 1, 0);                       // 5^3 would not fit
+    EXPECT_EQ(four.options().samplesPerAxis, 4);
+    EXPECT_EQ(four.cellCoords(), explicitFour.cellCoords()); // the topology auto counted on, kept
+    EXPECT_EQ(four.samples().targetO, explicitFour.samples().targetO);
     EXPECT_EQ(resolved(1, 0).options().samplesPerAxis, 4);                               // never below 4
     SampleGridOptions five = o;
     five.samplesPerAxis = 5;
