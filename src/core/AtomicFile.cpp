@@ -8,6 +8,7 @@
 #include <cstring>
 #include <filesystem>
 #include <fstream>
+#include <mutex>
 #include <sys/stat.h>
 #include <unistd.h>
 
@@ -21,48 +22,87 @@ std::atomic<unsigned> gCounter{0};
 OutputSet* gActive = nullptr;
 
 // Paths a signal handler removes: files are unlinked, directories rmdir'ed (only when empty).
-// Fixed-size lock-free slots, because a handler may only touch async-signal-safe state.
-constexpr int kSlots = 4096;
-std::atomic<char*> gSlot[kSlots];
-std::atomic<bool> gSlotIsDir[kSlots];
+// Lock-free slots in chunks allocated on demand (a 6,000-view render holds 6,000 temporaries),
+// because a handler may only touch async-signal-safe state: it reads the chunk pointers, never
+// allocates.
+constexpr int kChunkSlots = 4096, kChunks = 1024; // up to 4 M pending paths
+struct Slot {
+    std::atomic<char*> path{nullptr};
+    std::atomic<bool> isDir{false};
+};
+std::atomic<Slot*> gChunk[kChunks];
+std::mutex gChunkMutex;
+
+Slot* chunk(int c)
+{
+    Slot* s = gChunk[c].load();
+    if (s) return s;
+    std::lock_guard<std::mutex> lock(gChunkMutex);
+    if (!(s = gChunk[c].load())) gChunk[c].store(s = new Slot[kChunkSlots]); // lives as long as the process
+    return s;
+}
+
+std::atomic<int> gFreeHint{0}; // slots below it were taken when it was set: searches start there
 
 int registerCleanup(const std::string& path, bool isDir)
 {
     char* copy = strdup(path.c_str());
-    for (int i = 0; i < kSlots; ++i) {
+    const int start = gFreeHint.load();
+    for (int n = 0; n < kChunks * kChunkSlots; ++n) {
+        const int slot = (start + n) % (kChunks * kChunkSlots);
+        Slot& s = chunk(slot / kChunkSlots)[slot % kChunkSlots];
         char* expected = nullptr;
-        if (!gSlot[i].compare_exchange_strong(expected, copy)) continue;
-        gSlotIsDir[i].store(isDir); // until then a handler may try the wrong call: unlink/rmdir fail harmlessly
-        return i;
+        if (!s.path.compare_exchange_strong(expected, copy)) continue;
+        s.isDir.store(isDir); // until then a handler may try the wrong call: unlink/rmdir fail harmlessly
+        gFreeHint.store(slot + 1);
+        return slot;
     }
-    std::free(copy); // more than kSlots pending outputs: this one is not cleaned up on a signal
-    return -1;
+    std::free(copy);
+    throw IoError(msg(path, ": more than ", kChunks * kChunkSlots, " outputs pending at once; refusing to write one that a signal could not clean up"));
 }
 
 void unregisterCleanup(int slot)
 {
-    if (slot >= 0) std::free(gSlot[slot].exchange(nullptr));
+    if (slot < 0) return;
+    std::free(gChunk[slot / kChunkSlots].load()[slot % kChunkSlots].path.exchange(nullptr));
+    if (slot < gFreeHint.load()) gFreeHint.store(slot);
+}
+
+/// Every registered slot (files or directories) for the handler.
+template <typename F>
+void forEachSlot(F&& f)
+{
+    for (int c = 0; c < kChunks; ++c)
+        if (Slot* slots = gChunk[c].load())
+            for (int i = 0; i < kChunkSlots; ++i) f(slots[i]);
 }
 
 extern "C" void cleanupOnSignal(int sig)
 {
-    for (int i = 0; i < kSlots; ++i) {
-        const char* p = gSlot[i].load();
-        if (p && !gSlotIsDir[i].load()) ::unlink(p);
-    }
+    forEachSlot([](Slot& s) {
+        const char* p = s.path.load();
+        if (p && !s.isDir.load()) ::unlink(p);
+    });
     // Created directories, innermost first: repeat while some rmdir succeeds.
     for (bool progress = true; progress;) {
         progress = false;
-        for (int i = 0; i < kSlots; ++i) {
-            char* p = gSlot[i].load();
-            if (p && gSlotIsDir[i].load() && ::rmdir(p) == 0) {
-                gSlot[i].store(nullptr);
+        forEachSlot([&](Slot& s) {
+            char* p = s.path.load();
+            if (p && s.isDir.load() && ::rmdir(p) == 0) {
+                s.path.store(nullptr);
                 progress = true;
             }
-        }
+        });
     }
     std::signal(sig, SIG_DFL);
     std::raise(sig);
+}
+
+/// One spelling per place, for comparing outputs that may not exist yet.
+std::string placeOf(const std::string& path)
+{
+    std::error_code ec;
+    return std::filesystem::weakly_canonical(std::filesystem::absolute(path, ec), ec).lexically_normal().string();
 }
 
 std::string tempPathFor(const std::string& finalPath)
@@ -91,7 +131,7 @@ void checkOutputPath(const std::string& path)
 AtomicFile::AtomicFile(std::string finalPath) : mFinal(std::move(finalPath))
 {
     checkOutputPath(mFinal);
-    if (gActive) gActive->checkNotInput(mFinal);
+    if (gActive) gActive->checkNotInput(mFinal), gActive->checkNotStaged(mFinal);
     mTemp = tempPathFor(mFinal);
     mSlot = registerCleanup(mTemp, false);
 }
@@ -141,19 +181,30 @@ OutputSet::~OutputSet()
         std::remove(s.temp.c_str());
         unregisterCleanup(s.slot);
     }
-    for (auto it = mCreatedDirs.rbegin(); it != mCreatedDirs.rend(); ++it) {
-        std::error_code ec;
-        std::filesystem::remove(it->first, ec); // only removes an empty directory
-        unregisterCleanup(it->second);
-    }
 }
 
 OutputSet* OutputSet::active() { return gActive; }
 
 void OutputSet::createDirectory(const std::string& dir)
 {
-    if (dir.empty()) throw IoError("empty output directory path");
     checkNotInput(dir);
+    mDirs.create(dir);
+}
+
+DirectoryGuard::~DirectoryGuard()
+{
+    for (auto it = mCreated.rbegin(); it != mCreated.rend(); ++it) {
+        if (!mKept) {
+            std::error_code ec;
+            std::filesystem::remove(it->first, ec); // only removes an empty directory
+        }
+        unregisterCleanup(it->second);
+    }
+}
+
+void DirectoryGuard::create(const std::string& dir)
+{
+    if (dir.empty()) throw IoError("empty output directory path");
     std::vector<std::filesystem::path> missing;
     std::error_code ec;
     for (std::filesystem::path p = dir; !p.empty() && !std::filesystem::exists(p, ec); p = p.parent_path()) {
@@ -164,7 +215,7 @@ void OutputSet::createDirectory(const std::string& dir)
     if (ec) throw IoError(msg(dir, ": cannot create output directory: ", ec.message()));
     if (!std::filesystem::is_directory(dir, ec)) throw IoError(msg(dir, ": exists and is not a directory"));
     for (auto it = missing.rbegin(); it != missing.rend(); ++it)
-        mCreatedDirs.emplace_back(it->string(), registerCleanup(it->string(), true));
+        mCreated.emplace_back(it->string(), registerCleanup(it->string(), true));
 }
 
 void OutputSet::removeOnCommit(const std::string& path) { mStale.push_back(path); }
@@ -178,15 +229,28 @@ void OutputSet::checkNotInput(const std::string& path) const
     }
 }
 
-void OutputSet::checkTarget(const std::string& path) const
+void OutputSet::checkTarget(const std::string& path)
 {
     checkOutputPath(path);
     checkNotInput(path);
+    const std::string place = placeOf(path);
+    for (const auto& [claimed, named] : mClaimed)
+        if (claimed == place)
+            throw IoError(msg(path, ": is also another output of this command (", named, "); give each output its own path"));
+    mClaimed.emplace_back(place, path);
+}
+
+void OutputSet::checkNotStaged(const std::string& path) const
+{
+    const auto it = mStagedPlaces.find(placeOf(path));
+    if (it != mStagedPlaces.end())
+        throw IoError(msg(path, ": this command already wrote it as another output (", it->second, "); give each output its own path"));
 }
 
 void OutputSet::stage(const std::string& temp, const std::string& finalPath, int slot)
 {
     mStaged.push_back({temp, finalPath, slot});
+    mStagedPlaces.emplace(placeOf(finalPath), finalPath);
 }
 
 void OutputSet::commit()
@@ -202,7 +266,7 @@ void OutputSet::commit()
         mStaged[i].slot = -1;
         mStaged[i].temp.clear();
     }
-    for (const auto& dir : mCreatedDirs) unregisterCleanup(dir.second);
+    mDirs.keep();
     mCommitted = true;
 }
 

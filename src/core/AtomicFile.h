@@ -3,6 +3,7 @@
 /// @brief Write-to-temporary-then-rename, so a failed job never leaves a half-written output, and
 ///        OutputSet, so a command's outputs appear together or not at all.
 #include <string>
+#include <unordered_map>
 #include <vector>
 
 namespace splatwarp {
@@ -39,6 +40,25 @@ void writeFileAtomic(const std::string& path, const std::string& contents);
 /// @brief Throws IoError when path must not be replaced by a regular file (see AtomicFile).
 void checkOutputPath(const std::string& path);
 
+/// @brief Output folders a command creates: those it created are removed again (when empty)
+///        unless keep() is called, also on SIGINT/SIGTERM/SIGHUP, so a failed command leaves no
+///        empty folders behind.
+class DirectoryGuard {
+public:
+    DirectoryGuard() = default;
+    ~DirectoryGuard();
+    DirectoryGuard(const DirectoryGuard&) = delete;
+    DirectoryGuard& operator=(const DirectoryGuard&) = delete;
+    /// @brief create_directories(dir), remembering what it created. @throws IoError.
+    void create(const std::string& dir);
+    /// @brief The command succeeded: leave the folders.
+    void keep() { mKept = true; }
+
+private:
+    std::vector<std::pair<std::string, int>> mCreated; ///< outermost first, with cleanup slots
+    bool mKept = false;
+};
+
 /// @brief One command's outputs, committed together. While it lives (one at a time per process),
 ///        AtomicFile::commit() only stages; commit() renames every staged file into place at the
 ///        end. Destroyed uncommitted (exception) it removes the staged files and the directories
@@ -63,8 +83,12 @@ public:
     /// @brief Refuse a destination that is one of the inputs (AtomicFile does; commands call
     ///        checkTarget() first to fail before any work).
     void checkNotInput(const std::string& path) const;
-    /// @brief checkOutputPath() and checkNotInput().
-    void checkTarget(const std::string& path) const;
+    /// @brief Before any work: checkOutputPath(), checkNotInput(), and refuse a path that an
+    ///        earlier checkTarget() of this command named already (two outputs on one file).
+    void checkTarget(const std::string& path);
+    /// @brief For AtomicFile: refuse a second write of one path in one command (it would
+    ///        silently replace the first output).
+    void checkNotStaged(const std::string& path) const;
     /// @brief For AtomicFile: take over a written temporary file (and its cleanup slot).
     void stage(const std::string& temp, const std::string& finalPath, int slot);
 
@@ -74,8 +98,10 @@ private:
         int slot;
     };
     std::vector<std::string> mInputs, mStale;
+    std::vector<std::pair<std::string, std::string>> mClaimed; ///< checkTarget()ed outputs: place, as named
     std::vector<Staged> mStaged;
-    std::vector<std::pair<std::string, int>> mCreatedDirs; ///< outermost first, with cleanup slots
+    std::unordered_map<std::string, std::string> mStagedPlaces; ///< place -> path as named
+    DirectoryGuard mDirs;
     OutputSet* mPrevious = nullptr;
     bool mCommitted = false;
 };

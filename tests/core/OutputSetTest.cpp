@@ -127,3 +127,57 @@ TEST(OutputSet, SigtermRemovesStagedFilesAndCreatedFolders)
     EXPECT_TRUE(WIFSIGNALED(status) && WTERMSIG(status) == SIGTERM);
     EXPECT_EQ(entries(dir.path()), 0u) << "left: " << (fs::exists(out) ? "job/" : "");
 }
+
+// A render of 6,000 views holds 6,000 temporaries at once: a signal removes every one (the
+// cleanup had 4,096 fixed slots and silently skipped the rest).
+TEST(OutputSet, SigintRemovesMoreTemporariesThanOneChunkOfSlots)
+{
+    TempDir dir;
+    const pid_t child = fork();
+    ASSERT_GE(child, 0);
+    if (child == 0) {
+        installSignalCleanup();
+        OutputSet outputs;
+        for (int i = 0; i < 6000; ++i) writeFileAtomic(dir.file("view_" + std::to_string(i) + ".png"), "v");
+        std::raise(SIGINT);
+        _exit(0); // not reached
+    }
+    int status = 0;
+    ASSERT_EQ(waitpid(child, &status, 0), child);
+    EXPECT_TRUE(WIFSIGNALED(status) && WTERMSIG(status) == SIGINT);
+    EXPECT_EQ(entries(dir.path()), 0u);
+}
+
+TEST(OutputSet, RefusesTwoOutputsOnOnePath)
+{
+    TempDir dir;
+    OutputSet outputs;
+    outputs.checkTarget(dir.file("a.ply"));
+    EXPECT_THROW(outputs.checkTarget(dir.path().string() + "/./a.ply"), IoError);
+    writeFileAtomic(dir.file("b.json"), "1");
+    EXPECT_THROW(writeFileAtomic(dir.file("b.json"), "2"), IoError); // would replace the first silently
+    outputs.commit();
+    EXPECT_EQ(slurp(dir.file("b.json")), "1");
+}
+
+// A command that fails leaves no folder it created, and one that succeeds keeps them.
+TEST(OutputSet, DirectoryGuardRemovesOnlyTheEmptyFoldersItCreated)
+{
+    TempDir dir;
+    fs::create_directories(dir.file("kept"));
+    {
+        DirectoryGuard dirs;
+        dirs.create(dir.file("kept/a/b"));
+        dirs.create(dir.file("c"));
+        std::ofstream(dir.file("c/user.txt")) << "x";
+    }
+    EXPECT_TRUE(fs::exists(dir.file("kept")));
+    EXPECT_FALSE(fs::exists(dir.file("kept/a")));
+    EXPECT_TRUE(fs::exists(dir.file("c/user.txt")));
+    {
+        DirectoryGuard dirs;
+        dirs.create(dir.file("d/e"));
+        dirs.keep();
+    }
+    EXPECT_TRUE(fs::is_directory(dir.file("d/e")));
+}

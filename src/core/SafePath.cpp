@@ -1,0 +1,45 @@
+#include "core/SafePath.h"
+
+#include <filesystem>
+#include <sys/stat.h>
+
+#include "core/Error.h"
+
+namespace splatwarp {
+
+namespace fs = std::filesystem;
+
+std::string pathInside(const std::string& root, const std::string& rel, const std::string& what)
+{
+    const fs::path p(rel);
+    if (rel.empty()) throw InputError(msg(what, ": empty path"));
+    if (p.is_absolute() || p.has_root_name())
+        throw InputError(msg(what, ": is an absolute path; it must be relative to the output folder ", root));
+    fs::path at(root);
+    for (const fs::path& part : p) {
+        if (part == "..") throw InputError(msg(what, ": climbs out of the output folder ", root, " (\"..\")"));
+        if (part.empty() || part == ".") continue;
+        at /= part;
+        struct stat st {};
+        if (::lstat(at.c_str(), &st) != 0) break; // not there yet: created below root
+        if (S_ISLNK(st.st_mode))
+            throw InputError(msg(what, ": ", at.string(), " is a symbolic link; a path inside the output folder may not follow one"));
+    }
+    if (at == fs::path(root)) throw InputError(msg(what, ": names the output folder itself"));
+    return at.string();
+}
+
+bool isWithin(const std::string& dir, const std::string& path)
+{
+    std::error_code ec;
+    const fs::path d = fs::weakly_canonical(fs::absolute(dir, ec), ec).lexically_normal();
+    const fs::path p = fs::weakly_canonical(fs::absolute(path, ec), ec).lexically_normal();
+    auto di = d.begin(), pi = p.begin();
+    for (; di != d.end(); ++di, ++pi) {
+        if (di->empty() && std::next(di) == d.end()) break; // "a/b/" ends in an empty part
+        if (pi == p.end() || *di != *pi) return false;
+    }
+    return true;
+}
+
+} // namespace splatwarp

@@ -1,0 +1,22 @@
+#pragma once
+/// @file SafePath.h
+/// @brief Paths named by data that someone else may have written (a batch job list, a manifest):
+///        they must stay inside the folder the user named, whatever they spell.
+#include <string>
+
+namespace splatwarp {
+
+/// @brief root/rel when `rel` is a relative path with no ".." component and no component below
+///        root that is a symbolic link (so it resolves inside root however the folder is laid
+///        out); parts that do not exist yet are fine (they will be created as folders and files).
+/// @throws InputError "WHAT: REASON" naming `what` (e.g. "jobs.json: job 3: \"output\" /etc/x").
+std::string pathInside(const std::string& root, const std::string& rel, const std::string& what);
+
+/// @brief Whether `path` is `dir` itself or lies below it, both resolved through symlinks of
+///        their existing parts (lexically for the rest).
+bool isWithin(const std::string& dir, const std::string& path);
+
+/// @brief Whether a and b are the same place or one lies inside the other (outputs that collide).
+inline bool overlaps(const std::string& a, const std::string& b) { return isWithin(a, b) || isWithin(b, a); }
+
+} // namespace splatwarp
