@@ -9,6 +9,7 @@
 #include "ZipWriter.h"
 #include "core/AtomicFile.h"
 #include "core/Error.h"
+#include "core/SafePath.h"
 #include "deform/AnimSpec.h"
 #include "image/ImageIO.h"
 #include "render/Camera.h"
@@ -65,40 +66,68 @@ json settingsJson(const DeformJobOptions& o)
             {"device", deviceName(o.device)}};
 }
 
-void makeDirs(const fs::path& dir)
-{
-    std::error_code ec;
-    fs::create_directories(dir, ec);
-    if (ec) throw IoError(msg(dir.string(), ": cannot create output directory: ", ec.message()));
-}
-
-/// The frame previews side by side (when every one exists).
+/// The frame previews side by side (when every one exists as a regular file).
 void writeStrip(const std::string& dir, const json& items)
 {
     std::vector<Image> frames;
     for (const json& i : items) {
         const fs::path p = fs::path(dir) / frameFile("preview", i.get<int>());
-        if (!fs::exists(p)) return;
+        std::error_code ec;
+        if (!fs::is_regular_file(fs::symlink_status(p, ec))) return;
         frames.push_back(readPng(p.string()));
     }
     if (frames.empty()) return;
     const int w = frames[0].width, h = frames[0].height, c = frames[0].channels;
     Image strip(w * int(frames.size()), h, c);
-    for (std::size_t f = 0; f < frames.size(); ++f)
+    for (std::size_t f = 0; f < frames.size(); ++f) {
+        if (frames[f].width != w || frames[f].height != h || frames[f].channels != c) return; // not one run's previews
         for (int y = 0; y < h; ++y)
             for (int x = 0; x < w; ++x)
                 for (int k = 0; k < c; ++k) strip.at(int(f) * w + x, y, k) = frames[f].at(x, y, k);
+    }
     writePng((fs::path(dir) / "preview" / "strip.png").string(), strip);
 }
 
-/// Strip and zip of a run that holds every frame of its range.
-void finishSequence(const std::string& dir, const json& items, bool zip, bool stage1Only)
+/// Strip and zip of a run that holds every frame of its range; the zip takes each frame's model
+/// at the size its (verified) manifest entry records.
+void finishSequence(const std::string& dir, const json& entries, bool zip, bool stage1Only)
 {
+    json items = json::array();
+    for (const json& e : entries) items.push_back(e["frame"]);
     writeStrip(dir, items);
     if (!zip) return;
-    std::vector<std::string> files;
-    for (const json& i : items) files.push_back(frameFile(stage1Only ? "baseline" : "deformed", i.get<int>()));
-    writeZip((fs::path(dir) / "sequence.zip").string(), dir, files);
+    std::vector<ZipMember> members;
+    for (const json& e : entries) {
+        const std::string model = frameFile(stage1Only ? "baseline" : "deformed", e["frame"].get<int>());
+        for (const json& f : e["files"])
+            if (f["path"] == model) members.push_back({model, f["bytes"].get<std::uint64_t>()});
+    }
+    writeZip((fs::path(dir) / "sequence.zip").string(), dir, members);
+}
+
+/// The files frame f may list: its own numbered outputs.
+bool isFrameFile(int f, const std::string& rel)
+{
+    for (const char* kind : {"deformed", "baseline", "vdb", "preview"})
+        if (rel == frameFile(kind, f)) return true;
+    return false;
+}
+
+/// Refuse an input that a run into dir would overwrite (animate writes these paths only).
+void checkInputsOutsideOutputs(const DeformJobOptions& o)
+{
+    for (const std::string& in : {o.input, o.specPath}) {
+        if (in.empty()) continue;
+        for (const char* out : {"frames", "vdb", "preview", "specs", "sequence.zip"})
+            if (isWithin((fs::path(o.outDir) / out).string(), in))
+                throw InputError(msg(in, ": lies in ", (fs::path(o.outDir) / out).string(), ", which animate -o ", o.outDir,
+                                     " writes; move it out of the output folder"));
+        std::error_code ec;
+        const fs::path place = fs::weakly_canonical(fs::absolute(in), ec);
+        if (place.parent_path() == fs::weakly_canonical(fs::absolute(o.outDir), ec) &&
+            place.filename().string().rfind("manifest", 0) == 0 && place.extension() == ".json")
+            throw InputError(msg(in, ": is a manifest of the output folder ", o.outDir, ", which animate rewrites"));
+    }
 }
 
 /// A frame's manifest entry from its deform report: files, timings, field errors and, with
@@ -225,12 +254,15 @@ int writeFrameSpecs(const AnimateJobOptions& options)
     const DeformJobOptions& o = options.deform;
     const AnimSpec anim = parseAnimSpec(readTextFile(o.specPath, "animation spec"), o.specPath);
     const int last = lastFrame(options, anim);
-    makeDirs(fs::path(o.outDir) / "specs");
+    checkInputsOutsideOutputs(o);
+    DirectoryGuard dirs;
+    dirs.create((fs::path(o.outDir) / "specs").string());
     for (int f = options.first; f <= last; ++f) {
         char name[32];
         std::snprintf(name, sizeof name, "spec.%04d.json", f);
         writeFileAtomic((fs::path(o.outDir) / "specs" / name).string(), frameSpecJson(anim, f).dump(2) + "\n");
     }
+    dirs.keep();
     return last - options.first + 1;
 }
 
@@ -242,9 +274,11 @@ SequenceResult runAnimateJob(const AnimateJobOptions& options)
     const AnimSpec anim = parseAnimSpec(specText, o.specPath);
     const int last = lastFrame(options, anim);
     const fs::path dir(o.outDir);
+    checkInputsOutsideOutputs(o);
+    DirectoryGuard dirs; // a run that fails before its first frame leaves no empty folders
     for (const char* sub : {"frames", "vdb", "preview"})
         if (sub == std::string("frames") || (sub == std::string("vdb") && o.writeVdb) || (sub == std::string("preview") && o.render))
-            makeDirs(dir / sub);
+            dirs.create((dir / sub).string());
 
     // All frames share the spec's graph block, so one rest side serves them all.
     std::unique_ptr<DeformRest> rest = prepareDeformRest(o, graphOptionsOf(frameSpec(anim, options.first), o));
@@ -256,6 +290,7 @@ SequenceResult runAnimateJob(const AnimateJobOptions& options)
     SequenceRun run;
     run.dir = o.outDir;
     run.shard = options.shard;
+    run.fileBelongs = isFrameFile;
     for (int f = options.first; f <= last; ++f) run.items.push_back(f);
     json settings = settingsJson(o);
     if (options.warmStart) { // frames in pairs, shards over contiguous ranges of pairs
@@ -291,15 +326,22 @@ SequenceResult runAnimateJob(const AnimateJobOptions& options)
         return manifestEntry(report, files);
     };
     SequenceResult result = runSequence(run, runFrame, frameSummary);
-    if (options.shard.whole() && result.failed == 0) finishSequence(o.outDir, run.items, options.zip, o.stage1Only);
+    dirs.keep();
+    if (options.shard.whole() && result.failed == 0) {
+        json mine = json::array();
+        for (const json& e : result.entries)
+            if (e["frame"] >= options.first && e["frame"] <= last) mine.push_back(e);
+        finishSequence(o.outDir, mine, options.zip, o.stage1Only);
+    }
     return result;
 }
 
 json mergeAnimate(const std::string& dir, bool zip)
 {
-    json merged = mergeManifests(dir);
+    json merged = mergeManifests(dir, isFrameFile);
+    const json settings = merged.value("settings", json::object());
     if (merged["missing"].empty() && merged["failed"].empty())
-        finishSequence(dir, merged["items"], zip, merged["settings"].value("stage1Only", false));
+        finishSequence(dir, merged["entries"], zip, settings.is_object() && settings.contains("stage1Only") && settings["stage1Only"] == true);
     return merged;
 }
 

@@ -1,6 +1,8 @@
 #include "Sequence.h"
 
+#include <algorithm>
 #include <cstdint>
+#include <sys/stat.h>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
@@ -11,6 +13,7 @@
 #include "core/AtomicFile.h"
 #include "core/Error.h"
 #include "core/Progress.h"
+#include "core/SafePath.h"
 
 namespace splatwarp {
 
@@ -21,11 +24,14 @@ namespace {
 
 json readManifest(const fs::path& path)
 {
+    json m;
     try {
-        return json::parse(readTextFile(path.string(), "manifest"));
+        m = json::parse(readTextFile(path.string(), "manifest"));
     } catch (const json::exception& e) {
         throw InputError(msg(path.string(), ": not a manifest (invalid JSON: ", e.what(), ")"));
     }
+    checkManifest(m, path.string());
+    return m;
 }
 
 /// Files of an entry with their sizes and digests (paths relative to dir).
@@ -40,37 +46,29 @@ json describeFiles(const std::string& dir, const json& files)
     return out;
 }
 
-bool filesMatch(const std::string& dir, const json& entry)
-{
-    if (!entry.contains("files")) return false;
-    for (const json& f : entry["files"]) {
-        const fs::path path = fs::path(dir) / f.value("path", std::string());
-        std::error_code ec;
-        if (!fs::is_regular_file(path, ec) || fs::file_size(path, ec) != f.value("bytes", std::uintmax_t(0)) ||
-            fileDigest(path.string()) != f.value("fnv1a64", std::string()))
-            return false;
-    }
-    return true;
-}
+bool isWholeNumber(const json& v) { return v.is_number_integer() || v.is_number_unsigned(); }
+/// Frame and job numbers: whole, 0 .. 10^7 (what int holds and a run can list).
+bool isItemNumber(const json& v) { return isWholeNumber(v) && v.get<long long>() >= 0 && v.get<long long>() <= 10000000; }
 
-/// Finished entries of earlier runs with the same settings, by item (any manifest in dir).
+/// Finished entries of earlier runs with the same settings, by item (any manifest in dir); an
+/// entry whose files do not verify is computed again, never followed.
 std::map<int, json> finishedEntries(const SequenceRun& run)
 {
     std::map<int, json> out;
     std::error_code ec;
     for (const fs::directory_entry& e : fs::directory_iterator(run.dir, ec)) {
         const std::string name = e.path().filename().string();
-        if (name.rfind("manifest", 0) != 0 || e.path().extension() != ".json") continue;
+        if (name.rfind("manifest", 0) != 0 || e.path().extension() != ".json" || !e.is_regular_file(ec) || e.is_symlink(ec)) continue;
         json m;
         try {
             m = readManifest(e.path());
         } catch (const Error&) {
             continue; // an unreadable manifest only costs redoing its items
         }
-        if (m.value("settingsHash", std::string()) != run.settingsHash || !m.contains("entries")) continue;
+        if (m["settingsHash"] != run.settingsHash || m["itemName"] != run.itemName) continue;
         for (const json& entry : m["entries"])
-            if (entry.value("status", std::string()) == "done" && filesMatch(run.dir, entry))
-                out[entry.value(run.itemName, -1)] = entry;
+            if (entry["status"] == "done" && unverifiedFiles(run.dir, entry, run.itemName, run.fileBelongs).empty())
+                out[entry[run.itemName].get<int>()] = entry;
     }
     return out;
 }
@@ -183,34 +181,119 @@ SequenceResult runSequence(const SequenceRun& run, const ItemRunner& runItem, co
         writeManifest(run, result.manifest, entries, items);
     }
     if (mine.empty()) writeManifest(run, result.manifest, entries, items);
+    result.entries = json::array();
+    for (const auto& [item, entry] : entries) result.entries.push_back(entry);
     return result;
 }
 
-json mergeManifests(const std::string& dir)
+void checkManifest(const json& m, const std::string& path)
+{
+    auto bad = [&](const std::string& what) { throw InputError(msg(path, ": not a manifest of splatwarp: ", what)); };
+    if (!m.is_object()) bad("not a JSON object");
+    for (const char* key : {"settingsHash", "itemName"})
+        if (!m.contains(key) || !m[key].is_string()) bad(msg("needs \"", key, "\" (a string)"));
+    const std::string item = m["itemName"];
+    if (item != "frame" && item != "job") bad("\"itemName\" must be \"frame\" or \"job\"");
+    if (!m.contains("items") || !m["items"].is_array() || !std::all_of(m["items"].begin(), m["items"].end(), isItemNumber))
+        bad("needs \"items\" (an array of whole numbers 0 .. 10^7)");
+    const json& shard = m.contains("shard") ? m["shard"] : json();
+    if (!shard.is_object() || !isWholeNumber(shard.value("index", json())) || !isWholeNumber(shard.value("count", json())) ||
+        shard["count"].get<long long>() < 1 || shard["count"].get<long long>() > 1000000 || shard["index"].get<long long>() < 0 || shard["index"] >= shard["count"])
+        bad("needs \"shard\" with whole numbers 0 <= index < count");
+    if (!m.contains("entries") || !m["entries"].is_array()) bad("needs \"entries\" (an array)");
+    for (const json& e : m["entries"]) {
+        if (!e.is_object() || !isItemNumber(e.value(item, json())) || !e.value("status", json()).is_string())
+            bad(msg("every entry needs \"", item, "\" (a whole number) and \"status\" (a string)"));
+        if (e["status"] != "done") continue;
+        if (!e.contains("files") || !e["files"].is_array()) bad(msg(item, " ", e[item].dump(), ": a done entry needs \"files\""));
+        for (const json& f : e["files"])
+            if (!f.is_object() || !f.value("path", json()).is_string() || !f.value("bytes", json()).is_number_unsigned() ||
+                !f.value("fnv1a64", json()).is_string())
+                bad(msg(item, " ", e[item].dump(), ": each file needs \"path\", \"bytes\" and \"fnv1a64\""));
+    }
+}
+
+std::string unverifiedFiles(const std::string& dir, const json& entry, const std::string& itemName,
+                            const std::function<bool(int, const std::string&)>& fileBelongs)
+{
+    const int item = entry[itemName].get<int>();
+    for (const json& f : entry["files"]) {
+        const std::string rel = f["path"];
+        std::string path;
+        try {
+            path = pathInside(dir, rel, rel);
+        } catch (const InputError& e) {
+            return e.what();
+        }
+        if (fileBelongs && !fileBelongs(item, rel)) return msg(rel, ": is not a file of ", itemName, " ", item);
+        struct stat st {};
+        if (::lstat(path.c_str(), &st) != 0) return msg(rel, ": is missing");
+        if (!S_ISREG(st.st_mode)) return msg(rel, ": is not a regular file");
+        if (std::uintmax_t(st.st_size) != f["bytes"].get<std::uintmax_t>())
+            return msg(rel, ": has ", st.st_size, " bytes, the manifest says ", f["bytes"].get<std::uintmax_t>());
+        if (fileDigest(path) != f["fnv1a64"].get<std::string>()) return msg(rel, ": its digest differs from the manifest's");
+    }
+    return "";
+}
+
+namespace {
+
+/// The shard manifests of dir, checked against each other.
+std::vector<json> shardManifests(const std::string& dir)
 {
     std::vector<json> shards;
     std::error_code ec;
     for (const fs::directory_entry& e : fs::directory_iterator(dir, ec))
-        if (e.path().filename().string().rfind("manifest.shard-", 0) == 0 && e.path().extension() == ".json")
+        if (e.path().filename().string().rfind("manifest.shard-", 0) == 0 && e.path().extension() == ".json") {
+            if (e.is_symlink(ec) || !e.is_regular_file(ec)) throw InputError(msg(e.path().string(), ": not a regular file"));
             shards.push_back(readManifest(e.path()));
+            shards.back()["_path"] = e.path().string();
+        }
     if (ec) throw IoError(msg(dir, ": cannot list: ", ec.message()));
     if (shards.empty()) throw InputError(msg(dir, ": no manifest.shard-*.json to merge"));
-    json merged = shards.front();
-    const std::string itemName = merged.value("itemName", std::string("frame"));
-    std::map<int, json> entries;
-    std::set<int> found;
+    const json& first = shards.front();
     for (const json& s : shards) {
-        if (s.value("settingsHash", std::string()) != merged.value("settingsHash", std::string()))
-            throw InputError(msg(dir, ": shard manifests were written with different specs or settings (settingsHash differs)"));
+        const std::string where = s["_path"];
+        if (s["settingsHash"] != first["settingsHash"] || s["itemName"] != first["itemName"])
+            throw InputError(msg(dir, ": shard manifests were written with different specs or settings (settingsHash differs: ", where, ")"));
+        if (s["items"] != first["items"] || s["shard"]["count"] != first["shard"]["count"])
+            throw InputError(msg(where, ": lists other items or another shard count than ", first["_path"].get<std::string>()));
+    }
+    return shards;
+}
+
+} // namespace
+
+json mergeManifests(const std::string& dir, const std::function<bool(int, const std::string&)>& fileBelongs)
+{
+    std::vector<json> shards = shardManifests(dir);
+    json merged = shards.front();
+    merged.erase("_path");
+    const std::string itemName = merged["itemName"];
+    const std::set<int> runItems = merged["items"].get<std::set<int>>();
+    std::map<int, json> entries;
+    std::map<std::string, int> owner; // file -> the item whose verified entry lists it
+    std::set<int> found;
+    for (json& s : shards) {
         found.insert(s["shard"]["index"].get<int>());
-        for (const json& e : s["entries"]) {
+        for (json& e : s["entries"]) {
             const int item = e[itemName].get<int>();
+            if (!runItems.count(item)) throw InputError(msg(s["_path"].get<std::string>(), ": ", itemName, " ", item, " is not an item of the run"));
+            if (e["status"] == "done") {
+                std::string why = unverifiedFiles(dir, e, itemName, fileBelongs);
+                for (const json& f : e["files"])
+                    if (why.empty() && owner.count(f["path"]) && owner[f["path"]] != item)
+                        why = msg(f["path"].get<std::string>(), ": is listed by ", itemName, " ", owner[f["path"]], " too");
+                if (!why.empty()) e = {{itemName, item}, {"status", "failed"}, {"message", "merge: " + why}};
+                else
+                    for (const json& f : e["files"]) owner[f["path"]] = item;
+            }
             if (!entries.count(item) || e["status"] == "done") entries[item] = e;
         }
     }
     json missing = json::array(), failed = json::array();
-    for (const json& i : merged["items"]) {
-        const auto it = entries.find(i.get<int>());
+    for (int i : runItems) {
+        const auto it = entries.find(i);
         if (it == entries.end()) missing.push_back(i);
         else if (it->second["status"] != "done") failed.push_back(i);
     }
@@ -223,6 +306,17 @@ json mergeManifests(const std::string& dir)
     merged["failed"] = failed;
     writeFileAtomic((fs::path(dir) / "manifest.json").string(), merged.dump(2) + "\n");
     return merged;
+}
+
+std::string mergeFailures(const json& merged)
+{
+    std::string out;
+    int shown = 0;
+    for (const json& e : merged["entries"])
+        if (e["status"] != "done" && shown++ < 5)
+            out += msg("\n  ", merged["itemName"].get<std::string>(), " ", e[merged["itemName"].get<std::string>()].get<int>(), ": ",
+                       e.value("message", std::string("failed")));
+    return out;
 }
 
 } // namespace splatwarp

@@ -24,6 +24,9 @@ struct SequenceRun {
     std::vector<int> items;       ///< every item of the run, in order; this shard takes its share
     /// This shard's items, when not those with item mod N = I (animate --warm-start: contiguous ranges).
     std::function<bool(int item)> owns;
+    /// Whether a file (relative to dir) may belong to an item; resume never reuses an entry
+    /// listing another (a frame's own numbered files, a job's files under its output).
+    std::function<bool(int item, const std::string& rel)> fileBelongs;
 };
 
 /// @brief Runs one item; returns its entry: "files" (paths relative to dir, written atomically)
@@ -35,6 +38,7 @@ using ItemSummary = std::function<std::string(const nlohmann::json& entry)>;
 struct SequenceResult {
     int done = 0, resumed = 0, failed = 0;
     std::string manifest;         ///< path of the manifest written
+    nlohmann::json entries;       ///< its entries, by item
 };
 
 /// @brief "manifest.json" for a whole run, "manifest.shard-I.json" for shard I.
@@ -43,10 +47,26 @@ std::string manifestName(const Shard& shard);
 /// @brief Run this shard's items (see the file comment); the manifest lists every one of them.
 SequenceResult runSequence(const SequenceRun& run, const ItemRunner& runItem, const ItemSummary& summary);
 
+/// @brief Why a finished entry's files cannot be trusted, or "" when every one verifies: a path
+///        inside dir (relative, no "..", no symlink), a regular file of the recorded size and
+///        digest, that `fileBelongs` (when set) gives to the entry's item.
+std::string unverifiedFiles(const std::string& dir, const nlohmann::json& entry, const std::string& itemName,
+                            const std::function<bool(int, const std::string&)>& fileBelongs = nullptr);
+
+/// @brief Check a manifest's shape (what resume and merge read): header fields, items, shard,
+///        entries with their item, status and files. @throws InputError naming `path`.
+void checkManifest(const nlohmann::json& manifest, const std::string& path);
+
 /// @brief Join dir/manifest.shard-*.json into dir/manifest.json with "missing" and "failed" item
 ///        lists (items of the run that no shard finished, or that failed) and "shards" found.
-/// @throws InputError when there is no shard manifest or they disagree on the settings hash.
-nlohmann::json mergeManifests(const std::string& dir);
+///        Every "done" entry is verified (unverifiedFiles(); no file listed by two items): one
+///        that fails counts as failed, its message says why.
+/// @throws InputError when there is no shard manifest, one is malformed, or they disagree on
+///         the settings hash, the items or the shard count.
+nlohmann::json mergeManifests(const std::string& dir, const std::function<bool(int, const std::string&)>& fileBelongs = nullptr);
+
+/// @brief The messages of a merge's failed items (the first five), one indented line each.
+std::string mergeFailures(const nlohmann::json& merged);
 
 /// @brief A whole file as bytes (specs, job lists, manifests). @throws IoError naming it and `what`.
 std::string readTextFile(const std::string& path, const std::string& what);

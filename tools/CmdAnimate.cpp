@@ -72,7 +72,8 @@ const CommandRegistrar reg(35, [](CLI::App& app) {
             const nlohmann::json merged = mergeAnimate(args->merge, args->zip);
             printSummary("merged", merged);
             if (!merged["missing"].empty() || !merged["failed"].empty())
-                throw InputError(msg(args->merge, ": frames missing ", merged["missing"].dump(), ", failed ", merged["failed"].dump()));
+                throw InputError(msg(args->merge, ": frames missing ", merged["missing"].dump(), ", failed ", merged["failed"].dump(),
+                                     mergeFailures(merged)));
             return;
         }
         AnimateJobOptions options;
