@@ -34,7 +34,8 @@ std::string besideOutput(const std::string& out, const std::string& suffix)
 void addFitOptions(CLI::App* sub, FromVdbArgs& a)
 {
     sub->add_option("--gaussians", a.job.gaussians, "Gaussian budget N (default 0: one per 8 active voxels)")
-        ->capture_default_str();
+        ->capture_default_str()
+        ->check(inRange(0, 1e9));
     sub->add_option("--iterations", a.job.fitting.iterations, "Stage II iterations (all rounds together)")
         ->capture_default_str()
         ->check(nonNegative());
@@ -60,13 +61,15 @@ void addFitOptions(CLI::App* sub, FromVdbArgs& a)
         ->check(positive());
     StageTwoOptions& s2 = a.job.fitting.stage2;
     sub->add_option("--lr-position", s2.lrPositionStart, "Position learning rate at the start (times the volume's extent)")
-        ->capture_default_str();
+        ->capture_default_str()
+        ->check(nonNegative());
     sub->add_option("--lr-position-end", s2.lrPositionEnd, "Position learning rate at the end (exponential decay)")
-        ->capture_default_str();
-    sub->add_option("--lr-scale", s2.lrLogScale, "Log-scale learning rate")->capture_default_str();
-    sub->add_option("--lr-opacity", s2.lrOpacity, "Logit-opacity learning rate")->capture_default_str();
-    sub->add_option("--lr-sh", s2.lrSh, "SH learning rate")->capture_default_str();
-    sub->add_option("--lr-rotation", s2.lrRotation, "Quaternion learning rate")->capture_default_str();
+        ->capture_default_str()
+        ->check(nonNegative());
+    sub->add_option("--lr-scale", s2.lrLogScale, "Log-scale learning rate")->capture_default_str()->check(nonNegative());
+    sub->add_option("--lr-opacity", s2.lrOpacity, "Logit-opacity learning rate")->capture_default_str()->check(nonNegative());
+    sub->add_option("--lr-sh", s2.lrSh, "SH learning rate")->capture_default_str()->check(nonNegative());
+    sub->add_option("--lr-rotation", s2.lrRotation, "Quaternion learning rate")->capture_default_str()->check(nonNegative());
     addCoverageOptions(sub, s2);
     addMaxMeanStepOption(sub, s2);
     sub->add_option("--reject-steps", s2.rejectSteps,
@@ -74,7 +77,8 @@ void addFitOptions(CLI::App* sub, FromVdbArgs& a)
         ->capture_default_str();
     sub->add_option("--density-scale", a.job.densityScale,
                     "Extinction per unit of fitted opacity (default 0: a quarter of the grid's maximum)")
-        ->capture_default_str();
+        ->capture_default_str()
+        ->check(nonNegative());
     sub->add_flag("--no-fit", a.noFit, "Stop after the moment initialisation (the baseline)");
     sub->add_option("--eval-points", a.job.judge.points, "Held-out points of the error in report.json")
         ->capture_default_str()
@@ -103,6 +107,13 @@ const CommandRegistrar reg(45, [](CLI::App& app) {
         a->job.meaning = parseVolumeMeaning(a->as);
         a->job.fit = !a->noFit;
         a->job.fitting.stage2.device = resolveDevice(a->device);
+        // Every output checked before the fit, and all of them appear together or not at all.
+        OutputSet outputs({a->input});
+        const std::string report = a->report.empty() ? besideOutput(a->output, ".report.json") : a->report;
+        const std::string png = besideOutput(a->output, ".png");
+        outputs.checkTarget(a->output);
+        outputs.checkTarget(report);
+        if (a->render) outputs.checkTarget(png);
         const Volume volume = readVolume(a->input, a->read);
         const VolumeInfo& info = volume.info();
         progress(msg("read '", info.grid, "' from ", a->input, ": ", info.activeVoxels, " active voxels, voxel size ",
@@ -120,8 +131,9 @@ const CommandRegistrar reg(45, [](CLI::App& app) {
                                              orbitCameras(result.splats, orbit).front(), render);
         }
         writePly(a->output, result.splats);
-        writeFileAtomic(a->report.empty() ? besideOutput(a->output, ".report.json") : a->report, result.report.dump(2) + "\n");
-        if (a->render) writePng(besideOutput(a->output, ".png"), picture);
+        writeFileAtomic(report, result.report.dump(2) + "\n");
+        if (a->render) writePng(png, picture);
+        outputs.commit();
         const auto& held = result.report["held_out"];
         std::printf("held-out density error: no-fit %.4f%s\n", held["no_fit"]["opacity"].get<double>(),
                      held.contains("fit") ? msg(", fit ", held["fit"]["opacity"].get<double>()).c_str() : "");

@@ -29,6 +29,9 @@ struct Volume::Impl {
 
 namespace {
 
+/// The SH degrees splatwarp writes and fits (3DGS's 0..3).
+constexpr int kMaxShDegree = 3;
+
 /// Estimated peak bytes of a fit per active voxel (samples with their band, Stage II pairs and state).
 constexpr std::uint64_t kFitBytesPerVoxel = 1024;
 
@@ -110,16 +113,44 @@ T metaOr(const openvdb::MetaMap& m, const std::string& key, T fallback)
     return v ? v->value() : fallback;
 }
 
+void openFile(openvdb::io::File& file, const std::string& path)
+{
+    try {
+        file.open();
+    } catch (const std::exception& e) {
+        throw InputError(msg(path, ": not an OpenVDB file (", e.what(), ")"));
+    }
+}
+
+/// A grid's data; a cut or corrupt file is an InputError naming it (OpenVDB says "KeyError: Map
+/// is not registered" for a file cut inside a transform, std::ios errors for others).
+openvdb::GridBase::Ptr readGrid(openvdb::io::File& file, const std::string& path, const std::string& name)
+{
+    try {
+        return file.readGrid(name);
+    } catch (const std::exception& e) {
+        throw InputError(msg(path, ": grid '", name, "' cannot be read (truncated or corrupt file?): ", e.what()));
+    }
+}
+
 /// Our own sh_<k> grids, or a colour grid turned into F_dc = O (c - 1/2) / C0.
 void readFeatures(openvdb::io::File& file, const openvdb::GridPtrVec& grids, const VolumeReadOptions& o,
                   Volume::Impl& v)
 {
     VolumeInfo& info = v.info;
     if (info.ownFile && findGrid(grids, "sh_0")) {
+        // Our own metadata is input like any other: a forged degree must not size the features.
         const int degree = metaOr<std::int32_t>(*file.getMetadata(), "sh_degree", 0);
+        if (degree < 0 || degree > kMaxShDegree)
+            throw InputError(msg(info.path, ": metadata sh_degree is ", degree, " (an SH degree: 0 to ", kMaxShDegree, ")"));
         for (int k = 0; k < shCoeffCount(degree); ++k) {
-            auto g = openvdb::gridPtrCast<openvdb::Vec3SGrid>(file.readGrid("sh_" + std::to_string(k)));
+            const auto base = findGrid(grids, "sh_" + std::to_string(k));
+            if (!base || !base->isType<openvdb::Vec3SGrid>())
+                throw InputError(msg(info.path, ": sh_degree ", degree, " but no Vec3S grid sh_", k));
+            auto g = openvdb::gridPtrCast<openvdb::Vec3SGrid>(readGrid(file, info.path, "sh_" + std::to_string(k)));
             if (!g) throw InputError(msg(info.path, ": sh_degree ", degree, " but no Vec3S grid sh_", k));
+            if (g->transform() != v.density->transform())
+                throw InputError(msg(info.path, ": grid sh_", k, " has another transform than '", info.grid, "'"));
             checkFinite(info.path, *g);
             v.features.push_back(g);
         }
@@ -136,7 +167,7 @@ void readFeatures(openvdb::io::File& file, const openvdb::GridPtrVec& grids, con
     auto base = findGrid(grids, name);
     if (!base || !base->isType<openvdb::Vec3SGrid>())
         throw InputError(msg(info.path, ": no Vec3S colour grid named '", name, "'; grids: ", gridList(grids)));
-    auto color = openvdb::gridPtrCast<openvdb::Vec3SGrid>(file.readGrid(name));
+    auto color = openvdb::gridPtrCast<openvdb::Vec3SGrid>(readGrid(file, info.path, name));
     checkFinite(info.path, *color);
     if (color->transform() != v.density->transform())
         throw InputError(msg(info.path, ": colour grid '", name, "' has another transform than '", info.grid, "'"));
@@ -152,15 +183,6 @@ void readFeatures(openvdb::io::File& file, const openvdb::GridPtrVec& grids, con
     info.colorGrid = name;
 }
 
-void openFile(openvdb::io::File& file, const std::string& path)
-{
-    try {
-        file.open();
-    } catch (const openvdb::Exception& e) {
-        throw InputError(msg(path, ": not an OpenVDB file (", e.what(), ")"));
-    }
-}
-
 } // namespace
 
 Volume readVolume(const std::string& path, const VolumeReadOptions& o)
@@ -169,7 +191,12 @@ Volume readVolume(const std::string& path, const VolumeReadOptions& o)
     if (!std::ifstream(path)) throw IoError(msg(path, ": cannot open"));
     openvdb::io::File file(path);
     openFile(file, path);
-    const openvdb::GridPtrVec grids = *file.readAllGridMetadata();
+    openvdb::GridPtrVec grids;
+    try {
+        grids = *file.readAllGridMetadata();
+    } catch (const std::exception& e) {
+        throw InputError(msg(path, ": grid descriptors cannot be read (truncated or corrupt file?): ", e.what()));
+    }
     auto impl = std::make_unique<Volume::Impl>();
     VolumeInfo& info = impl->info;
     info.path = path;
@@ -178,7 +205,7 @@ Volume readVolume(const std::string& path, const VolumeReadOptions& o)
     const auto meta = findGrid(grids, info.grid);
     if (const auto count = meta->getMetadata<openvdb::Int64Metadata>(openvdb::GridBase::META_FILE_VOXEL_COUNT))
         checkMemory(where, std::uint64_t(count->value()), o);
-    impl->density = openvdb::gridPtrCast<openvdb::FloatGrid>(file.readGrid(info.grid));
+    impl->density = openvdb::gridPtrCast<openvdb::FloatGrid>(readGrid(file, path, info.grid));
     openvdb::FloatGrid& density = *impl->density;
     if (density.activeVoxelCount() == 0) throw InputError(msg(where, " has no active voxels"));
     checkMemory(where, density.activeVoxelCount(), o);
@@ -200,6 +227,7 @@ Volume readVolume(const std::string& path, const VolumeReadOptions& o)
     info.minValue = range.min();
     info.maxValue = range.max();
     if (info.minValue < 0.0f) throw InputError(msg(where, " has negative values (min ", info.minValue, ")"));
+    if (info.maxValue <= 0.0f) throw InputError(msg(where, " holds only zeros: there is nothing to fit or judge"));
     info.ownFile = metaOr<std::string>(*file.getMetadata(), "creator", "") == "splatwarp";
     if (info.ownFile) info.lambdaLpf = metaOr<float>(*file.getMetadata(), "lambda_lpf", 0.0f);
     if (!(std::isfinite(info.lambdaLpf) && info.lambdaLpf >= 0.0f)) // it sizes the fit's filter and initial Gaussians

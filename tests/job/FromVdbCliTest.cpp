@@ -9,6 +9,8 @@
 
 #include <nlohmann/json.hpp>
 
+#include <openvdb/openvdb.h>
+
 #include "Volume.h"
 #include "support/VdbFileReader.h"
 #include "support/TestSupport.h"
@@ -149,6 +151,66 @@ TEST(FromVdbCli, WritesModelReportAndPicture)
                          " --points 2000 --json", dir.file("eval.json")), 0) << slurp(dir.file("eval.json"));
     const nlohmann::json e = nlohmann::json::parse(slurp(dir.file("eval.json")));
     EXPECT_NEAR(double(e["opacity"]), double(r["held_out"]["fit"]["opacity"]), 0.02);
+}
+
+} // namespace
+} // namespace splatwarp
+
+namespace splatwarp {
+namespace {
+
+// No output may be the input or another output; a failed write leaves none of them.
+TEST(FromVdbCli, OutputsThatAreTheInputOrEachOtherAreRefused)
+{
+    TempDir dir;
+    writeDenseGrids(dir.file("m.vdb"), {smallFog()});
+    const std::string before = slurp(dir.file("m.vdb"));
+    const std::string log = dir.file("log.txt");
+    const std::string fit = " --iterations 2 --eval-points 500 --device cpu";
+    EXPECT_EQ(runCli("from-vdb " + dir.file("m.vdb") + " -o " + dir.file("m.vdb") + fit, log), 1);
+    EXPECT_NE(slurp(log).find("is also an input of this command"), std::string::npos) << slurp(log);
+    EXPECT_EQ(runCli("from-vdb " + dir.file("m.vdb") + " -o " + dir.file("o.ply") + " --report " + dir.file("m.vdb") + fit, log), 1);
+    EXPECT_NE(slurp(log).find("is also an input of this command"), std::string::npos) << slurp(log);
+    EXPECT_EQ(slurp(dir.file("m.vdb")), before);
+    EXPECT_EQ(runCli("from-vdb " + dir.file("m.vdb") + " -o " + dir.file("o.ply") + " --report " + dir.file("o.ply") + fit, log), 1);
+    EXPECT_NE(slurp(log).find("is also another output of this command"), std::string::npos) << slurp(log);
+    EXPECT_EQ(runCli("from-vdb " + dir.file("m.vdb") + " -o " + dir.file("o.png") + " --render --size 16" + fit, log), 1);
+    EXPECT_NE(slurp(log).find("is also another output of this command"), std::string::npos) << slurp(log);
+    // The report cannot be written (its folder is a file): no model either.
+    std::ofstream(dir.file("afile")) << "x";
+    EXPECT_EQ(runCli("from-vdb " + dir.file("m.vdb") + " -o " + dir.file("o.ply") + " --report " + dir.file("afile/r.json") + fit, log), 1);
+    EXPECT_FALSE(std::filesystem::exists(dir.file("o.ply")));
+    for (const char* bad : {"--gaussians -1", "--gaussians 2e19", "--lr-position -1e9", "--density-scale -1"})
+        EXPECT_EQ(runCli("from-vdb " + dir.file("m.vdb") + " -o " + dir.file("o.ply") + " " + bad), 2) << bad;
+}
+
+TEST(FromVdbCli, ForgedOwnMetadataCutFilesAndZeroVolumesExitOne)
+{
+    TempDir dir;
+    { // active voxels that are all zero: nothing to fit (it wrote a 0-Gaussian PLY)
+        openvdb::initialize();
+        openvdb::FloatGrid::Ptr zero = openvdb::FloatGrid::create(0.0f);
+        zero->setName("density");
+        for (int i = 0; i < 8; ++i) zero->tree().setValueOn(openvdb::Coord(i, 0, 0), 0.0f);
+        openvdb::io::File(dir.file("zero.vdb")).write({zero});
+    }
+    expectRefused(dir, dir.file("zero.vdb"), "holds only zeros");
+    ASSERT_EQ(runCli("-q sample stripes --count 300 -o " + dir.file("m.ply")), 0);
+    ASSERT_EQ(runCli("-q to-vdb " + dir.file("m.ply") + " -o " + dir.file("own.vdb") + " --cells 8 --sh-grids --device cpu"), 0);
+    for (const std::int32_t degree : {-1, 2147483647, 4}) {
+        test::setFileMetadataInt(dir.file("own.vdb"), "sh_degree", degree);
+        expectRefused(dir, dir.file("own.vdb"), "metadata sh_degree is " + std::to_string(degree));
+    }
+    test::setFileMetadataInt(dir.file("own.vdb"), "sh_degree", 3); // the stripes are degree 1: sh_4.. are missing
+    expectRefused(dir, dir.file("own.vdb"), "no Vec3S grid sh_4");
+    // A file cut short names itself instead of OpenVDB's "KeyError: Map is not registered".
+    test::setFileMetadataInt(dir.file("own.vdb"), "sh_degree", 1);
+    const std::string whole = slurp(dir.file("own.vdb"));
+    for (const std::size_t cut : {whole.size() - 1, whole.size() / 2, std::size_t(200)}) {
+        std::ofstream(dir.file("cut.vdb"), std::ios::binary) << whole.substr(0, cut);
+        expectRefused(dir, dir.file("cut.vdb"), "cut.vdb");
+        EXPECT_EQ(slurp(dir.file("log.txt")).find("internal error"), std::string::npos) << slurp(dir.file("log.txt"));
+    }
 }
 
 } // namespace

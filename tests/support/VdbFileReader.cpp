@@ -95,7 +95,9 @@ VdbFileData readVdbFile(const std::string& path)
     return data;
 }
 
-void setFileMetadata(const std::string& path, const std::string& key, float value)
+namespace {
+
+void rewriteFileMetadata(const std::string& path, const std::string& key, const openvdb::Metadata& value)
 {
     vdb::initialize();
     try {
@@ -105,13 +107,25 @@ void setFileMetadata(const std::string& path, const std::string& key, float valu
         openvdb::GridPtrVecPtr grids = in.getGrids();
         in.close();
         meta->removeMeta(key);
-        meta->insertMeta(key, openvdb::FloatMetadata(value));
+        meta->insertMeta(key, value);
         openvdb::io::File out(path);
         out.write(*grids, *meta);
         out.close();
     } catch (const openvdb::Exception& e) {
         throw IoError(msg(path, ": cannot rewrite the VDB file: ", e.what()));
     }
+}
+
+} // namespace
+
+void setFileMetadata(const std::string& path, const std::string& key, float value)
+{
+    rewriteFileMetadata(path, key, openvdb::FloatMetadata(value));
+}
+
+void setFileMetadataInt(const std::string& path, const std::string& key, std::int32_t value)
+{
+    rewriteFileMetadata(path, key, openvdb::Int32Metadata(value));
 }
 
 } // namespace splatwarp::test

@@ -33,6 +33,8 @@ struct VdbFileData {
 
 /// @brief Rewrite a `.vdb` file with one float file-metadata entry set (hand-edited files).
 void setFileMetadata(const std::string& path, const std::string& key, float value);
+/// @brief The same with an int32 entry (e.g. our own "sh_degree").
+void setFileMetadataInt(const std::string& path, const std::string& key, std::int32_t value);
 
 /// @brief Read a `.vdb` file (float, double, int32, vec3s, bool and mask grids keep values).
 /// @throws IoError naming the file when it cannot be opened or parsed.
