@@ -25,6 +25,8 @@ int nonNegative(const std::string& text, const std::string& what)
 Shard checked(Shard s)
 {
     if (s.count < 1) throw UsageError(msg("shard count must be >= 1 (got ", s.count, ", from ", s.source, ")"));
+    if (s.index < 0) // SLURM_ARRAY_TASK_MIN above SLURM_ARRAY_TASK_ID
+        throw UsageError(msg("shard index ", s.index, " is negative (from ", s.source, ": SLURM_ARRAY_TASK_MIN above SLURM_ARRAY_TASK_ID?)"));
     if (s.index >= s.count)
         throw UsageError(msg("shard index ", s.index, " must be below the shard count ", s.count, " (from ", s.source, ")"));
     return s;

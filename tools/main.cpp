@@ -5,6 +5,7 @@
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
+#include <cstring>
 #include <memory>
 #include <new>
 #include <tbb/global_control.h>
@@ -135,6 +136,22 @@ CLI::App* benchCommand(CLI::App& app)
     return bench;
 }
 
+/// The flags of the command that ran that bound its memory, for the out-of-memory message.
+std::string memoryHint(const CLI::App& app)
+{
+    for (const CLI::App* sub : app.get_subcommands()) {
+        std::vector<std::string> flags;
+        for (const char* name : {"--cells", "--samples-per-cell", "--points", "--size", "--max-memory"})
+            if (sub->get_option_no_throw(name)) flags.push_back(name);
+        if (!sub->get_subcommands().empty()) return memoryHint(*sub);
+        if (flags.empty()) return " (the input is too large for this machine)";
+        std::string out;
+        for (const std::string& f : flags) out += (out.empty() ? "" : ", ") + f;
+        return " (lower or check " + out + ")";
+    }
+    return "";
+}
+
 } // namespace splatwarp::cli
 
 int main(int argc, char** argv)
@@ -183,10 +200,15 @@ int main(int argc, char** argv)
         std::fprintf(stderr, "splatwarp: error: %s\n", printable(e.what()).c_str());
         return 1;
     } catch (const std::bad_alloc&) {
-        std::fprintf(stderr, "splatwarp: error: out of memory (lower --cells / --samples-per-cell, or see --max-memory)\n");
+        std::fprintf(stderr, "splatwarp: error: out of memory%s\n", cli::memoryHint(app).c_str());
         return 1;
     } catch (const std::exception& e) {
         std::fprintf(stderr, "splatwarp: internal error: %s\n", printable(e.what()).c_str());
+        return 1;
+    }
+    // `--json > /dev/full`: what was printed must have reached its destination.
+    if (std::fflush(stdout) != 0 || std::ferror(stdout)) {
+        std::fprintf(stderr, "splatwarp: error: standard output: write failed: %s\n", std::strerror(errno));
         return 1;
     }
     return 0;

@@ -69,7 +69,10 @@ struct JsonReader {
     }
     void checkIntrinsics(const Camera& c, const std::string& where) const
     {
-        if (!(c.fx > 0 && c.fy > 0)) fail(where, "focal lengths must be positive");
+        // A zero camera angle gives an infinite focal length: a blank image, not an error, before.
+        if (!(c.fx > 0 && c.fy > 0 && std::isfinite(c.fx) && std::isfinite(c.fy)))
+            fail(where, "focal lengths must be positive and finite (a camera angle in (0, pi) radians)");
+        if (!std::isfinite(c.cx) || !std::isfinite(c.cy)) fail(where, "principal point must be finite");
         if (c.width <= 0 || c.height <= 0) fail(where, "image size must be positive");
     }
 };

@@ -163,9 +163,7 @@ GaussianCloud readCompressedPly(const std::string& path, const PlyHeader& header
     const std::size_t n = vertex.count();
     const CompressedLayout layout = compressedLayout(path, chunk, vertex);
     const CompressedSh sh = compressedSh(path, header, body, n);
-    for (const PlyElement& e : header.elements)
-        if (e.name != "chunk" && e.name != "vertex" && e.name != "sh")
-            report.notes.push_back(msg("skipped element '", e.name, "' (", e.count, " records)"));
+    for (const std::string& note : skippedElementNotes(header, {"chunk", "vertex", "sh"})) report.notes.push_back(note);
 
     GaussianCloud g;
     g.resize(n, sh.degree);

@@ -1,5 +1,6 @@
 #include "io/PlyHeader.h"
 
+#include <algorithm>
 #include <cctype>
 #include <cerrno>
 #include <cstdlib>
@@ -95,6 +96,20 @@ std::string PlyHeader::formatName() const
     case PlyFormat::BinaryBigEndian: return "ply-binary-be";
     }
     return "ply";
+}
+
+std::vector<std::string> skippedElementNotes(const PlyHeader& header, const std::vector<std::string>& used)
+{
+    constexpr std::size_t kShown = 5;
+    std::vector<std::string> notes;
+    std::size_t skipped = 0, records = 0;
+    for (const PlyElement& e : header.elements) {
+        if (std::find(used.begin(), used.end(), e.name) != used.end()) continue;
+        if (++skipped <= kShown) notes.push_back(msg("skipped element '", e.name, "' (", e.count, " records)"));
+        else records += e.count;
+    }
+    if (skipped > kShown) notes.push_back(msg("skipped ", skipped - kShown, " more elements (", records, " records)"));
+    return notes;
 }
 
 bool hasPlyMagic(const std::string& data)

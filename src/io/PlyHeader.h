@@ -50,6 +50,11 @@ struct PlyHeader {
     std::string formatName() const;
 };
 
+/// @brief One note per element other than `used` ("skipped element 'face' (12 records)"), the
+///        first few only and then one line counting the rest: a header of 200,000 elements gave
+///        200,000 progress lines.
+std::vector<std::string> skippedElementNotes(const PlyHeader& header, const std::vector<std::string>& used);
+
 /// @brief True when the data starts with the PLY magic line ("ply" + LF or CRLF).
 bool hasPlyMagic(const std::string& data);
 

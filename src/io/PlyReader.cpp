@@ -43,9 +43,7 @@ GaussianCloud readGraphdecoPly(const std::string& path, const PlyHeader& header,
     for (const PlyProperty& p : e.properties)
         if (!known.count(p.name) && p.name != "nx" && p.name != "ny" && p.name != "nz")
             report.notes.push_back(msg("ignored extra property '", p.name, "' of element 'vertex'"));
-    for (const PlyElement& other : header.elements)
-        if (other.name != "vertex")
-            report.notes.push_back(msg("skipped element '", other.name, "' (", other.count, " records)"));
+    for (const std::string& note : skippedElementNotes(header, {"vertex"})) report.notes.push_back(note);
 
     GaussianCloud g;
     g.resize(e.count, degree);

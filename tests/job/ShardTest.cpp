@@ -61,4 +61,8 @@ TEST(Shard, RefusesBadShards)
     EXPECT_NE(usageError("", 2, {{"JOB_COMPLETION_INDEX", "2"}}).find("from JOB_COMPLETION_INDEX"), std::string::npos);
     EXPECT_NE(usageError("", 0, {{"SLURM_ARRAY_TASK_ID", "1"}}).find("SLURM_ARRAY_TASK_COUNT is not"), std::string::npos);
     EXPECT_NE(usageError("", 3, {}).find("--shard-count needs"), std::string::npos);
+    // It gave shard -4/4: accepted, no frames, exit 0.
+    EXPECT_NE(usageError("", 0, {{"SLURM_ARRAY_TASK_ID", "1"}, {"SLURM_ARRAY_TASK_MIN", "5"}, {"SLURM_ARRAY_TASK_COUNT", "4"}})
+                  .find("shard index -4 is negative"),
+              std::string::npos);
 }

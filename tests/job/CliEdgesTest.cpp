@@ -1,0 +1,67 @@
+// Edges of the command line found by a hostile pass (issue 28's smaller cases): where the output
+// goes, what an out-of-memory message names, degenerate cameras, and notes that do not flood.
+#include <gtest/gtest.h>
+
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+
+#include "io/GaussianIO.h"
+#include "support/TestSupport.h"
+
+using namespace splatwarp;
+using namespace splatwarp::test;
+
+TEST(CliEdges, WhatCannotReachStandardOutputIsAnError)
+{
+    TempDir dir;
+    ASSERT_EQ(runCli("-q sample stripes --count 100 -o " + dir.file("s.ply")), 0);
+    if (!std::filesystem::exists("/dev/full")) GTEST_SKIP() << "no /dev/full";
+    const int rc = std::system((std::string(SPLATWARP_CLI) + " info " + dir.file("s.ply") + " --json >/dev/full 2>" + dir.file("e.log")).c_str());
+    EXPECT_EQ(WEXITSTATUS(rc), 1);
+    EXPECT_NE(fileBytes(dir.file("e.log")).find("standard output: write failed"), std::string::npos) << fileBytes(dir.file("e.log"));
+}
+
+TEST(CliEdges, OutOfMemoryNamesTheFlagsOfTheCommandThatRan)
+{
+    TempDir dir;
+    ASSERT_EQ(runCli("-q sample stripes --count 100 -o " + dir.file("s.ply")), 0);
+    // 4e9 held-out points under a 2 GB address-space limit: std::bad_alloc.
+    const std::string cmd = "ulimit -v 2000000; " + std::string(SPLATWARP_CLI) + " -q --threads 1 eval --rest " + dir.file("s.ply") +
+                            " --deformed " + dir.file("s.ply") + " --spec " + SPLATWARP_SOURCE_DIR +
+                            "/samples/specs/rigid.json --points 4000000000";
+    const int rc = std::system(("bash -c '" + cmd + "' >" + dir.file("e.log") + " 2>&1").c_str());
+    const std::string log = fileBytes(dir.file("e.log"));
+    EXPECT_EQ(WEXITSTATUS(rc), 1) << log;
+    EXPECT_NE(log.find("out of memory (lower or check "), std::string::npos) << log;
+    EXPECT_NE(log.find("--points"), std::string::npos) << log;
+    EXPECT_EQ(log.find("--size"), std::string::npos) << log; // a flag eval does not have
+}
+
+TEST(CliEdges, AZeroCameraAngleIsRefused)
+{
+    TempDir dir;
+    ASSERT_EQ(runCli("-q sample stripes --count 100 -o " + dir.file("s.ply")), 0);
+    std::ofstream(dir.file("t.json")) << R"({"camera_angle_x": 0, "w": 32, "h": 32, "frames": [{"file_path": "a",
+        "transform_matrix": [[1,0,0,0],[0,1,0,0],[0,0,1,5],[0,0,0,1]]}]})";
+    EXPECT_EQ(runCli("render " + dir.file("s.ply") + " --camera " + dir.file("t.json") + " -o " + dir.file("a.png"), dir.file("e.log")), 1);
+    EXPECT_NE(fileBytes(dir.file("e.log")).find("focal lengths must be positive and finite"), std::string::npos) << fileBytes(dir.file("e.log"));
+    EXPECT_FALSE(std::filesystem::exists(dir.file("a.png")));
+}
+
+TEST(CliEdges, ManySkippedPlyElementsAreSummarised)
+{
+    TempDir dir;
+    std::ostringstream ply;
+    ply << "ply\nformat ascii 1.0\nelement vertex 1\n";
+    for (const char* p : {"x", "y", "z", "f_dc_0", "f_dc_1", "f_dc_2", "opacity", "scale_0", "scale_1", "scale_2", "rot_0", "rot_1", "rot_2", "rot_3"})
+        ply << "property float " << p << "\n";
+    for (int e = 0; e < 2000; ++e) ply << "element extra" << e << " 0\nproperty float v\n";
+    ply << "end_header\n0 0 0 0 0 0 0 -1 -1 -1 1 0 0 0\n";
+    std::ofstream(dir.file("m.ply")) << ply.str();
+    ReadReport report;
+    const GaussianCloud g = readGaussians(dir.file("m.ply"), {}, &report);
+    EXPECT_EQ(g.size(), 1u);
+    ASSERT_EQ(report.notes.size(), 6u);
+    EXPECT_EQ(report.notes.back(), "skipped 1995 more elements (0 records)");
+}
