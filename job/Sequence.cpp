@@ -22,17 +22,7 @@ using json = nlohmann::json;
 
 namespace {
 
-json readManifest(const fs::path& path)
-{
-    json m;
-    try {
-        m = json::parse(readTextFile(path.string(), "manifest"));
-    } catch (const json::exception& e) {
-        throw InputError(msg(path.string(), ": not a manifest (invalid JSON: ", e.what(), ")"));
-    }
-    checkManifest(m, path.string());
-    return m;
-}
+json readManifest(const fs::path& path) { return parseManifest(readTextFile(path.string(), "manifest"), path.string()); }
 
 /// Files of an entry with their sizes and digests (paths relative to dir).
 json describeFiles(const std::string& dir, const json& files)
@@ -184,6 +174,18 @@ SequenceResult runSequence(const SequenceRun& run, const ItemRunner& runItem, co
     result.entries = json::array();
     for (const auto& [item, entry] : entries) result.entries.push_back(entry);
     return result;
+}
+
+json parseManifest(const std::string& text, const std::string& path)
+{
+    json m;
+    try {
+        m = json::parse(text);
+    } catch (const json::exception& e) { // parse_error, and out_of_range for numbers beyond double
+        throw InputError(msg(path, ": not a manifest (invalid JSON: ", e.what(), ")"));
+    }
+    checkManifest(m, path);
+    return m;
 }
 
 void checkManifest(const json& m, const std::string& path)

@@ -56,6 +56,8 @@ std::string unverifiedFiles(const std::string& dir, const nlohmann::json& entry,
 /// @brief Check a manifest's shape (what resume and merge read): header fields, items, shard,
 ///        entries with their item, status and files. @throws InputError naming `path`.
 void checkManifest(const nlohmann::json& manifest, const std::string& path);
+/// @brief JSON parse and checkManifest(). @throws InputError naming `path`.
+nlohmann::json parseManifest(const std::string& text, const std::string& path);
 
 /// @brief Join dir/manifest.shard-*.json into dir/manifest.json with "missing" and "failed" item
 ///        lists (items of the run that no shard finished, or that failed) and "shards" found.
