@@ -211,8 +211,7 @@ void countCellPairs(const SampleTargetsProblem& p, const SampleTargetInputs& in,
         cudaMemcpyAsync(&pairs.count, pairs.offsets.data() + n, sizeof(pairs.count), cudaMemcpyDeviceToHost, st));
     SPLATWARP_CUDA_CHECK(cudaStreamSynchronize(st)); // the pair count sizes the next buffers
     if (pairs.count >= 0xffffffffull) // cell ranges are 32-bit [start, end)
-        throw DeviceMemoryError(
-            msg("sample targets (CUDA): ", pairs.count, " (cell, Gaussian) pairs exceed 32-bit indices"));
+        throw DeviceLimitError(msg("sample targets (CUDA): ", pairs.count, " (cell, Gaussian) pairs exceed 32-bit indices"));
 }
 
 /// Fill the pairs in Gaussian order, sort them by cell, mark each cell's range.
@@ -298,7 +297,7 @@ void evaluateFeaturesCuda(const FeaturePointsProblem& p, float* features, float*
     checkStride(p.cloud.shStride, "features (CUDA)");
     if ((p.count > 0 && !p.points) || (p.cloud.count > 0 && (!p.cloud.gaussians || !p.cloud.sh)))
         throw InputError("features (CUDA): missing points, prepared Gaussians or SH");
-    if (p.cloud.count > 0xffffffffull) throw InputError("features (CUDA): too many Gaussians for 32-bit indices");
+    if (p.cloud.count > 0xffffffffull) throw DeviceLimitError("features (CUDA): too many Gaussians for 32-bit indices");
     const std::size_t n = p.cloud.count, m = p.count, stride = std::size_t(p.cloud.shStride);
     StreamHolder holder;
     const cudaStream_t st = holder.stream;

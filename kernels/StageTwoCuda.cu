@@ -726,7 +726,8 @@ void Solver::coverage(int iteration)
     unsigned long long pairs = 0;
     SPLATWARP_CUDA_CHECK(cudaMemcpyAsync(&pairs, mSampleCount.data() + mS, sizeof(pairs), cudaMemcpyDeviceToHost, st));
     SPLATWARP_CUDA_CHECK(cudaStreamSynchronize(st));
-    if (pairs > 0xffffffffull) throw InputError(msg("Stage II coverage has ", pairs, " pairs; too many for 32-bit indices"));
+    if (pairs > 0xffffffffull) // the CPU's per-block lists are n^3 times shorter: Auto runs it there
+        throw DeviceLimitError(msg("Stage II coverage has ", pairs, " pairs; too many for 32-bit indices"));
     mPairs = pairs;
     mSampleItems.resize(pairs);
     mPairSample.resize(pairs);

@@ -6,6 +6,7 @@
 #include <cstring>
 #include <string>
 
+#include "support/FakeCuda.h"
 #include "support/TestSupport.h"
 #include "core/Device.h"
 #include "stage2/StageTwoDevice.h"
@@ -15,23 +16,6 @@ using namespace splatwarp;
 using namespace splatwarp::test;
 
 namespace {
-
-/// Registers fakes for one test and always restores the CPU-only state.
-struct FakeCuda {
-    FakeCuda(bool (*probe)(), StageTwoFunction stageTwo)
-    {
-        registerCudaProbe(probe);
-        registerStageTwoCuda(stageTwo);
-    }
-    ~FakeCuda()
-    {
-        registerCudaProbe(nullptr);
-        registerStageTwoCuda(nullptr);
-    }
-};
-
-bool noGpu() { return false; }
-bool gpu() { return true; }
 
 int gFakeCalls = 0;
 StageTwoReport fakeOutOfMemory(GaussianCloud&, const SampleSet&, const std::vector<std::uint8_t>&,
@@ -159,6 +143,47 @@ TEST(Device, OutOfGpuMemoryFallsBackUnderAutoOnly)
         ADD_FAILURE() << "expected DeviceMemoryError";
     } catch (const DeviceMemoryError& e) {
         EXPECT_NE(std::string(e.what()).find("coverage pairs"), std::string::npos) << e.what();
+    }
+    EXPECT_EQ(gFakeCalls, 2);
+    EXPECT_TRUE(sameParams(explicitCuda, p.start));
+}
+
+namespace {
+
+StageTwoReport fakePastIndexLimits(GaussianCloud&, const SampleSet&, const std::vector<std::uint8_t>&,
+                                   const std::vector<std::int32_t>&, const StageTwoOptions&,
+                                   const std::function<void(int, const GaussianCloud&)>&, int)
+{
+    ++gFakeCalls;
+    throw DeviceLimitError("Stage II coverage has 6300000000 pairs; too many for 32-bit indices");
+}
+
+} // namespace
+
+// A count past the GPU's 32-bit indices is no bad input (the CPU's block lists are n^3 times
+// shorter): auto runs Stage II on the CPU, cuda fails with the limit and the hint, not as out of memory.
+TEST(Device, PastTheGpuIndexLimitsFallsBackUnderAutoOnly)
+{
+    gFakeCalls = 0;
+    FakeCuda fake(gpu, fakePastIndexLimits);
+    const RigidStageTwoProblem p = smallProblem();
+    GaussianCloud reference = p.start, cloud = p.start;
+    optimiseStageTwo(reference, p.samples, p.moving, p.cells, p.options);
+    const StageTwoReport r = runStageTwo(cloud, p.samples, p.moving, p.cells, on(p, Device::Auto));
+    EXPECT_EQ(gFakeCalls, 1);
+    EXPECT_EQ(r.device, Device::Cpu);
+    EXPECT_TRUE(sameParams(cloud, reference));
+
+    GaussianCloud explicitCuda = p.start;
+    try {
+        runStageTwo(explicitCuda, p.samples, p.moving, p.cells, on(p, Device::Cuda));
+        ADD_FAILURE() << "expected DeviceLimitError";
+    } catch (const DeviceMemoryError& e) {
+        ADD_FAILURE() << "a count limit reported as out of memory: " << e.what();
+    } catch (const DeviceLimitError& e) {
+        const std::string m = e.what();
+        EXPECT_NE(m.find("6300000000 pairs"), std::string::npos) << m;
+        EXPECT_NE(m.find("--device auto would run Stage II on the CPU"), std::string::npos) << m;
     }
     EXPECT_EQ(gFakeCalls, 2);
     EXPECT_TRUE(sameParams(explicitCuda, p.start));
