@@ -47,14 +47,11 @@ double relativeError(const std::vector<float>& a, const std::vector<float>& b)
 
 void expectParity(const GaussianCloud& cloud, SampleGridOptions options)
 {
-    cuda::registerBackends();
+    const test::CudaBackendsScope backends;
     options.device = resolveDevice(Device::Cpu);
     const SampleGrid cpu(cloud, options);
     options.device = resolveDevice(Device::Cuda);
     const SampleGrid gpu(cloud, options);
-    registerSampleTargetsCuda(nullptr);
-    registerFeaturesCuda(nullptr);
-    registerCudaProbe(nullptr);
     ASSERT_EQ(gpu.stats().device, Device::Cuda);
     ASSERT_EQ(gpu.stats().samples, cpu.stats().samples);
     EXPECT_LT(relativeError(gpu.samples().targetF, cpu.samples().targetF), kFeatureRel);
@@ -109,7 +106,7 @@ TEST(SampleTargetsCuda, BadIndexGridIsAnInputError)
 TEST(SampleTargetsCuda, DispatchWithoutGpu)
 {
     if (cuda::cudaDeviceAvailable()) GTEST_SKIP() << "a GPU is present: covered by the parity tests";
-    cuda::registerBackends();
+    const test::CudaBackendsScope backends;
     SampleGridOptions o;
     o.cells = 8;
     EXPECT_THROW(resolveDevice(Device::Cuda), InputError);
@@ -121,9 +118,6 @@ TEST(SampleTargetsCuda, DispatchWithoutGpu)
     FeatureOptions fo;
     fo.device = resolveDevice(Device::Auto);
     EXPECT_EQ(evaluateFeaturesOn(makeDemoModel("stripes"), point, 1, fo, nullptr, opacity.data()), Device::Cpu);
-    registerSampleTargetsCuda(nullptr);
-    registerFeaturesCuda(nullptr);
-    registerCudaProbe(nullptr);
 }
 
 // Features at arbitrary points (eval / held-out): GPU bins vs the CPU's GaussianBins. Different
@@ -132,7 +126,7 @@ TEST(SampleTargetsCuda, DispatchWithoutGpu)
 TEST(FeaturesCuda, MatchesCpuAtRandomPoints)
 {
     SPLATWARP_REQUIRE_GPU();
-    cuda::registerBackends();
+    const test::CudaBackendsScope backends;
     for (const int degree : {0, 3}) {
         SCOPED_TRACE(degree);
         const GaussianCloud cloud = test::randomCloud(3000, degree, 7u + std::uint32_t(degree), 1.0f);
@@ -157,9 +151,6 @@ TEST(FeaturesCuda, MatchesCpuAtRandomPoints)
         EXPECT_LE(a > b ? a - b : b - a, kPairFlips) << "gpu " << a << " cpu " << b;
         EXPECT_GE(sg.pairsTested, sg.pairsContributing);
     }
-    registerFeaturesCuda(nullptr);
-    registerSampleTargetsCuda(nullptr);
-    registerCudaProbe(nullptr);
 }
 
 // Validation happens before any CUDA call.

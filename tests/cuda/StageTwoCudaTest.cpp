@@ -117,7 +117,7 @@ std::vector<double> referenceGradients(const Problem& p, const cuda::StageTwoCud
 // Runs without a GPU too: registration, and clear errors when CUDA is asked for but absent.
 TEST(CudaBackends, RegistrationAndNoGpuErrors)
 {
-    cuda::registerBackends();
+    const test::CudaBackendsScope backends;
     EXPECT_TRUE(cudaCompiledIn());
     EXPECT_EQ(cudaPresent(), cuda::cudaDeviceAvailable());
     if (!cuda::cudaDeviceAvailable()) {
@@ -131,8 +131,6 @@ TEST(CudaBackends, RegistrationAndNoGpuErrors)
     } else {
         EXPECT_EQ(resolveDevice(Device::Auto).device(), Device::Cuda);
     }
-    registerCudaProbe(nullptr);
-    registerStageTwoCuda(nullptr);
 }
 
 // Validation happens before any CUDA call, so it runs (and must throw) without a GPU as well.
