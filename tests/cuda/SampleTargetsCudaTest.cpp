@@ -24,6 +24,7 @@
 #include "field/FeatureDevice.h"
 #include "field/FieldTestModels.h"
 #include "demo/DemoModels.h"
+#include "support/CellListTargets.h"
 
 using namespace splatwarp;
 
@@ -54,13 +55,33 @@ void expectParity(const GaussianCloud& cloud, SampleGridOptions options)
     const SampleGrid gpu(cloud, options);
     ASSERT_EQ(gpu.stats().device, Device::Cuda);
     ASSERT_EQ(gpu.stats().samples, cpu.stats().samples);
-    EXPECT_LT(relativeError(gpu.samples().targetF, cpu.samples().targetF), kFeatureRel);
-    EXPECT_LT(relativeError(gpu.samples().targetO, cpu.samples().targetO), kOpacityRel);
+    const double ef = relativeError(gpu.samples().targetF, cpu.samples().targetF);
+    const double eo = relativeError(gpu.samples().targetO, cpu.samples().targetO);
+    test::reportTolerance("sample_targets_feature_rel", ef, kFeatureRel);
+    test::reportTolerance("sample_targets_opacity_rel", eo, kOpacityRel);
+    EXPECT_LT(ef, kFeatureRel);
+    EXPECT_LT(eo, kOpacityRel);
     const std::uint64_t a = gpu.stats().pairsContributing, b = cpu.stats().pairsContributing;
     EXPECT_GT(b, 0u);
     EXPECT_LE(a > b ? a - b : b - a, kPairFlips) << "gpu " << a << " cpu " << b;
     // Cell-skip flags follow from the targets: equal unless a flipped pair emptied a cell.
     EXPECT_EQ(gpu.stats().skippedCells, cpu.stats().skippedCells);
+}
+
+SampleGridOptions fineCellsOptions()
+{
+    SampleGridOptions o;
+    o.cells = 12;
+    o.samplesPerAxis = 2;
+    o.fineBelow = 1.0f;
+    return o;
+}
+
+/// Premise of the fine-cell tests: some cells are fine, so the cells hold uneven sample counts.
+void expectFineCells(const SampleGrid& grid)
+{
+    EXPECT_GT(grid.stats().fineCells, 0u);
+    EXPECT_NE(grid.samples().sampleCount() % grid.samples().cellCount(), 0u) << "premise: uneven cells";
 }
 
 } // namespace
@@ -86,6 +107,51 @@ TEST(SampleTargetsCuda, MatchesCpuOnRandomCloud)
         SCOPED_TRACE(degree);
         expectParity(test::randomCloud(2000, degree, 41u + std::uint32_t(degree), 1.0f), o);
     }
+}
+
+// --fine-cells: fine cells hold (2n)^3 samples, the others n^3, so the sample count is no
+// multiple of the cells; the GPU evaluates per sample and must match the CPU as on a lattice.
+TEST(SampleTargetsCuda, MatchesCpuWithFineCells)
+{
+    SPLATWARP_REQUIRE_GPU();
+    expectParity(test::mixedSizeCloud(), fineCellsOptions());
+}
+
+// The same problem on the GPU and through the host loop of the same per-element functions:
+// pairsTested, an integer sum over the same lists, must agree exactly (the GPU once multiplied
+// the pairs by M / C, which cells of different sample counts break).
+TEST(SampleTargetsCuda, FineCellsCountAsTheHostAlgorithm)
+{
+    SPLATWARP_REQUIRE_GPU();
+    const GaussianCloud cloud = test::mixedSizeCloud();
+    const SampleGrid grid(cloud, fineCellsOptions());
+    expectFineCells(grid);
+    const test::GridTargetsProblem problem(cloud, grid);
+    const test::HostTargets host = test::cellListTargets(problem.p);
+    std::vector<float> f(host.f.size()), o(host.o.size());
+    FeatureStats stats;
+    cuda::evaluateSampleTargetsCuda(problem.p, f.data(), o.data(), &stats);
+    EXPECT_EQ(stats.binEntries, host.pairs);
+    EXPECT_EQ(stats.pairsTested, host.tested);
+    const std::uint64_t a = stats.pairsContributing, b = host.contributing;
+    EXPECT_LE(a > b ? a - b : b - a, kPairFlips) << "gpu " << a << " host " << b;
+    EXPECT_LT(relativeError(f, host.f), kFeatureRel);
+    EXPECT_LT(relativeError(o, host.o), kOpacityRel);
+}
+
+// Validation runs before any CUDA call (so here without a GPU too): a grid with fine cells is
+// valid; a sample outside the problem's cells is not (the kernel would read past the ranges).
+TEST(SampleTargetsCuda, FineCellsPassValidation)
+{
+    const GaussianCloud cloud = test::mixedSizeCloud();
+    const SampleGrid grid(cloud, fineCellsOptions());
+    expectFineCells(grid);
+    test::GridTargetsProblem problem(cloud, grid);
+    EXPECT_NO_THROW(cuda::checkSampleTargets(problem.p));
+    std::vector<std::int32_t> cells(grid.samples().sampleCell);
+    cells.back() = std::int32_t(problem.p.cells);
+    problem.p.sampleCell = cells.data();
+    EXPECT_THROW(cuda::checkSampleTargets(problem.p), InputError);
 }
 
 // Validation happens before any CUDA call, so it runs (and must throw) without a GPU as well.
