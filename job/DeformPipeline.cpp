@@ -34,6 +34,15 @@ std::string outPath(const DeformJobOptions& o, const char* name)
     return (std::filesystem::path(o.outDir) / name).string();
 }
 
+/// Forget the evaluations after iteration `after` (their run fell back to the CPU and repeats them).
+void dropCurveAfter(nlohmann::json& curve, int after)
+{
+    nlohmann::json kept = nlohmann::json::array();
+    for (const nlohmann::json& e : curve)
+        if (e["iteration"].get<int>() <= after) kept.push_back(e);
+    curve = std::move(kept);
+}
+
 nlohmann::json stageTwoJson(const StageTwoReport& r, const SampleGrid& grid, const StageTwoOptions& o)
 {
     nlohmann::json energies = nlohmann::json::array();
@@ -43,7 +52,10 @@ nlohmann::json stageTwoJson(const StageTwoReport& r, const SampleGrid& grid, con
     std::uint64_t pairs = 0;
     for (std::uint64_t p : r.pairsPerIteration) pairs += p;
     const double pairsPerIteration = r.pairsPerIteration.empty() ? 0.0 : double(pairs) / r.pairsPerIteration.size();
+    nlohmann::json roundDevices = nlohmann::json::array();
+    for (const Device d : r.roundDevices) roundDevices.push_back(deviceName(d));
     return {{"energies", energies},
+            {"roundDevices", roundDevices},
             {"movingGaussians", r.movingGaussians},
             {"activeCells", grid.stats().cells},
             {"samplesPerCell", grid.options().samplesPerAxis},
@@ -60,7 +72,7 @@ nlohmann::json stageTwoJson(const StageTwoReport& r, const SampleGrid& grid, con
             {"rejectedSteps", r.rejectedSteps},
             {"stoppedAt", r.stoppedAt},
             {"stopReason", r.stoppedAt >= 0 ? r.stopReason : std::string("ran every iteration")},
-            {"device", deviceName(r.device)},
+            {"device", devicesName(r)},
             {"gpuPeakBytes", r.gpuPeakBytes},
             {"sceneExtent", r.sceneExtent},
             {"parameters",
@@ -392,7 +404,7 @@ GaussianCloud stageTwo(DeformRest& rest, const Deformation& deformation, const S
         return fitInRounds(fitted, samples, cold.moving, cold.cells, s2, o.densify,
                            o.evalEvery > 0 ? std::function<void(int, const GaussianCloud&)>(onEval)
                                            : std::function<void(int, const GaussianCloud&)>(),
-                           o.evalEvery, counts);
+                           o.evalEvery, counts, [&](int after) { dropCurveAfter(curve, after); });
     };
     StageTwoReport r2 = fit();
     std::optional<double> rejectedStart; // the warm start's energy when the frame went back to the cold start

@@ -10,11 +10,14 @@ namespace splatwarp {
 namespace {
 
 /// Round `next` appended to `all`: energies, pairs and iterations offset by the iterations before it,
-/// counters and times summed, the rest (best iterate, moving count, device) of the last round.
+/// counters and times summed, each round's device listed, the rest (best iterate, moving count,
+/// device) of the last round.
 void appendRound(StageTwoReport& all, const StageTwoReport& next, int offset, bool first)
 {
     const StageTwoReport before = all;
     all = next;
+    all.roundDevices = before.roundDevices;
+    all.roundDevices.push_back(next.device);
     if (first) return;
     all.energies = before.energies;
     for (StageTwoEnergy e : next.energies) {
@@ -39,10 +42,21 @@ void appendRound(StageTwoReport& all, const StageTwoReport& next, int offset, bo
 
 } // namespace
 
+std::string devicesName(const StageTwoReport& r)
+{
+    if (r.roundDevices.empty()) return deviceName(r.device);
+    bool same = true;
+    for (const Device d : r.roundDevices) same = same && d == r.roundDevices.front();
+    if (same) return deviceName(r.roundDevices.front());
+    std::string out;
+    for (const Device d : r.roundDevices) out += (out.empty() ? "" : "+") + std::string(deviceName(d));
+    return out;
+}
+
 StageTwoReport fitInRounds(GaussianCloud& fitted, const SampleSet& samples, const std::vector<std::uint8_t>& stage1Moving,
                            const std::vector<std::int32_t>& gaussianCell, const StageTwoOptions& s2,
                            const DensifyJobOptions& d, const std::function<void(int, const GaussianCloud&)>& onEval,
-                           int evalEvery, DensifyCounts& counts)
+                           int evalEvery, DensifyCounts& counts, const std::function<void(int)>& dropEvalsAfter)
 {
     std::vector<std::uint8_t> moving = stage1Moving;
     std::vector<std::int32_t> cell = gaussianCell;
@@ -56,10 +70,13 @@ StageTwoReport fitInRounds(GaussianCloud& fitted, const SampleSet& samples, cons
         r.iterations = iterations;
         const int offset = done;
         auto shifted = [&](int iteration, const GaussianCloud& current) { onEval(offset + iteration, current); };
+        auto restart = [&] { // this round fell back to the CPU: its GPU evaluations are void
+            if (dropEvalsAfter) dropEvalsAfter(offset);
+        };
         const StageTwoReport next = runStageTwo(fitted, samples, moving, cell, r,
                                                 onEval ? std::function<void(int, const GaussianCloud&)>(shifted)
                                                        : std::function<void(int, const GaussianCloud&)>(),
-                                                evalEvery);
+                                                evalEvery, restart);
         appendRound(all, next, offset, !any);
         any = true;
         done += iterations;

@@ -6,6 +6,7 @@
 #include <cstddef>
 #include <cstdint>
 #include <functional>
+#include <string>
 #include <vector>
 
 #include "core/GaussianCloud.h"
@@ -31,12 +32,20 @@ struct DensifyCounts {
     double ms = 0;
 };
 
+/// @brief The device(s) of a run: "cpu" or "cuda", or each round's in order when they differ
+///        ("cuda+cpu": the second round fell back to the CPU).
+std::string devicesName(const StageTwoReport& report);
+
 /// @brief Stage II in rounds: the iterations before the split, split (and prune) on the host, the
 ///        rest; one round when splitting is off. Children inherit their parent's moving flag and cell.
-/// @param onEval  sees each round's iterations offset by the iterations before it
+///        The report's roundDevices lists the device of each round.
+/// @param onEval          sees each round's iterations offset by the iterations before it
+/// @param dropEvalsAfter  called with an offset when a round fell back from the GPU to the CPU
+///                        after onEval saw some of its iterations: drop those after the offset
+///                        (the CPU run evaluates them again)
 StageTwoReport fitInRounds(GaussianCloud& fitted, const SampleSet& samples, const std::vector<std::uint8_t>& moving,
                            const std::vector<std::int32_t>& gaussianCell, const StageTwoOptions& options,
                            const DensifyJobOptions& densify, const std::function<void(int, const GaussianCloud&)>& onEval,
-                           int evalEvery, DensifyCounts& counts);
+                           int evalEvery, DensifyCounts& counts, const std::function<void(int)>& dropEvalsAfter = {});
 
 } // namespace splatwarp

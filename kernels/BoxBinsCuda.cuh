@@ -167,7 +167,7 @@ public:
             cell *= 2;
         }
         if (entries > 0xffffffffull)
-            throw InputError(msg(who, ": bins would hold ", entries, " entries; too many for 32-bit indices"));
+            throw DeviceLimitError(msg(who, ": bins would hold ", entries, " entries; too many for 32-bit indices"));
         mInv = 1.0f / float(cell);
         mKeys.resize(entries);
         mKeysSorted.resize(entries);

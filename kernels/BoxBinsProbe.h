@@ -15,7 +15,7 @@ struct BoxBinsProbe {
 };
 
 /// @brief Bin boxes lo, hi [G,3] (host arrays, uploaded) on the current device.
-/// @throws InputError as BoxBins::build (more than 2^32 entries); Error for a CUDA failure
+/// @throws DeviceLimitError as BoxBins::build (more than 2^32 entries); Error for a CUDA failure
 BoxBinsProbe probeBoxBins(const std::vector<float>& lo, const std::vector<float>& hi);
 
 } // namespace splatwarp::cuda

@@ -55,13 +55,14 @@ __global__ void cellRangeKernel(std::size_t pairs, const std::uint32_t* sortedCe
 /// and the sums stay in registers; each sample's features are written once at the end.
 template <int Stride>
 __global__ void cellTargetKernel(std::size_t m, CellTargetView view, float* features, float* opacity,
-                                 std::uint32_t* contributing)
+                                 std::uint32_t* tested, std::uint32_t* contributing)
 {
     const std::size_t s = globalIndex();
     if (s >= m) return;
     view.shStride = Stride;
     float f[Stride];
     float o = 0.0f;
+    tested[s] = cellSampleCandidates(s, view);
     contributing[s] = evaluateCellSample(s, view, f, o);
     for (int k = 0; k < Stride; ++k) features[s * Stride + k] = f[k];
     opacity[s] = o;
@@ -155,18 +156,6 @@ unsigned long long deviceSum(DeviceBuffer<unsigned char>& temp, const std::uint3
     return out;
 }
 
-void checkSampleTargets(const SampleTargetsProblem& p)
-{
-    if (!p.index || !nanoCellGrid(*p.index))
-        throw InputError("sample targets (CUDA): the cell index grid is not a NanoVDB Int32 grid");
-    checkStride(p.cloud.shStride, "sample targets (CUDA)");
-    if (!(p.cellSize > 0.0)) throw InputError(msg("sample targets (CUDA): bad cell size ", p.cellSize));
-    if (p.samples > 0 && (p.cells == 0 || p.samples % p.cells != 0 || !p.positions || !p.sampleCell))
-        throw InputError(msg("sample targets (CUDA): ", p.samples, " samples do not fill ", p.cells, " cells evenly"));
-    if (p.cloud.count > 0 && (!p.cloud.gaussians || !p.cloud.sh))
-        throw InputError("sample targets (CUDA): Gaussians without prepared kernels or SH");
-}
-
 /// The inputs of the sample targets on the device. The host arrays outlive the stream
 /// synchronisation that follows (downloads synchronise).
 struct SampleTargetInputs {
@@ -211,8 +200,7 @@ void countCellPairs(const SampleTargetsProblem& p, const SampleTargetInputs& in,
         cudaMemcpyAsync(&pairs.count, pairs.offsets.data() + n, sizeof(pairs.count), cudaMemcpyDeviceToHost, st));
     SPLATWARP_CUDA_CHECK(cudaStreamSynchronize(st)); // the pair count sizes the next buffers
     if (pairs.count >= 0xffffffffull) // cell ranges are 32-bit [start, end)
-        throw DeviceMemoryError(
-            msg("sample targets (CUDA): ", pairs.count, " (cell, Gaussian) pairs exceed 32-bit indices"));
+        throw DeviceLimitError(msg("sample targets (CUDA): ", pairs.count, " (cell, Gaussian) pairs exceed 32-bit indices"));
 }
 
 /// Fill the pairs in Gaussian order, sort them by cell, mark each cell's range.
@@ -259,6 +247,23 @@ CellTargetView cellTargetView(const SampleTargetsProblem& p, const SampleTargetI
 
 } // namespace
 
+void checkSampleTargets(const SampleTargetsProblem& p)
+{
+    if (!p.index || !nanoCellGrid(*p.index))
+        throw InputError("sample targets (CUDA): the cell index grid is not a NanoVDB Int32 grid");
+    checkStride(p.cloud.shStride, "sample targets (CUDA)");
+    if (!(p.cellSize > 0.0)) throw InputError(msg("sample targets (CUDA): bad cell size ", p.cellSize));
+    if (p.samples > 0 && (p.cells == 0 || !p.positions || !p.sampleCell))
+        throw InputError(msg("sample targets (CUDA): ", p.samples, " samples without cells, positions or sample cells"));
+    // Cells may hold different sample counts (fine cells): the kernel works per sample, so only
+    // each sample's cell must exist (it indexes the per-cell ranges).
+    for (std::size_t s = 0; s < p.samples; ++s)
+        if (p.sampleCell[s] < 0 || std::size_t(p.sampleCell[s]) >= p.cells)
+            throw InputError(msg("sample targets (CUDA): sample ", s, " is in cell ", p.sampleCell[s], " of ", p.cells));
+    if (p.cloud.count > 0 && (!p.cloud.gaussians || !p.cloud.sh))
+        throw InputError("sample targets (CUDA): Gaussians without prepared kernels or SH");
+}
+
 void evaluateSampleTargetsCuda(const SampleTargetsProblem& p, float* features, float* opacity, FeatureStats* stats)
 {
     checkSampleTargets(p);
@@ -274,19 +279,19 @@ void evaluateSampleTargetsCuda(const SampleTargetsProblem& p, float* features, f
 
     // Targets, one thread per sample.
     DeviceBuffer<float> outF(m * stride, "sample features"), outO(m, "sample opacity");
-    DeviceBuffer<std::uint32_t> contributing(m, "contributing pairs per sample");
+    DeviceBuffer<std::uint32_t> tested(m, "tested pairs per sample"), contributing(m, "contributing pairs per sample");
     const CellTargetView view = cellTargetView(p, in, pairs);
     dispatchStride(p.cloud.shStride, [&](auto tag) {
         launch("cellTargetKernel", cellTargetKernel<decltype(tag)::value>, m, st, m, view, outF.data(), outO.data(),
-               contributing.data());
+               tested.data(), contributing.data());
     });
+    // Summed per sample: cells hold different sample counts where some are fine.
+    const unsigned long long testedTotal = deviceSum(temp, tested.data(), m, st);
     const unsigned long long contributed = deviceSum(temp, contributing.data(), m, st);
     if (features) outF.download(features, m * stride, st);
     if (opacity) outO.download(opacity, m, st);
     if (stats) {
-        // Every sample of a cell tests every Gaussian of the cell's list.
-        const std::uint64_t perCell = p.cells ? std::uint64_t(m / p.cells) : 0;
-        stats->pairsTested += std::uint64_t(pairs.count) * perCell;
+        stats->pairsTested += testedTotal;
         stats->pairsContributing += contributed;
         stats->binEntries = pairs.count;
         stats->binCellSize = float(p.cellSize);
@@ -298,7 +303,7 @@ void evaluateFeaturesCuda(const FeaturePointsProblem& p, float* features, float*
     checkStride(p.cloud.shStride, "features (CUDA)");
     if ((p.count > 0 && !p.points) || (p.cloud.count > 0 && (!p.cloud.gaussians || !p.cloud.sh)))
         throw InputError("features (CUDA): missing points, prepared Gaussians or SH");
-    if (p.cloud.count > 0xffffffffull) throw InputError("features (CUDA): too many Gaussians for 32-bit indices");
+    if (p.cloud.count > 0xffffffffull) throw DeviceLimitError("features (CUDA): too many Gaussians for 32-bit indices");
     const std::size_t n = p.cloud.count, m = p.count, stride = std::size_t(p.cloud.shStride);
     StreamHolder holder;
     const cudaStream_t st = holder.stream;

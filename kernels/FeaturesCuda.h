@@ -7,18 +7,26 @@
 
 namespace splatwarp::cuda {
 
+/// @brief The host-side validation evaluateSampleTargetsCuda() runs before any CUDA call.
+/// @throws InputError for a bad index grid, SH stride or cell size, missing arrays, or a
+///         sample whose cell is not one of the problem's cells
+void checkSampleTargets(const SampleTargetsProblem& problem);
+
 /// @brief Evaluate targetF [M, shStride] and targetO [M] of every sample on the current CUDA
 ///        device; the outputs are written only at the end. stats: pairsContributing (as the CPU
-///        path) and pairsTested (list length x samples per cell).
-/// @throws InputError for a bad index grid; DeviceMemoryError when a buffer does not fit (the
-///         message names it) or the pairs exceed one 32-bit sort; Error for other CUDA failures
+///        path) and pairsTested (the sum over samples of their cell's list length; cells may
+///        hold different sample counts, e.g. fine cells).
+/// @throws InputError as checkSampleTargets(); DeviceMemoryError when a buffer does not fit (the
+///         message names it); DeviceLimitError when the pairs exceed one 32-bit sort; Error for
+///         other CUDA failures
 void evaluateSampleTargetsCuda(const SampleTargetsProblem& problem, float* features, float* opacity,
                                FeatureStats* stats);
 
 /// @brief evaluateFeatures() at arbitrary points on the current CUDA device (see
 ///        FeaturesFunction in field/FeatureDevice.h): the Gaussians' pruning boxes binned on the
 ///        GPU (BoxBins), each point sums its bin's Gaussians in ascending index order.
-/// @throws InputError for bad inputs; DeviceMemoryError when a buffer does not fit; Error else
+/// @throws InputError for bad inputs; DeviceMemoryError when a buffer does not fit;
+///         DeviceLimitError for counts past its 32-bit indices; Error else
 void evaluateFeaturesCuda(const FeaturePointsProblem& problem, float* features, float* opacity, FeatureStats* stats);
 
 } // namespace splatwarp::cuda

@@ -239,7 +239,7 @@ Image renderGaussiansCuda(const GaussianCloud& cloud, const Camera& camera, cons
     const PinholeView view = pinholeView(camera);
     const std::size_t n = cloud.size();
     if (n > std::numeric_limits<std::uint32_t>::max())
-        throw InputError(msg("CUDA rasteriser: ", n, " Gaussians exceed its 32-bit splat indices"));
+        throw DeviceLimitError(msg("CUDA rasteriser: ", n, " Gaussians exceed its 32-bit splat indices"));
     const int tilesX = (view.width + kSplatTileSize - 1) / kSplatTileSize;
     const int tilesY = (view.height + kSplatTileSize - 1) / kSplatTileSize;
     const std::size_t tiles = std::size_t(tilesX) * std::size_t(tilesY);
@@ -250,7 +250,7 @@ Image renderGaussiansCuda(const GaussianCloud& cloud, const Camera& camera, cons
     DeviceBuffer<unsigned char> temp("CUB temporary storage");
     projectSplats(cloud, gaussians, view, temp, projected, stream);
     if (projected.entries > std::numeric_limits<std::uint32_t>::max())
-        throw InputError(msg("CUDA rasteriser: ", projected.entries, " splat-tile entries exceed its 32-bit offsets ",
+        throw DeviceLimitError(msg("CUDA rasteriser: ", projected.entries, " splat-tile entries exceed its 32-bit offsets ",
                              "(render at a lower resolution)"));
     TileLists lists(tiles, projected.entries, stream);
     sortTileEntries(projected, n, tiles, tilesX, temp, lists, stream);

@@ -34,7 +34,8 @@ constexpr int kSh = kParamSh;
 // Small host helpers
 
 /// GPU time per phase from CUDA events (the loop never waits, so host clocks would only see
-/// launch costs); summed after the final synchronisation.
+/// launch costs). The times of finished phases are summed at each synchronisation the loop makes
+/// anyway (harvest()), and their events reused: a few events in all, not ~10 per iteration.
 class PhaseTimer {
 public:
     enum Phase { Coverage, Forward, Backward, Update, Count };
@@ -45,25 +46,42 @@ public:
             cudaEventDestroy(m.start);
             cudaEventDestroy(m.end);
         }
+        for (cudaEvent_t e : mPool) cudaEventDestroy(e);
     }
+    PhaseTimer(const PhaseTimer&) = delete;
+    PhaseTimer& operator=(const PhaseTimer&) = delete;
     void begin(Phase p)
     {
-        Mark m{p, nullptr, nullptr};
-        SPLATWARP_CUDA_CHECK(cudaEventCreate(&m.start));
-        SPLATWARP_CUDA_CHECK(cudaEventCreate(&m.end));
-        mMarks.push_back(m);
-        SPLATWARP_CUDA_CHECK(cudaEventRecord(m.start, mStream));
+        const cudaEvent_t start = take();
+        cudaEvent_t end = nullptr;
+        try {
+            end = take();
+        } catch (...) {
+            mPool.push_back(start);
+            throw;
+        }
+        mMarks.push_back({p, start, end});
+        SPLATWARP_CUDA_CHECK(cudaEventRecord(start, mStream));
     }
     void end() { SPLATWARP_CUDA_CHECK(cudaEventRecord(mMarks.back().end, mStream)); }
-    /// Milliseconds per phase (call after the stream is synchronised).
-    void totals(double* ms) const
+    /// Add up the marked phases and keep their events for reuse. Only right after the stream was
+    /// synchronised and outside a phase: every recorded event has completed then.
+    void harvest()
     {
-        for (int p = 0; p < Count; ++p) ms[p] = 0;
         for (const Mark& m : mMarks) {
             float t = 0;
             SPLATWARP_CUDA_CHECK(cudaEventElapsedTime(&t, m.start, m.end));
-            ms[m.phase] += double(t);
+            mMs[m.phase] += double(t);
+            mPool.push_back(m.start);
+            mPool.push_back(m.end);
         }
+        mMarks.clear();
+    }
+    /// Milliseconds per phase (call after the stream is synchronised).
+    void totals(double* ms)
+    {
+        harvest();
+        for (int p = 0; p < Count; ++p) ms[p] = mMs[p];
     }
 
 private:
@@ -71,8 +89,21 @@ private:
         Phase phase;
         cudaEvent_t start, end;
     };
+    cudaEvent_t take()
+    {
+        if (!mPool.empty()) {
+            const cudaEvent_t e = mPool.back();
+            mPool.pop_back();
+            return e;
+        }
+        cudaEvent_t e = nullptr;
+        SPLATWARP_CUDA_CHECK(cudaEventCreate(&e));
+        return e;
+    }
     cudaStream_t mStream;
-    std::vector<Mark> mMarks;
+    std::vector<Mark> mMarks;      ///< recorded since the last harvest()
+    std::vector<cudaEvent_t> mPool; ///< events of harvested marks, free for reuse
+    double mMs[Count] = {};
 };
 
 // ---------------------------------------------------------------------------------------------
@@ -484,6 +515,7 @@ public:
         forwardInto(nullptr, nullptr);
         EnergySum sum;
         mSum.download(&sum, 1, stream());
+        mTimer.harvest(); // the download waited: every phase so far has finished
         StageTwoEnergy e;
         e.iteration = iteration;
         e.color = sum.color;
@@ -726,7 +758,8 @@ void Solver::coverage(int iteration)
     unsigned long long pairs = 0;
     SPLATWARP_CUDA_CHECK(cudaMemcpyAsync(&pairs, mSampleCount.data() + mS, sizeof(pairs), cudaMemcpyDeviceToHost, st));
     SPLATWARP_CUDA_CHECK(cudaStreamSynchronize(st));
-    if (pairs > 0xffffffffull) throw InputError(msg("Stage II coverage has ", pairs, " pairs; too many for 32-bit indices"));
+    if (pairs > 0xffffffffull) // the CPU's per-block lists are n^3 times shorter: Auto runs it there
+        throw DeviceLimitError(msg("Stage II coverage has ", pairs, " pairs; too many for 32-bit indices"));
     mPairs = pairs;
     mSampleItems.resize(pairs);
     mPairSample.resize(pairs);

@@ -48,10 +48,13 @@ ResolvedDevice resolveDevice(Device requested)
     return {};
 }
 
-void fallBackToCpu(const ResolvedDevice& device, const char* what, const DeviceMemoryError& e)
+void fallBackToCpu(const ResolvedDevice& device, const char* what, const DeviceLimitError& e)
 {
-    if (!device.cpuFallback())
-        throw DeviceMemoryError(msg(e.what(), " (--device cuda; --device auto would fall back to the CPU)"));
+    if (!device.cpuFallback()) {
+        const std::string text = msg(e.what(), " (--device cuda; --device auto would run ", what, " on the CPU)");
+        if (dynamic_cast<const DeviceMemoryError*>(&e)) throw DeviceMemoryError(text);
+        throw DeviceLimitError(text);
+    }
     progress(msg(what, ": ", e.what(), "; running on the CPU instead"));
 }
 

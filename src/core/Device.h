@@ -15,11 +15,20 @@ namespace splatwarp {
 /// @brief A requested or resolved device.
 enum class Device { Auto, Cpu, Cuda };
 
-/// @brief The GPU ran out of memory. The message names what did not fit and how many bytes,
-///        so the caller can report it or fall back to the CPU.
-class DeviceMemoryError : public Error {
+/// @brief The GPU cannot take this job, though the CPU can: a count past the GPU path's 32-bit
+///        indices (its per-sample lists are n^3 times longer than the CPU's per-block ones) or,
+///        as DeviceMemoryError, a buffer that does not fit. Under Auto the job runs on the CPU
+///        (fallBackToCpu()); under Cuda it is an error (exit 1). Never for bad input.
+class DeviceLimitError : public Error {
 public:
     using Error::Error;
+};
+
+/// @brief The GPU ran out of memory. The message names what did not fit and how many bytes,
+///        so the caller can report it or fall back to the CPU.
+class DeviceMemoryError : public DeviceLimitError {
+public:
+    using DeviceLimitError::DeviceLimitError;
 };
 
 /// @brief Parse "auto", "cpu" or "cuda".
@@ -48,7 +57,8 @@ public:
     /// What was asked: Auto, Cpu or Cuda.
     Device requested() const { return mRequested; }
     bool cuda() const { return mDevice == Device::Cuda; }
-    /// Auto was asked: out of GPU memory (or without a CUDA version of an operation), run on the CPU.
+    /// Auto was asked: when the GPU cannot take a job (DeviceLimitError) or an operation has no
+    /// CUDA version, run it on the CPU.
     bool cpuFallback() const { return mRequested == Device::Auto; }
 
 private:
@@ -81,14 +91,15 @@ private:
     std::atomic<F> mF{nullptr};
 };
 
-/// @brief A GPU ran out of memory running `what` on `device`: under Auto, a progress line says
-///        `what` runs on the CPU instead; under Cuda the error is rethrown with a hint.
-/// @throws DeviceMemoryError when `device` may not fall back to the CPU
-void fallBackToCpu(const ResolvedDevice& device, const char* what, const DeviceMemoryError& error);
+/// @brief The GPU could not take `what` on `device` (out of memory or past its index limits):
+///        under Auto, a progress line says `what` runs on the CPU instead; under Cuda the error
+///        is rethrown, of the same type, with a hint.
+/// @throws DeviceMemoryError or DeviceLimitError when `device` may not fall back to the CPU
+void fallBackToCpu(const ResolvedDevice& device, const char* what, const DeviceLimitError& error);
 
 /// @brief Run a computation on a resolved device: the registered CUDA implementation `cuda` (may
-///        be null: no CUDA version compiled in) when `device` is Cuda, else `cpu`. Under Auto a GPU
-///        out-of-memory error (or no CUDA version) runs `cpu` instead, see fallBackToCpu(); under
+///        be null: no CUDA version compiled in) when `device` is Cuda, else `cpu`. Under Auto a
+///        DeviceLimitError (out of memory, a count past the GPU's indices) or no CUDA version runs `cpu` instead, see fallBackToCpu(); under
 ///        Cuda it propagates. `used` (optional) receives the device that ran.
 /// @throws InputError when Cuda was asked and there is no CUDA version of `what`
 template <typename CudaFn, typename CpuFn>
@@ -103,7 +114,7 @@ auto runOnDevice(const ResolvedDevice& device, const char* what, bool hasCuda, C
                 auto result = cuda();
                 if (used) *used = Device::Cuda;
                 return result;
-            } catch (const DeviceMemoryError& e) {
+            } catch (const DeviceLimitError& e) {
                 fallBackToCpu(device, what, e);
             }
         }

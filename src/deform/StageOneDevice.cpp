@@ -33,7 +33,7 @@ StageOneResult StageOneUpdater::apply(const NodeTransforms& transforms, const st
             r.timings.updateMs = clock.ms();
             r.device = Device::Cuda;
             return r;
-        } catch (const DeviceMemoryError& e) {
+        } catch (const DeviceLimitError& e) {
             fallBackToCpu(mOptions.device, "Stage I", e);
             mEngine.reset();
         }

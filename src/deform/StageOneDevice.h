@@ -33,9 +33,9 @@ using StageOneEngineFactory = std::unique_ptr<StageOneEngine> (*)(const Gaussian
 void registerStageOneCuda(StageOneEngineFactory cuda);
 
 /// @brief Stage I updates of one rest model and rig on options.device, as many as wanted (the
-///        bench times each). When the GPU runs out of memory under Auto (creating the engine or
-///        updating) the update runs on the CPU from then on, with a progress message; under Cuda
-///        the DeviceMemoryError propagates.
+///        bench times each). When the GPU cannot take it under Auto (DeviceLimitError, creating
+///        the engine or updating) the update runs on the CPU from then on, with a progress message;
+///        under Cuda the DeviceLimitError propagates.
 /// @note  rest, rig and graph are referenced, not copied: they must outlive the updater.
 class StageOneUpdater {
 public:

@@ -127,6 +127,14 @@ struct CellTargetView {
     const std::uint32_t* cellGaussians = nullptr; ///< [P] Gaussian of each sorted pair
 };
 
+/// @brief The candidates sample s tests: the length of its cell's Gaussian list (pairsTested
+///        is their sum over the samples, whatever each cell's sample count).
+SPLATWARP_HOST_DEVICE std::uint32_t cellSampleCandidates(std::size_t s, const CellTargetView& v)
+{
+    const std::size_t c = std::size_t(v.sampleCell[s]);
+    return v.cellEnd[c] - v.cellStart[c];
+}
+
 /// @brief Targets of sample s from its cell's Gaussian list: its features f (v.shStride floats,
 ///        may be null; a row of the [M, shStride] output or a scratch array) and opacity o.
 /// @return the number of contributing pairs

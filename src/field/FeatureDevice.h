@@ -44,7 +44,8 @@ struct SampleTargetsProblem {
 /// @brief A target evaluation: features [M, shStride] and opacity [M] for every sample; stats
 ///        gets pairsContributing (as the CPU path) and pairsTested = sum over cells of
 ///        (Gaussians in the cell's list) x (samples of the cell), which differs from the CPU's
-///        bin candidates. Must throw DeviceMemoryError when the GPU runs out of memory.
+///        bin candidates. Must throw DeviceMemoryError when the GPU runs out of memory and
+///        DeviceLimitError for counts past its indices (never InputError: the CPU can take those).
 using SampleTargetsFunction = void (*)(const SampleTargetsProblem&, float* features, float* opacity,
                                        FeatureStats* stats);
 

@@ -15,9 +15,9 @@ using RenderFunction = Image (*)(const GaussianCloud&, const Camera&, const Rend
 void registerRenderCuda(RenderFunction cuda);
 
 /// @brief renderGaussians() on options.device, with the same result up to float rounding (the
-///        CPU rasteriser is the reference). When the GPU runs out of memory under Auto the image
-///        is rendered on the CPU (with a progress message), under Cuda the DeviceMemoryError
-///        propagates.
+///        CPU rasteriser is the reference). When the GPU cannot take it (DeviceLimitError: out of
+///        memory, a count past its indices) under Auto the image is rendered on the CPU (with a
+///        progress message), under Cuda the DeviceLimitError propagates.
 /// @param used  when not null, receives the device that rendered (Cpu or Cuda)
 /// @throws InputError when Cuda was asked and no CUDA rasteriser is registered, and as
 ///         renderGaussians() for bad inputs

@@ -104,8 +104,6 @@ private:
     std::vector<float> mBoxLo, mBoxHi;                        // [G,3]
     std::vector<CoverageSlabs> mSlabs;                        // [G] coverage slabs (the reach until the next rebuild)
     std::vector<std::uint8_t> mHolds;                         // [G]
-    std::vector<int> mReach;                                  // [G] steps its coverage reach is sized for
-    static constexpr int kMaxReachSteps = 64;
     // Per padded slot, [stride][lanes] or [lanes] per block (padding 0): static F and O, targets.
     BigVector<float> mStaticF, mStaticO, mTargetF, mTargetO;
     std::vector<std::uint8_t> mStaticBlock; // [B] whether any static F or O of the block is not zero
@@ -144,7 +142,6 @@ CpuSolver::CpuSolver(const GaussianCloud& cloud, const SampleSet& samples, const
     mBoxHi.resize(3 * mG);
     mSlabs.resize(mG);
     mHolds.resize(mG);
-    mReach.assign(mG, mOptions.coverageSteps);
     const std::size_t stride = std::size_t(mStride);
     evaluateStatic(cloud, moving);
     mTargetF = toSlots(mBlocks, stride, [&](std::size_t j) { return &samples.targetF[mSetup.used[j] * stride]; });
@@ -217,19 +214,15 @@ void CpuSolver::prepare()
 void CpuSolver::rebuildCoverage(int iteration, bool onlyEscaped)
 {
     PhaseClock clock(mTimes.coverage);
-    // Each box holds what its Gaussian can reach in mReach[k] Adam steps (each step moves a
-    // parameter by about its learning rate), plus a relative margin; see stageTwoReach(). After a
-    // failed holds check only the Gaussians that left theirs get new ones (mHolds: coverageHolds()
-    // just ran), reaching twice as far: fast movers get wide boxes, the many slow ones keep tight
-    // lists, and few rebuilds follow (donut: the first 1-3 steps move every Gaussian by its rates).
-    const int left = coverageReachSteps(mOptions, iteration);
-    const double rate = double(stageTwoPositionRate(mOptions, iteration, mSetup.sceneExtent));
+    // Each box holds what its Gaussian can reach in the next coverageReachSteps() Adam steps
+    // (each step moves a parameter by about its learning rate), plus a relative margin; see
+    // stageTwoReach(). After a failed holds check only the Gaussians that left theirs get new
+    // ones (mHolds: coverageHolds() just ran); the many that stayed keep their lists.
+    const int steps = coverageReachSteps(mOptions, iteration);
+    const double move = double(steps) * double(stageTwoPositionRate(mOptions, iteration, mSetup.sceneExtent));
     const std::uint8_t* keep = onlyEscaped && mCoverage.pairCount() > 0 ? mHolds.data() : nullptr;
     parallelFor(mG, 256, mOptions.threaded, [&](std::size_t k) {
         if (keep && keep[k]) return;
-        if (keep) mReach[k] = std::min(2 * mReach[k], kMaxReachSteps);
-        const int steps = std::min(mReach[k], left);
-        const double move = double(steps) * rate;
         const GaussianParams<double> p = unpackParams(row(k));
         const Mat3d& filter = mSetup.filter[mSetup.moving[k]];
         stageTwoCoverageBox(p, filter, steps, move, mOptions, &mBoxLo[3 * k], &mBoxHi[3 * k]);

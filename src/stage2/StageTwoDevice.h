@@ -18,14 +18,17 @@ using StageTwoFunction = StageTwoReport (*)(GaussianCloud&, const SampleSet&, co
 void registerStageTwoCuda(StageTwoFunction cuda);
 
 /// @brief Run Stage II (same arguments and results as optimiseStageTwo()) on a device.
-///        options.device says where; when the GPU runs out of memory under Auto the run repeats
-///        on the CPU with a progress message, under Cuda the DeviceMemoryError propagates.
-///        report.device says which device ran.
-/// @note  After a fallback, onEval sees the iterations again from the CPU run.
+///        options.device says where; when the GPU cannot take the run under Auto (DeviceLimitError:
+///        out of memory, counts past its indices) it repeats on the CPU with a progress message,
+///        under Cuda the DeviceLimitError propagates. report.device says which device ran.
+/// @param onRestart  called when a GPU run that onEval already saw iterations of falls back: the
+///                   CPU run starts again at iteration 0, so the caller drops what onEval recorded
+///                   in this call (else the curve holds both runs' iterations)
 /// @throws InputError when Cuda was asked and no CUDA Stage II is registered
 StageTwoReport runStageTwo(GaussianCloud& cloud, const SampleSet& samples,
                            const std::vector<std::uint8_t>& moving, const std::vector<std::int32_t>& gaussianCell,
                            const StageTwoOptions& options,
-                           const std::function<void(int, const GaussianCloud&)>& onEval = {}, int evalEvery = 0);
+                           const std::function<void(int, const GaussianCloud&)>& onEval = {}, int evalEvery = 0,
+                           const std::function<void()>& onRestart = {});
 
 } // namespace splatwarp

@@ -19,7 +19,7 @@ struct StageTwoOptions {
     float lambdaLpf = 0.2f;        ///< filter strength: Sigma' += lambdaLpf * spacing^2 * F_k F_k^T (Mip-Splatting's 3D filter value)
     /// The coverage (which Gaussians can touch which samples) first holds what a Gaussian can
     /// reach in this many Adam steps (each changes a parameter by about its learning rate); a
-    /// Gaussian that leaves it gets a new one (the CPU: that Gaussian only, reaching twice as far).
+    /// Gaussian that leaves it gets a new one (the CPU: that Gaussian only; the GPU: all).
     /// Trades list length (forward time) against rebuilds; never changes a result. 3 by
     /// measurement (docs/stage2-engine.md): the demo's Gaussians stay in a 3-step reach for all
     /// 100 iterations (10% less forward time than 10 steps).

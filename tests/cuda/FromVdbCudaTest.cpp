@@ -42,7 +42,7 @@ FromVdbResult fitOn(const Volume& volume, std::size_t gaussians, Device device)
 TEST(FromVdbCuda, RoundTripMatchesCpu)
 {
     SPLATWARP_REQUIRE_GPU();
-    cuda::registerBackends();
+    const test::CudaBackendsScope backends;
     const GaussianCloud original = test::randomCloud(60, 1, 7, 1.0f, 0.08f, 0.25f);
     SampleGridOptions go;
     go.cells = 12;

@@ -1,6 +1,7 @@
 // The GPU scans whose totals can pass 2^32: the rasteriser's tile entries, the box bins' entries
 // and Stage II's coverage pairs are counted in 64 bits, so a total past 2^32 is refused cleanly
-// (InputError naming the count) instead of wrapping into an out-of-range write. Each test drives
+// (DeviceLimitError naming the count, which --device auto turns into a CPU run) instead of
+// wrapping into an out-of-range write. Each test drives
 // its count past 2^32 for real on the GPU; memory and time on an H200 are stated per test.
 // Tests skip with a message where cudaGetDeviceCount finds none.
 #include <gtest/gtest.h>
@@ -16,6 +17,7 @@
 #include "RasterizerCuda.h"
 #include "StageTwoCuda.h"
 #include "core/Camera.h"
+#include "core/Device.h"
 #include "core/Error.h"
 
 using namespace splatwarp;
@@ -34,14 +36,17 @@ GaussianCloud unitGaussians(std::size_t n)
     return c;
 }
 
-/// Expects f() to throw InputError whose message contains `what`.
+/// Expects f() to throw DeviceLimitError (not out of memory, not bad input: --device auto must
+/// run the job on the CPU) whose message contains `what`.
 template <typename F>
 void expectRefusal(const F& f, const std::string& what)
 {
     try {
         f();
-        ADD_FAILURE() << "expected InputError containing '" << what << "'";
-    } catch (const InputError& e) {
+        ADD_FAILURE() << "expected DeviceLimitError containing '" << what << "'";
+    } catch (const DeviceMemoryError& e) {
+        ADD_FAILURE() << "out of memory instead of the count's limit: " << e.what();
+    } catch (const DeviceLimitError& e) {
         std::printf("  refused: %s\n", e.what());
         EXPECT_NE(std::string(e.what()).find(what), std::string::npos) << e.what();
     }

@@ -123,7 +123,7 @@ std::vector<Camera> randomCloudCameras()
 // Runs without a GPU too: registration, a clear error for --device cuda, the CPU under auto.
 TEST(RasterizerCudaDispatch, RegisteredAndDevicesResolved)
 {
-    cuda::registerBackends();
+    const test::CudaBackendsScope backends;
     const GaussianCloud cloud = randomCloud(200, 1, 5);
     const Camera camera = randomCloudCameras()[0];
     Device used = Device::Cpu;
@@ -138,8 +138,6 @@ TEST(RasterizerCudaDispatch, RegisteredAndDevicesResolved)
         EXPECT_EQ(used, Device::Cuda);
         EXPECT_EQ(autoImage.pixels, cuda::renderGaussiansCuda(cloud, camera).pixels);
     }
-    registerCudaProbe(nullptr);
-    registerRenderCuda(nullptr);
 }
 
 // Validation happens before any CUDA call, so it runs (and must throw) without a GPU as well.

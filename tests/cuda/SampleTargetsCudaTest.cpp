@@ -24,6 +24,7 @@
 #include "field/FeatureDevice.h"
 #include "field/FieldTestModels.h"
 #include "demo/DemoModels.h"
+#include "support/CellListTargets.h"
 
 using namespace splatwarp;
 
@@ -47,23 +48,40 @@ double relativeError(const std::vector<float>& a, const std::vector<float>& b)
 
 void expectParity(const GaussianCloud& cloud, SampleGridOptions options)
 {
-    cuda::registerBackends();
+    const test::CudaBackendsScope backends;
     options.device = resolveDevice(Device::Cpu);
     const SampleGrid cpu(cloud, options);
     options.device = resolveDevice(Device::Cuda);
     const SampleGrid gpu(cloud, options);
-    registerSampleTargetsCuda(nullptr);
-    registerFeaturesCuda(nullptr);
-    registerCudaProbe(nullptr);
     ASSERT_EQ(gpu.stats().device, Device::Cuda);
     ASSERT_EQ(gpu.stats().samples, cpu.stats().samples);
-    EXPECT_LT(relativeError(gpu.samples().targetF, cpu.samples().targetF), kFeatureRel);
-    EXPECT_LT(relativeError(gpu.samples().targetO, cpu.samples().targetO), kOpacityRel);
+    const double ef = relativeError(gpu.samples().targetF, cpu.samples().targetF);
+    const double eo = relativeError(gpu.samples().targetO, cpu.samples().targetO);
+    test::reportTolerance("sample_targets_feature_rel", ef, kFeatureRel);
+    test::reportTolerance("sample_targets_opacity_rel", eo, kOpacityRel);
+    EXPECT_LT(ef, kFeatureRel);
+    EXPECT_LT(eo, kOpacityRel);
     const std::uint64_t a = gpu.stats().pairsContributing, b = cpu.stats().pairsContributing;
     EXPECT_GT(b, 0u);
     EXPECT_LE(a > b ? a - b : b - a, kPairFlips) << "gpu " << a << " cpu " << b;
     // Cell-skip flags follow from the targets: equal unless a flipped pair emptied a cell.
     EXPECT_EQ(gpu.stats().skippedCells, cpu.stats().skippedCells);
+}
+
+SampleGridOptions fineCellsOptions()
+{
+    SampleGridOptions o;
+    o.cells = 12;
+    o.samplesPerAxis = 2;
+    o.fineBelow = 1.0f;
+    return o;
+}
+
+/// Premise of the fine-cell tests: some cells are fine, so the cells hold uneven sample counts.
+void expectFineCells(const SampleGrid& grid)
+{
+    EXPECT_GT(grid.stats().fineCells, 0u);
+    EXPECT_NE(grid.samples().sampleCount() % grid.samples().cellCount(), 0u) << "premise: uneven cells";
 }
 
 } // namespace
@@ -91,6 +109,51 @@ TEST(SampleTargetsCuda, MatchesCpuOnRandomCloud)
     }
 }
 
+// --fine-cells: fine cells hold (2n)^3 samples, the others n^3, so the sample count is no
+// multiple of the cells; the GPU evaluates per sample and must match the CPU as on a lattice.
+TEST(SampleTargetsCuda, MatchesCpuWithFineCells)
+{
+    SPLATWARP_REQUIRE_GPU();
+    expectParity(test::mixedSizeCloud(), fineCellsOptions());
+}
+
+// The same problem on the GPU and through the host loop of the same per-element functions:
+// pairsTested, an integer sum over the same lists, must agree exactly (the GPU once multiplied
+// the pairs by M / C, which cells of different sample counts break).
+TEST(SampleTargetsCuda, FineCellsCountAsTheHostAlgorithm)
+{
+    SPLATWARP_REQUIRE_GPU();
+    const GaussianCloud cloud = test::mixedSizeCloud();
+    const SampleGrid grid(cloud, fineCellsOptions());
+    expectFineCells(grid);
+    const test::GridTargetsProblem problem(cloud, grid);
+    const test::HostTargets host = test::cellListTargets(problem.p);
+    std::vector<float> f(host.f.size()), o(host.o.size());
+    FeatureStats stats;
+    cuda::evaluateSampleTargetsCuda(problem.p, f.data(), o.data(), &stats);
+    EXPECT_EQ(stats.binEntries, host.pairs);
+    EXPECT_EQ(stats.pairsTested, host.tested);
+    const std::uint64_t a = stats.pairsContributing, b = host.contributing;
+    EXPECT_LE(a > b ? a - b : b - a, kPairFlips) << "gpu " << a << " host " << b;
+    EXPECT_LT(relativeError(f, host.f), kFeatureRel);
+    EXPECT_LT(relativeError(o, host.o), kOpacityRel);
+}
+
+// Validation runs before any CUDA call (so here without a GPU too): a grid with fine cells is
+// valid; a sample outside the problem's cells is not (the kernel would read past the ranges).
+TEST(SampleTargetsCuda, FineCellsPassValidation)
+{
+    const GaussianCloud cloud = test::mixedSizeCloud();
+    const SampleGrid grid(cloud, fineCellsOptions());
+    expectFineCells(grid);
+    test::GridTargetsProblem problem(cloud, grid);
+    EXPECT_NO_THROW(cuda::checkSampleTargets(problem.p));
+    std::vector<std::int32_t> cells(grid.samples().sampleCell);
+    cells.back() = std::int32_t(problem.p.cells);
+    problem.p.sampleCell = cells.data();
+    EXPECT_THROW(cuda::checkSampleTargets(problem.p), InputError);
+}
+
 // Validation happens before any CUDA call, so it runs (and must throw) without a GPU as well.
 TEST(SampleTargetsCuda, BadIndexGridIsAnInputError)
 {
@@ -109,7 +172,7 @@ TEST(SampleTargetsCuda, BadIndexGridIsAnInputError)
 TEST(SampleTargetsCuda, DispatchWithoutGpu)
 {
     if (cuda::cudaDeviceAvailable()) GTEST_SKIP() << "a GPU is present: covered by the parity tests";
-    cuda::registerBackends();
+    const test::CudaBackendsScope backends;
     SampleGridOptions o;
     o.cells = 8;
     EXPECT_THROW(resolveDevice(Device::Cuda), InputError);
@@ -121,9 +184,6 @@ TEST(SampleTargetsCuda, DispatchWithoutGpu)
     FeatureOptions fo;
     fo.device = resolveDevice(Device::Auto);
     EXPECT_EQ(evaluateFeaturesOn(makeDemoModel("stripes"), point, 1, fo, nullptr, opacity.data()), Device::Cpu);
-    registerSampleTargetsCuda(nullptr);
-    registerFeaturesCuda(nullptr);
-    registerCudaProbe(nullptr);
 }
 
 // Features at arbitrary points (eval / held-out): GPU bins vs the CPU's GaussianBins. Different
@@ -132,7 +192,7 @@ TEST(SampleTargetsCuda, DispatchWithoutGpu)
 TEST(FeaturesCuda, MatchesCpuAtRandomPoints)
 {
     SPLATWARP_REQUIRE_GPU();
-    cuda::registerBackends();
+    const test::CudaBackendsScope backends;
     for (const int degree : {0, 3}) {
         SCOPED_TRACE(degree);
         const GaussianCloud cloud = test::randomCloud(3000, degree, 7u + std::uint32_t(degree), 1.0f);
@@ -157,9 +217,6 @@ TEST(FeaturesCuda, MatchesCpuAtRandomPoints)
         EXPECT_LE(a > b ? a - b : b - a, kPairFlips) << "gpu " << a << " cpu " << b;
         EXPECT_GE(sg.pairsTested, sg.pairsContributing);
     }
-    registerFeaturesCuda(nullptr);
-    registerSampleTargetsCuda(nullptr);
-    registerCudaProbe(nullptr);
 }
 
 // Validation happens before any CUDA call.

@@ -1,5 +1,6 @@
 // CUDA Stage I update against the CPU applyStageOneCpu() (the reference) on the stripes sample
-// bent by samples/specs/bend.json. Skips with a message where no GPU is present.
+// bent by samples/specs/bend.json. Skips with a message where no GPU is present. Each test
+// registers what it needs (CudaBackendsScope), so none depends on the order they run in.
 //
 // Tolerances are A-PRIORI, not yet measured (written on a machine without a GPU; confirm and
 // tighten them on one). Both sides run the same double-precision code (deform/StageOneMath.h);
@@ -80,6 +81,7 @@ TEST(StageOneCuda, MatchesCpuOnStripesBend)
 TEST(StageOneCuda, RepeatedUpdatesReuseTheResidentModel)
 {
     SPLATWARP_REQUIRE_GPU();
+    const test::CudaBackendsScope backends; // resolveDevice(Cuda) needs the probe, the updater the engine
     const BendProblem p;
     // Identity transforms after the bend: the engine must restart from the rest model each step.
     StageOneOptions options;

@@ -6,6 +6,7 @@
 #include <cstring>
 #include <string>
 
+#include "support/FakeCuda.h"
 #include "support/TestSupport.h"
 #include "core/Device.h"
 #include "stage2/StageTwoDevice.h"
@@ -15,23 +16,6 @@ using namespace splatwarp;
 using namespace splatwarp::test;
 
 namespace {
-
-/// Registers fakes for one test and always restores the CPU-only state.
-struct FakeCuda {
-    FakeCuda(bool (*probe)(), StageTwoFunction stageTwo)
-    {
-        registerCudaProbe(probe);
-        registerStageTwoCuda(stageTwo);
-    }
-    ~FakeCuda()
-    {
-        registerCudaProbe(nullptr);
-        registerStageTwoCuda(nullptr);
-    }
-};
-
-bool noGpu() { return false; }
-bool gpu() { return true; }
 
 int gFakeCalls = 0;
 StageTwoReport fakeOutOfMemory(GaussianCloud&, const SampleSet&, const std::vector<std::uint8_t>&,
@@ -162,4 +146,93 @@ TEST(Device, OutOfGpuMemoryFallsBackUnderAutoOnly)
     }
     EXPECT_EQ(gFakeCalls, 2);
     EXPECT_TRUE(sameParams(explicitCuda, p.start));
+}
+
+namespace {
+
+StageTwoReport fakePastIndexLimits(GaussianCloud&, const SampleSet&, const std::vector<std::uint8_t>&,
+                                   const std::vector<std::int32_t>&, const StageTwoOptions&,
+                                   const std::function<void(int, const GaussianCloud&)>&, int)
+{
+    ++gFakeCalls;
+    throw DeviceLimitError("Stage II coverage has 6300000000 pairs; too many for 32-bit indices");
+}
+
+/// Evaluates two iterations of its own run, then runs out of memory (a rebuild that grew).
+StageTwoReport fakeEvalThenOutOfMemory(GaussianCloud& cloud, const SampleSet&, const std::vector<std::uint8_t>&,
+                                       const std::vector<std::int32_t>&, const StageTwoOptions&,
+                                       const std::function<void(int, const GaussianCloud&)>& onEval, int evalEvery)
+{
+    ++gFakeCalls;
+    for (int it = evalEvery; it <= 2 * evalEvery; it += evalEvery)
+        if (onEval) onEval(it, cloud);
+    throw DeviceMemoryError("CUDA: out of GPU memory for the coverage pairs (99 bytes)");
+}
+
+} // namespace
+
+// A count past the GPU's 32-bit indices is no bad input (the CPU's block lists are n^3 times
+// shorter): auto runs Stage II on the CPU, cuda fails with the limit and the hint, not as out of memory.
+TEST(Device, PastTheGpuIndexLimitsFallsBackUnderAutoOnly)
+{
+    gFakeCalls = 0;
+    FakeCuda fake(gpu, fakePastIndexLimits);
+    const RigidStageTwoProblem p = smallProblem();
+    GaussianCloud reference = p.start, cloud = p.start;
+    optimiseStageTwo(reference, p.samples, p.moving, p.cells, p.options);
+    const StageTwoReport r = runStageTwo(cloud, p.samples, p.moving, p.cells, on(p, Device::Auto));
+    EXPECT_EQ(gFakeCalls, 1);
+    EXPECT_EQ(r.device, Device::Cpu);
+    EXPECT_TRUE(sameParams(cloud, reference));
+
+    GaussianCloud explicitCuda = p.start;
+    try {
+        runStageTwo(explicitCuda, p.samples, p.moving, p.cells, on(p, Device::Cuda));
+        ADD_FAILURE() << "expected DeviceLimitError";
+    } catch (const DeviceMemoryError& e) {
+        ADD_FAILURE() << "a count limit reported as out of memory: " << e.what();
+    } catch (const DeviceLimitError& e) {
+        const std::string m = e.what();
+        EXPECT_NE(m.find("6300000000 pairs"), std::string::npos) << m;
+        EXPECT_NE(m.find("--device auto would run Stage II on the CPU"), std::string::npos) << m;
+    }
+    EXPECT_EQ(gFakeCalls, 2);
+    EXPECT_TRUE(sameParams(explicitCuda, p.start));
+}
+
+// After a fallback the CPU run starts again at iteration 0: onRestart tells the caller to drop
+// what the GPU run's evaluations recorded, so each iteration is recorded once, from the CPU run.
+TEST(Device, FallbackRecordsEachEvaluationOnce)
+{
+    gFakeCalls = 0;
+    FakeCuda fake(gpu, fakeEvalThenOutOfMemory);
+    RigidStageTwoProblem p = smallProblem();
+    p.options.iterations = 4;
+    std::vector<int> curve;
+    int restarts = 0;
+    const auto record = [&](int it, const GaussianCloud&) { curve.push_back(it); };
+    GaussianCloud cloud = p.start;
+    optimiseStageTwo(cloud, p.samples, p.moving, p.cells, p.options, record, 1);
+    const std::vector<int> cpuCurve = curve;
+    ASSERT_GE(cpuCurve.size(), 3u) << "premise: the CPU run evaluates more iterations than the fake";
+    curve.clear();
+    cloud = p.start;
+    const StageTwoReport r =
+        runStageTwo(cloud, p.samples, p.moving, p.cells, on(p, Device::Auto), record, 1, [&] {
+            ++restarts;
+            curve.clear();
+        });
+    EXPECT_EQ(gFakeCalls, 1);
+    EXPECT_EQ(r.device, Device::Cpu);
+    EXPECT_EQ(restarts, 1);
+    EXPECT_EQ(curve, cpuCurve);
+
+    // No GPU evaluation seen (the run failed before any): no restart to report.
+    FakeCuda limit(gpu, fakePastIndexLimits);
+    restarts = 0;
+    curve.clear();
+    cloud = p.start;
+    runStageTwo(cloud, p.samples, p.moving, p.cells, on(p, Device::Auto), record, 1, [&] { ++restarts; });
+    EXPECT_EQ(restarts, 0);
+    EXPECT_EQ(curve, cpuCurve);
 }

@@ -9,6 +9,7 @@
 #include <vector>
 
 #include "SampleGrid.h"
+#include "support/CellListTargets.h"
 #include "vdb/CellLookup.h"
 #include "field/CellTargetMath.h"
 #include "field/FeatureField.h"
@@ -51,68 +52,12 @@ void expectSameLookups(const SampleGrid& grid)
     EXPECT_GT(outside, 0u) << "the boundary of the topology (background -1) was never looked up";
 }
 
-struct HostTargets {
-    std::vector<float> f, o;
-    std::uint64_t contributing = 0, pairs = 0;
-};
-
-/// The GPU algorithm over host arrays: count, exclusive scan, fill, stable sort by cell, mark
-/// ranges, evaluate every sample (index loops where the kernels have threads).
-HostTargets cellListTargets(const GaussianCloud& cloud, const SampleGrid& grid)
-{
-    const SampleSet& set = grid.samples();
-    const FeatureOptions& fo = grid.targetOptions();
-    const std::vector<PreparedGaussian> g = prepareCloud(cloud, double(fo.filterVariance), fo.cutoff, false);
-    const CellIndexGrid bytes = grid.nanoIndexGrid();
-    const NanoCellGrid& nano = *nanoCellGrid(bytes);
-    const double h = double(set.cellSize);
-    const std::size_t n = g.size(), m = set.restPositions.size() / 3, cells = grid.cellCoords().size() / 3;
-
-    std::vector<std::uint64_t> offsets(n + 1, 0);
-    for (std::size_t i = 0; i < n; ++i) offsets[i + 1] = offsets[i] + gaussianCellPairs(std::uint32_t(i), g[i], h, nano, nullptr, nullptr);
-    const std::size_t pairs = offsets[n];
-    std::vector<std::uint32_t> cellOf(pairs), owner(pairs);
-    for (std::size_t i = 0; i < n; ++i)
-        EXPECT_EQ(gaussianCellPairs(std::uint32_t(i), g[i], h, nano, cellOf.data() + offsets[i], owner.data() + offsets[i]),
-                  offsets[i + 1] - offsets[i]);
-    std::vector<std::size_t> order(pairs);
-    std::iota(order.begin(), order.end(), std::size_t(0));
-    std::stable_sort(order.begin(), order.end(), [&](std::size_t a, std::size_t b) { return cellOf[a] < cellOf[b]; });
-    std::vector<std::uint32_t> sortedCells(pairs), sortedOwners(pairs);
-    for (std::size_t p = 0; p < pairs; ++p) {
-        sortedCells[p] = cellOf[order[p]];
-        sortedOwners[p] = owner[order[p]];
-    }
-    std::vector<std::uint32_t> start(cells, 0), end(cells, 0);
-    for (std::size_t p = 0; p < pairs; ++p) markCellRange(p, sortedCells.data(), pairs, start.data(), end.data());
-    for (std::size_t c = 0; c < cells; ++c)
-        for (std::uint32_t p = start[c]; p + 1 < end[c]; ++p)
-            EXPECT_LT(sortedOwners[p], sortedOwners[p + 1]) << "cell " << c << ": Gaussians not strictly ascending";
-
-    CellTargetView v;
-    v.gaussians = g.data();
-    v.sh = cloud.sh.data();
-    v.shStride = cloud.shStride();
-    v.cutoff = fo.cutoff;
-    v.positions = set.restPositions.data();
-    v.sampleCell = set.sampleCell.data();
-    v.cellStart = start.data();
-    v.cellEnd = end.data();
-    v.cellGaussians = sortedOwners.data();
-    HostTargets out;
-    out.f.assign(m * std::size_t(v.shStride), -1.0f); // overwritten everywhere
-    out.o.assign(m, -1.0f);
-    out.pairs = pairs;
-    for (std::size_t s = 0; s < m; ++s)
-        out.contributing += evaluateCellSample(s, v, out.f.data() + s * std::size_t(v.shStride), out.o[s]);
-    return out;
-}
-
 void expectSameTargets(const GaussianCloud& cloud, const SampleGridOptions& options)
 {
     const SampleGrid grid(cloud, options);
     ASSERT_EQ(grid.stats().device, Device::Cpu);
-    const HostTargets t = cellListTargets(cloud, grid);
+    const test::GridTargetsProblem problem(cloud, grid);
+    const test::HostTargets t = test::cellListTargets(problem.p);
     const SampleSet& set = grid.samples();
     ASSERT_EQ(t.f.size(), set.targetF.size());
     ASSERT_EQ(t.o.size(), set.targetO.size());
@@ -174,4 +119,32 @@ TEST(CellIndexGrid, CellListTargetsEqualCpuWithoutFilterAndHighCutoff)
     o.lambdaLpf = 0.0f;
     o.cutoff = 0.05f; // many Gaussians (logit < ~-2.9) never contribute and emit no pairs
     expectSameTargets(test::randomCloud(150, 1, 23u, 1.0f), o);
+}
+
+// pairsTested counts each sample against its own cell's list, so fine cells ((2n)^3 samples) count
+// 8x: the sum over cells of (list length) x (that cell's samples), not pairs x (M / C).
+TEST(CellIndexGrid, PairsTestedCountEachCellsOwnSamples)
+{
+    SampleGridOptions o;
+    o.cells = 12;
+    o.samplesPerAxis = 2;
+    o.fineBelow = 1.0f;
+    const GaussianCloud cloud = test::mixedSizeCloud();
+    const SampleGrid grid(cloud, o);
+    const SampleSet& set = grid.samples();
+    ASSERT_GT(grid.stats().fineCells, 0u);
+    ASSERT_LT(grid.stats().fineCells, set.cellCount());
+    ASSERT_NE(set.sampleCount() % set.cellCount(), 0u) << "premise: the cells do not hold equal sample counts";
+    const test::GridTargetsProblem problem(cloud, grid);
+    const test::HostTargets t = test::cellListTargets(problem.p);
+    std::vector<std::uint32_t> sortedCells, owners;
+    test::sortedCellPairs(problem.p, sortedCells, owners);
+    std::vector<std::uint64_t> listLength(set.cellCount(), 0);
+    for (const std::uint32_t c : sortedCells) ++listLength[c];
+    std::uint64_t expected = 0;
+    for (std::size_t c = 0; c < set.cellCount(); ++c) expected += listLength[c] * (set.firstSampleOf(c + 1) - set.firstSampleOf(c));
+    EXPECT_EQ(t.tested, expected);
+    EXPECT_NE(t.tested, t.pairs * (set.sampleCount() / set.cellCount())) << "the uniform formula must not fit here";
+    EXPECT_GE(t.tested, t.contributing);
+    EXPECT_GT(t.contributing, 0u);
 }

@@ -17,6 +17,7 @@
 #include "field/FieldTestModels.h"
 #include "stage2/StageTwo.h"
 #include "stage2/StageTwoSetup.h"
+#include "support/CellListTargets.h"
 
 using namespace splatwarp;
 using namespace splatwarp::test;
@@ -25,19 +26,7 @@ namespace {
 
 constexpr int kN = 2;
 
-/// Small Gaussians (scales 0.004..0.01) at x < 0, large ones (0.08..0.2) at x > 0.
-GaussianCloud mixedCloud()
-{
-    const GaussianCloud small = randomCloud(300, 1, 11, 0.45f, 0.004f, 0.01f);
-    const GaussianCloud large = randomCloud(80, 1, 12, 0.45f, 0.08f, 0.2f);
-    GaussianCloud g = small;
-    for (std::size_t i = 0; i < large.size(); ++i) g.append(large, i);
-    for (std::size_t i = 0; i < g.size(); ++i) {
-        const Vec3f p = g.mean(i);
-        g.setMean(i, Vec3f(p.x + (i < small.size() ? -0.5f : 0.5f), p.y, p.z));
-    }
-    return g;
-}
+GaussianCloud mixedCloud() { return mixedSizeCloud(); }
 
 SampleGridOptions fineOptions(float fineBelow = 1.0f)
 {
