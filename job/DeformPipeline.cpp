@@ -1,4 +1,5 @@
 #include "DeformPipeline.h"
+#include "DeformSession.h"
 
 #include <algorithm>
 #include <cctype>
@@ -18,6 +19,7 @@
 #include "core/Error.h"
 #include "core/Memory.h"
 #include "core/Progress.h"
+#include "core/RunControl.h"
 #include "deform/DeformReport.h"
 #include "deform/WarpDevice.h"
 #include "image/ImageIO.h"
@@ -28,11 +30,6 @@
 namespace splatwarp {
 
 namespace {
-
-std::string outPath(const DeformJobOptions& o, const char* name)
-{
-    return (std::filesystem::path(o.outDir) / name).string();
-}
 
 /// Forget the evaluations after iteration `after` (their run fell back to the CPU and repeats them).
 void dropCurveAfter(nlohmann::json& curve, int after)
@@ -305,8 +302,11 @@ ColdStart coldStart(const DeformRest& rest, const Deformation& deformation, cons
         curve = stageOneBendingOf(rest.model, rest.rig, rest.graph, deformation.transforms, stage1.deformed,
                                   stage1.moving, o.stage1).curve;
     }
+    checkCancelled();
     if (validation && o.validatedSplit) splitByValidation(rest, deformation, stage1, o, *validation, curve, c, report);
+    checkCancelled();
     c.shifted = curveShiftOf(c.model, curve, o, errors, validation, report);
+    checkCancelled();
     return c;
 }
 
@@ -417,6 +417,7 @@ GaussianCloud stageTwo(DeformRest& rest, const Deformation& deformation, const S
         r2 = fit();
     }
     report["stage2"] = stageTwoJson(r2, *rest.grid, o.stage2);
+    checkCancelled();
     if (o.keepValidated)
         fitted = keepValidated(*validation, rejectedStart ? cold.model : startModel, &cold.shifted, std::move(fitted),
                                counts.split == 0 && counts.pruned == 0, o.keepPerGaussian, report);
@@ -499,72 +500,78 @@ std::unique_ptr<DeformRest> prepareDeformRest(const DeformJobOptions& o, const G
     return rest;
 }
 
-nlohmann::json runDeformFrame(DeformRest& rest, const DeformSpec& spec, const DeformJobOptions& o, const FrameOutputs& out,
-                              GaussianCloud* written, const StageTwoStart& start)
+FrameResult poseFrame(DeformRest& rest, const DeformSpec& spec, const DeformJobOptions& o)
 {
-    Stopwatch total, clock;
-    Deformation deformation = solveDeformation(rest.graph, rest.model, spec, o.ed);
-    deformation.report.graphMs = rest.graphMs;
-    StageOneResult stage1 = rest.stageOne->apply(deformation.transforms, deformation.nodeMoving);
-    stage1.timings.rigMs = rest.rigMs;
-    progress(msg("Stage I: ", stage1.movingCount, " of ", rest.model.size(), " Gaussians moved (", int(rest.rigMs),
-                 " ms weights, ", int(stage1.timings.updateMs), " ms update on ", deviceName(stage1.device), ")"));
-    nlohmann::json report = stageOneReportJson(deformation, stage1, graphOptionsOf(spec, o), o.ed);
-    report["stage1"]["shape"] = o.stage1.shape == StageOneShape::Affine ? "affine" : "polar";
-    report["input"] = {{"path", o.input}, {"format", rest.read.format}, {"gaussians", rest.model.size()},
-                       {"shDegree", rest.model.shDegree}};
-    report["spec"] = o.specPath;
-    report["timingsMs"]["read"] = rest.readMs;
+    Stopwatch clock;
+    FrameResult f{solveDeformation(rest.graph, rest.model, spec, o.ed), {}, std::nullopt, {}, 0.0};
+    f.deformation.report.graphMs = rest.graphMs;
+    f.stage1 = rest.stageOne->apply(f.deformation.transforms, f.deformation.nodeMoving);
+    f.stage1.timings.rigMs = rest.rigMs;
+    progress(msg("Stage I: ", f.stage1.movingCount, " of ", rest.model.size(), " Gaussians moved (", int(rest.rigMs),
+                 " ms weights, ", int(f.stage1.timings.updateMs), " ms update on ", deviceName(f.stage1.device), ")"));
+    f.report = stageOneReportJson(f.deformation, f.stage1, graphOptionsOf(spec, o), o.ed);
+    f.report["stage1"]["shape"] = o.stage1.shape == StageOneShape::Affine ? "affine" : "polar";
+    f.report["input"] = {{"path", o.input}, {"format", rest.read.format}, {"gaussians", rest.model.size()},
+                         {"shDegree", rest.model.shDegree}};
+    f.report["spec"] = o.specPath;
+    f.report["timingsMs"]["read"] = rest.readMs;
+    f.ms = clock.ms();
+    return f;
+}
+
+void refineFrame(DeformRest& rest, const DeformJobOptions& o, FrameResult& f, const StageTwoStart& start)
+{
+    if (!rest.grid) throw UsageError("Stage II needs the rest side prepared without --stage1-only");
+    Stopwatch clock;
+    f.report["timingsMs"]["sampleGrid"] = rest.sampleGridMs;
+    f.fitted = runStage("Stage II", [&] { return stageTwo(rest, f.deformation, f.stage1, o, start, f.report); });
+    f.ms += clock.ms();
+}
+
+nlohmann::json writeFrame(const DeformRest& rest, const DeformJobOptions& o, const FrameResult& f, const FrameOutputs& out)
+{
+    Stopwatch clock;
+    nlohmann::json report = f.report;
     double writeMs = 0;
     if (!out.baseline.empty()) {
-        clock.reset();
-        writePly(out.baseline, stage1.deformed);
+        writePly(out.baseline, f.stage1.deformed);
         writeMs = clock.ms();
         report["outputs"]["baseline"] = out.baseline;
     }
-    if (!o.stage1Only) {
-        report["timingsMs"]["sampleGrid"] = rest.sampleGridMs;
-        const GaussianCloud fitted = runStage("Stage II", [&] { return stageTwo(rest, deformation, stage1, o, start, report); });
+    if (f.fitted) {
         if (!out.deformed.empty()) {
             clock.reset();
-            writePly(out.deformed, fitted);
+            writePly(out.deformed, *f.fitted);
             writeMs += clock.ms();
             report["outputs"]["deformed"] = out.deformed;
         }
-        writeExtras(rest, deformation, stage1.deformed, fitted, o, out, report);
-        if (written) *written = fitted;
-    } else if (written) {
-        *written = std::move(stage1.deformed);
+        writeExtras(rest, f.deformation, f.stage1.deformed, *f.fitted, o, out, report);
     }
     report["timingsMs"]["write"] = writeMs;
-    report["timingsMs"]["total"] = total.ms();
+    report["timingsMs"]["total"] = f.ms + clock.ms();
     if (!out.report.empty()) writeFileAtomic(out.report, report.dump(2) + "\n");
+    return report;
+}
+
+nlohmann::json runDeformFrame(DeformRest& rest, const DeformSpec& spec, const DeformJobOptions& o, const FrameOutputs& out,
+                              GaussianCloud* written, const StageTwoStart& start)
+{
+    Stopwatch total;
+    FrameResult f = poseFrame(rest, spec, o);
+    if (!o.stage1Only) refineFrame(rest, o, f, start);
+    nlohmann::json report = writeFrame(rest, o, f, out);
+    report["timingsMs"]["total"] = total.ms();
+    if (written) *written = f.fitted ? std::move(*f.fitted) : std::move(f.stage1.deformed);
     return report;
 }
 
 nlohmann::json runDeformJob(const DeformJobOptions& o)
 {
-    const Stopwatch total;
-    // All outputs appear together at the end or none; a failure or a signal removes the folder too.
-    OutputSet outputs({o.input, o.specPath});
     const DeformSpec spec = loadDeformSpec(o.specPath);
-    std::unique_ptr<DeformRest> rest = prepareDeformRest(o, graphOptionsOf(spec, o));
-    outputs.createDirectory(o.outDir);
-    if (o.stage1Only)
-        for (const char* stale : {"deformed.ply", "field.vdb", "compare.png", "stretched.png"}) outputs.removeOnCommit(outPath(o, stale));
-    FrameOutputs out;
-    out.baseline = outPath(o, "baseline.ply");
-    if (!o.stage1Only) out.deformed = outPath(o, "deformed.ply");
-    if (o.writeVdb && !o.stage1Only) out.vdb = outPath(o, "field.vdb");
-    if (o.render && !o.stage1Only) {
-        out.compare = outPath(o, "compare.png");
-        out.stretched = outPath(o, "stretched.png");
-    }
-    nlohmann::json report = runDeformFrame(*rest, spec, o, out);
-    report["timingsMs"]["total"] = total.ms(); // the rest side included
-    const std::string reportPath = outPath(o, "report.json");
-    writeFileAtomic(reportPath, report.dump(2) + "\n");
-    outputs.commit();
+    DeformSession session(o, spec);
+    session.pose(spec);
+    if (!o.stage1Only) session.refine();
+    const nlohmann::json report = session.write(o.outDir);
     progress(msg("wrote ", o.outDir, "/{", o.stage1Only ? "baseline.ply" : "baseline.ply, deformed.ply", ", report.json}"));
     return report;
 }

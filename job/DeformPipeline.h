@@ -17,6 +17,7 @@
 #include "core/Device.h"
 #include "deform/CurveSplit.h"
 #include "deform/DeformSpec.h"
+#include "deform/Deformation.h"
 #include "deform/StageOne.h"
 #include "deform/StageOneDevice.h"
 #include "io/GaussianIO.h"
@@ -106,6 +107,30 @@ struct StageTwoStart {
     std::function<bool(const StageTwoReport& fit)> rejects;
 };
 
+/// @brief One frame computed and not yet written: its deformation, Stage I, Stage II's model
+///        once refined, and the report so far.
+struct FrameResult {
+    Deformation deformation;
+    StageOneResult stage1;
+    std::optional<GaussianCloud> fitted; ///< none before refineFrame() (or with stage1Only)
+    nlohmann::json report;
+    double ms = 0;                       ///< time spent on the frame so far
+};
+
+/// @brief Solve the spec from the rest pose and run Stage I; nothing is written.
+FrameResult poseFrame(DeformRest& rest, const DeformSpec& spec, const DeformJobOptions& options);
+
+/// @brief Stage II and the steps around it (warp, splits, fit, keep, judge) on a posed frame.
+///        A RunControl installed on this thread (core/RunControl.h) sees each iteration and can
+///        cancel (Cancelled is thrown; the frame is left without a fitted model).
+/// @throws UsageError when the rest side was prepared for Stage I only.
+void refineFrame(DeformRest& rest, const DeformJobOptions& options, FrameResult& frame, const StageTwoStart& start = {});
+
+/// @brief Write a frame's outputs (the paths set in `out`; Stage II's only when refined) and
+///        return its report (written to out.report when set).
+nlohmann::json writeFrame(const DeformRest& rest, const DeformJobOptions& options, const FrameResult& frame,
+                          const FrameOutputs& out);
+
 /// @brief Solve the spec from the rest pose, run Stage I, warp a copy of the rest samples, run
 ///        Stage II, evaluate and write the outputs; returns the report (written to out.report
 ///        when set). The bytes of every output depend on the rest side and the spec only.
@@ -116,7 +141,8 @@ struct StageTwoStart {
 nlohmann::json runDeformFrame(DeformRest& rest, const DeformSpec& spec, const DeformJobOptions& options,
                               const FrameOutputs& out, GaussianCloud* written = nullptr, const StageTwoStart& start = {});
 
-/// @brief Run the job and write its outputs; returns the report that was written to report.json.
+/// @brief Run the job and write its outputs (a DeformSession: pose, refine, write); returns the
+///        report that was written to report.json.
 /// @throws InputError / IoError with a message naming the file and the problem.
 nlohmann::json runDeformJob(const DeformJobOptions& options);
 

@@ -7,6 +7,7 @@
 
 #include "core/Error.h"
 #include "core/Progress.h"
+#include "core/RunControl.h"
 
 namespace splatwarp {
 namespace {
@@ -182,6 +183,7 @@ StageTwoReport runStageTwoLoop(StageTwoSolver& solver, GaussianCloud& cloud, con
         report.pairsPerIteration.push_back(pairs);
         if (!e.rejected) solver.backward(); // a rejected step is taken again with the kept gradient
         solver.step(keeper.nextStep(it));
+        reportProgress("Stage II", it + 1, o.iterations); // a cancel stops here, within one iteration
         if (onEval && evalEvery > 0 && (it + 1) % evalEvery == 0) {
             if (!evalCloud) evalCloud = std::make_unique<GaussianCloud>(cloud);
             solver.writeTo(*evalCloud);

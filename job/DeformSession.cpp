@@ -1,0 +1,74 @@
+#include "DeformSession.h"
+
+#include <filesystem>
+
+#include "core/AtomicFile.h"
+#include "core/Error.h"
+#include "core/Progress.h"
+
+namespace splatwarp {
+
+namespace {
+
+bool sameGraph(const GraphOptions& a, const GraphOptions& b) { return a.nodes == b.nodes && a.k == b.k && a.seed == b.seed; }
+
+std::string inDir(const std::string& dir, const char* name) { return (std::filesystem::path(dir) / name).string(); }
+
+} // namespace
+
+DeformSession::DeformSession(DeformJobOptions options, const DeformSpec& graphSpec)
+    : mOptions(std::move(options)), mGraph(graphOptionsOf(graphSpec, mOptions))
+{
+    const Stopwatch clock;
+    mRest = prepareDeformRest(mOptions, mGraph);
+    mRestMs = clock.ms();
+}
+
+DeformSession::~DeformSession() = default;
+
+const StageOneResult& DeformSession::pose(const DeformSpec& spec)
+{
+    if (!sameGraph(graphOptionsOf(spec, mOptions), mGraph))
+        throw InputError(msg(spec.source.empty() ? std::string("spec") : spec.source,
+                             ": its graph block (nodes, k, seed) differs from the one this session was prepared for"));
+    mFrame.reset();
+    mFrame = poseFrame(*mRest, spec, mOptions);
+    return mFrame->stage1;
+}
+
+const GaussianCloud& DeformSession::refine(const RunControl& control)
+{
+    if (!mFrame) throw UsageError("refine needs a pose first");
+    if (mOptions.stage1Only) throw UsageError("this session was prepared for Stage I only (stage1Only)");
+    const RunControlScope scope(control);
+    FrameResult frame = *mFrame; // a cancelled refine leaves the pose as it was
+    refineFrame(*mRest, mOptions, frame);
+    mFrame = std::move(frame);
+    return *mFrame->fitted;
+}
+
+nlohmann::json DeformSession::write(const std::string& dir)
+{
+    if (!mFrame) throw UsageError("write needs a pose first");
+    OutputSet outputs({mOptions.input, mOptions.specPath});
+    outputs.createDirectory(dir);
+    FrameOutputs out;
+    out.baseline = inDir(dir, "baseline.ply");
+    if (refined()) {
+        out.deformed = inDir(dir, "deformed.ply");
+        if (mOptions.writeVdb) out.vdb = inDir(dir, "field.vdb");
+        if (mOptions.render) {
+            out.compare = inDir(dir, "compare.png");
+            out.stretched = inDir(dir, "stretched.png");
+        }
+    } else {
+        for (const char* stale : {"deformed.ply", "field.vdb", "compare.png", "stretched.png"}) outputs.removeOnCommit(inDir(dir, stale));
+    }
+    nlohmann::json report = writeFrame(*mRest, mOptions, *mFrame, out);
+    report["timingsMs"]["total"] = mRestMs + report["timingsMs"]["total"].get<double>(); // the rest side included
+    writeFileAtomic(inDir(dir, "report.json"), report.dump(2) + "\n");
+    outputs.commit();
+    return report;
+}
+
+} // namespace splatwarp

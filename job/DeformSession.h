@@ -1,0 +1,57 @@
+#pragma once
+/// @file DeformSession.h
+/// @brief The deform pipeline as a session, for the editor and for library users: the rest side
+///        is prepared once; pose(spec) gives Stage I (and the ED solve) without touching disk;
+///        refine() runs the rest with progress per iteration and a cancel; write(dir) writes what
+///        `deform` writes. `deform` itself is pose, refine, write (runDeformJob()).
+#include <memory>
+#include <optional>
+#include <string>
+
+#include <nlohmann/json.hpp>
+
+#include "DeformPipeline.h"
+#include "core/RunControl.h"
+
+namespace splatwarp {
+
+class DeformSession {
+public:
+    /// @brief Read the model and prepare the rest side for the graph of `graphSpec` (its graph
+    ///        block with the options' --nodes/--k/--seed; every later spec must share it).
+    ///        With options.stage1Only, no sample grid is made and refine() is refused.
+    /// @throws InputError / IoError naming the file, as deform does.
+    DeformSession(DeformJobOptions options, const DeformSpec& graphSpec);
+    ~DeformSession();
+    DeformSession(const DeformSession&) = delete;
+    DeformSession& operator=(const DeformSession&) = delete;
+
+    const DeformRest& rest() const { return *mRest; }
+    const DeformJobOptions& options() const { return mOptions; }
+
+    /// @brief The ED solve from the rest pose and Stage I for a spec; forgets an earlier refine.
+    /// @throws InputError when the spec's graph block differs from the session's.
+    const StageOneResult& pose(const DeformSpec& spec);
+
+    /// @brief Stage II and the recipe's other steps on the last pose. `control` sees each Stage II
+    ///        iteration; setting its cancel flag stops within one iteration (Cancelled is thrown,
+    ///        the pose is kept, nothing is written).
+    /// @throws UsageError without a pose or with options.stage1Only.
+    const GaussianCloud& refine(const RunControl& control = {});
+
+    /// @brief Write what `deform -o dir` writes for the last pose (and refine): baseline.ply,
+    ///        deformed.ply, report.json and the extras the options ask for, all together or none;
+    ///        a stale deformed.ply of an earlier refine is removed. Returns the report.
+    nlohmann::json write(const std::string& dir);
+
+    bool refined() const { return mFrame && mFrame->fitted.has_value(); }
+
+private:
+    DeformJobOptions mOptions;
+    GraphOptions mGraph;
+    std::unique_ptr<DeformRest> mRest;
+    std::optional<FrameResult> mFrame;
+    double mRestMs = 0;
+};
+
+} // namespace splatwarp
