@@ -67,6 +67,7 @@ const CommandRegistrar reg(35, [](CLI::App& app) {
                       "ranges of pairs; a frame whose predecessor was not computed in this run recomputes it (not written)"))
         ->excludes(sub->get_option("--stage1-only"));
     sub->add_flag("--zip", args->zip, "Also write sequence.zip of the frame PLYs (by a whole run, or by --merge)");
+    splitHelpLevels(sub, {"--spec", "-o", "--frames", "--shard", "--merge", "--vdb", "--render", "--zip"});
     sub->callback([args, sub] {
         if (!args->merge.empty()) {
             const nlohmann::json merged = mergeAnimate(args->merge, args->zip);

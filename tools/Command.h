@@ -5,6 +5,7 @@
 #include <CLI/CLI.hpp>
 #include <functional>
 #include <string>
+#include <vector>
 
 namespace splatwarp::cli {
 
@@ -16,9 +17,14 @@ struct CommandRegistrar {
 /// @brief Options every computing command shares (set by main before callbacks run).
 struct GlobalOptions {
     bool quiet = false;
-    int threads = 0; ///< 0 = all cores
+    int threads = 0;      ///< 0 = all cores
+    bool helpAll = false; ///< `--help-all` on the command line: expert flags are listed too (main sets it first)
 };
 GlobalOptions& globalOptions();
+
+/// @brief The flags a user of a command touches stay in its --help; every other option of it
+///        (positionals aside) moves to the expert level, listed by `--help-all` only (it still works).
+void splitHelpLevels(CLI::App* sub, const std::vector<std::string>& userFlags);
 
 /// @brief Add every registered subcommand to app, in --help order (main, and `batch` for each job).
 void addCommands(CLI::App& app);

@@ -128,6 +128,16 @@ void addCommonChecks(CLI::App& app)
     for (CLI::App* sub : app.get_subcommands([](CLI::App*) { return true; })) addCommonChecks(*sub);
 }
 
+void splitHelpLevels(CLI::App* sub, const std::vector<std::string>& userFlags)
+{
+    sub->set_help_all_flag("--help-all", "Print every flag, the expert ones too, and exit");
+    for (CLI::Option* option : sub->get_options()) {
+        if (option->get_positional() || option == sub->get_help_ptr() || option == sub->get_help_all_ptr()) continue;
+        const bool user = std::any_of(userFlags.begin(), userFlags.end(), [&](const std::string& f) { return option->check_name(f); });
+        if (!user) option->group(globalOptions().helpAll ? "Expert options (--help-all)" : ""); // "": not listed
+    }
+}
+
 CLI::App* benchCommand(CLI::App& app)
 {
     for (CLI::App* sub : app.get_subcommands([](CLI::App* a) { return a->get_name() == "bench"; })) return sub;
@@ -168,6 +178,7 @@ int main(int argc, char** argv)
 #endif
     app.set_version_flag("--version", std::string("splatwarp ") + SPLATWARP_VERSION_STRING + "\n" + cuda + "\n" + vdb::libraryVersions());
     cli::GlobalOptions& global = cli::globalOptions();
+    for (int i = 1; i < argc; ++i) global.helpAll = global.helpAll || std::string(argv[i]) == "--help-all";
     app.add_flag("-q,--quiet", global.quiet, "No progress lines on stderr");
     app.add_option("--threads", global.threads, "Worker threads for the CPU path (0 = all cores)")
         ->check(cli::nonNegative());

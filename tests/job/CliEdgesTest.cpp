@@ -68,3 +68,22 @@ TEST(CliEdges, ManySkippedPlyElementsAreSummarised)
     ASSERT_EQ(report.notes.size(), 6u);
     EXPECT_EQ(report.notes.back(), "skipped 1995 more elements (0 records)");
 }
+
+// deform's --help lists the flags a user touches; --help-all every one (all of them still work).
+TEST(CliEdges, DeformHelpListsAtMostTenFlagsAndHelpAllEveryOne)
+{
+    TempDir dir;
+    auto flags = [&](const std::string& args) {
+        EXPECT_EQ(runCli(args, dir.file("help.txt")), 0) << args;
+        std::istringstream lines(fileBytes(dir.file("help.txt")));
+        int n = 0;
+        for (std::string line; std::getline(lines, line);) n += line.rfind("  -", 0) == 0;
+        return n;
+    };
+    for (const char* cmd : {"deform", "animate"}) {
+        EXPECT_LE(flags(std::string(cmd) + " --help"), 10) << cmd;
+        EXPECT_EQ(fileBytes(dir.file("help.txt")).find("--curve-split-max"), std::string::npos) << cmd;
+        EXPECT_GE(flags(std::string(cmd) + " --help-all"), 40) << cmd;
+        EXPECT_NE(fileBytes(dir.file("help.txt")).find("--curve-split-max"), std::string::npos) << cmd;
+    }
+}
