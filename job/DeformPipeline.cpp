@@ -211,7 +211,7 @@ struct ColdStart {
 
 /// The curve split; with validation points, split with fans and without and keep the one they
 /// judge better (fans win where a few Gaussians are bent far beyond three halvings, playbot-31k;
-/// they lose where many thin ones are, guitar: docs/fidelity-study.md).
+/// they lose where many thin ones are, guitar: docs/lab/fidelity-study.md).
 CurveSplitResult curveSplitOf(const DeformRest& rest, const Deformation& deformation, const StageOneResult& stage1,
                               const DeformJobOptions& o, const Judge* validation, nlohmann::json& report)
 {

@@ -1,6 +1,6 @@
 #pragma once
 /// @file FromVdb.h
-/// @brief Volumes to splats (`from-vdb`; measurements: docs/from-vdb.md): moment initialisation,
+/// @brief Volumes to splats (`from-vdb`; measurements: docs/lab/from-vdb.md): moment initialisation,
 ///        the Stage II engine as the fitter, the held-out error against the volume, and the
 ///        side-by-side render. No OpenVDB types (the volume is read by vdb/Volume.h).
 #include <cstdint>

@@ -5,7 +5,7 @@
 ///        model plus the even frame's Stage II correction (fitted minus Stage I, per parameter; a
 ///        relative rotation for the quaternions), unless that start is far worse than the even frame's
 ///        fit (rejectsWarmStart: then it starts cold too). Measured on the stripes bend in
-///        docs/animation-study.md: longer chains drift (each warm frame keeps the last one's local
+///        docs/lab/animation-study.md: longer chains drift (each warm frame keeps the last one's local
 ///        optimum), pairs do not.
 #include <cstdint>
 #include <vector>
@@ -24,7 +24,7 @@ inline bool startsWarm(int frame) { return frame % kWarmChain != 0; }
 
 /// @brief An odd frame goes back to the cold start when its warm start's training energy exceeds
 ///        this many times the even frame's fitted energy. Set on the stripes bend
-///        (docs/animation-study.md), the one case measured: 2.08 on frame 7, where warm was 9.8%
+///        (docs/lab/animation-study.md), the one case measured: 2.08 on frame 7, where warm was 9.8%
 ///        worse than cold (judged error); 1.74 on frame 9 (even), 1.01-1.51 on frames 11-23 (warm
 ///        better); 1.9 is between 1.74 and 2.08. Stage I energies there are ~5x the fitted ones.
 constexpr double kWarmEnergyLimit = 1.9;

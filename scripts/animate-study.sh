@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Animation study for the README (docs/animation-study.md): frames A-B of the stripes bend
+# Animation study (docs/lab/animation-study.md): frames A-B of the stripes bend
 # (samples/specs/bend-24.json) by one `animate` run against separate `deform` runs of the same frame
 # specs (CPU time, user+sys, one thread each; a byte comparison of every frame), and optionally an
 # `animate` run with extra flags (e.g. --warm-start): its CPU time, judged field errors and

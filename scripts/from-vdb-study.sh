@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# from-vdb measurements for docs/from-vdb.md: held-out density error of the baseline (--no-fit) and
+# from-vdb measurements for docs/lab/from-vdb.md: held-out density error of the baseline (--no-fit) and
 # the fit, wall and CPU time, at several Gaussian budgets. Long: run by hand, not in CI.
 # Usage: bash scripts/from-vdb-study.sh [OUTDIR] [extra from-vdb flags...]
 set -euo pipefail

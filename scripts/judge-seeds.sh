@@ -3,7 +3,7 @@
 # output folder) with `splatwarp eval --seed k`, k = 1..K (default 16), and prints the ratio of the
 # summed Stage II and Stage I opacity errors (the same seeds for both), seed 1's ratio (what the
 # judge prints) and the standard deviation of the per-seed ratios. One seed's 100k points are few
-# inside a sparse capture (train-1000: ~6,000); compare levers on this mean (docs/fidelity-study.md).
+# inside a sparse capture (train-1000: ~6,000); compare levers on this mean (docs/lab/fidelity-study.md).
 #   bash scripts/judge-seeds.sh MODEL SPEC DIR [K]      (SPLATWARP_BIN picks the binary)
 set -euo pipefail
 cd "$(dirname "$0")/.."

@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# The round trip splats -> to-vdb -> from-vdb (issue 12) for docs/from-vdb.md: the volume at a
+# The round trip splats -> to-vdb -> from-vdb (issue 12) for docs/lab/from-vdb.md: the volume at a
 # lattice of CELLS cells, fitted back with as many Gaussians as the original (`--no-fit` and the
 # fit), each judged against the original splats by `eval` twice: at the volume's lattice (`--lattice
 # --cells CELLS`: the points and rest filter of the lattice the volume holds) and by the fixed judge

@@ -63,7 +63,7 @@ const CommandRegistrar reg(35, [](CLI::App& app) {
                   msg("Frames in pairs (2k, 2k+1): Stage II of each odd frame starts from the even frame's fit carried onto "
                       "its Stage I model (even frames stay equal to deform), unless that start's training energy is over ",
                       kWarmEnergyLimit, "x the even frame's fit: then it starts cold too (the manifest says which start each "
-                      "frame used). Less CPU per frame, measured in docs/animation-study.md. Shards then take contiguous "
+                      "frame used). Less CPU per frame, measured in docs/lab/animation-study.md. Shards then take contiguous "
                       "ranges of pairs; a frame whose predecessor was not computed in this run recomputes it (not written)"))
         ->excludes(sub->get_option("--stage1-only"));
     sub->add_flag("--zip", args->zip, "Also write sequence.zip of the frame PLYs (by a whole run, or by --merge)");

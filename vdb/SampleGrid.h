@@ -26,7 +26,7 @@ constexpr int kAutoSamplesMin = 4, kAutoSamplesMax = 8;
 /// Samples "auto" may spend: 2^22. Denser samples fit the field the judge sees (finer lattice,
 /// smaller rest filter): train-1000 bend 0.595 -> 0.577 of Stage I from n = 4 to 8 (mean of 16
 /// judge seeds), guitar bend 0.468 -> 0.453 from 4 to 6; Stage II's time grows with the samples,
-/// so models whose 4^3 lattice already holds this many keep n = 4 (docs/fidelity-study.md).
+/// so models whose 4^3 lattice already holds this many keep n = 4 (docs/lab/fidelity-study.md).
 constexpr std::size_t kAutoSampleBudget = std::size_t(1) << 22;
 
 /// @brief Parameters of the sample grid (one options struct for the CLI, specs and tests).

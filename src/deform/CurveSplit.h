@@ -35,7 +35,7 @@ constexpr double kCurveSplitL1 = 0.0115;        ///< the children's L1 distance 
 
 /// A Gaussian bent by more than this many sigmas is fanned (see CurveSplitPattern) instead of split
 /// in three: three rounds of halving cannot bring it down (playbot-31k bend: the 113 Gaussians bent
-/// by 8 sigmas or more hold 17% of Stage I's error; docs/fidelity-study.md).
+/// by 8 sigmas or more hold 17% of Stage I's error; docs/lab/fidelity-study.md).
 constexpr double kFanAbove = 4.0;
 constexpr double kFanChildBend = 0.5;  ///< a fan's children are bent by about this much
 constexpr double kFanMinSigma = 0.15;  ///< nor thinner along the axis than this x the parent's sigma

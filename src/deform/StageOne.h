@@ -19,7 +19,7 @@ namespace splatwarp {
 enum class StageOneShape {
     /// Covariance M Sigma M^T: exact to first order, so shear off the Gaussian's axes and a flat
     /// Gaussian's normal (which turns by M^-T, not by M's rotation) follow. Judged on the shared
-    /// models it lowers Stage I's error by a quarter to a third (docs/fidelity-study.md).
+    /// models it lowers Stage I's error by a quarter to a third (docs/lab/fidelity-study.md).
     Affine,
     /// The paper's: rotation R R0 from M = R S, each rest axis scaled by S's stretch along it.
     Polar,

@@ -21,7 +21,7 @@
 ///          0.243 / 0.177, default density scale): geometric mean 0.250 / 0.028 / 0.165 / 0.100,
 ///          this rule 0.362 / 0.038 / 0.222 / 0.141. smoke.vdb, 4 orbit views against the ray-marched
 ///          volume: 24.70 -> 26.04 dB; other candidates (R_F, harmonic mean of the scales, mean
-///          transmittance, a dilogarithm map) in docs/from-vdb.md, by scripts/extinction-rules.sh.
+///          transmittance, a dilogarithm map) in docs/lab/from-vdb.md, by scripts/extinction-rules.sh.
 #include "core/GaussianCloud.h"
 
 namespace splatwarp {

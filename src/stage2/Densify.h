@@ -23,7 +23,7 @@ namespace splatwarp {
 /// Children sit at mean +- kSplitOffset sigma along the axis: sigma' = 0.866 sigma, alpha' = 0.577 alpha.
 /// The pair then differs from the parent pointwise by 2% of its mass in L1 (0.8, 3DGS's 1/1.6
 /// shrink: 23%), which the unfiltered judge sees and Stage II, fitting the filtered field, hardly
-/// undoes: guitar bend 0.945 with 0.5, 0.971 with 0.8 (docs/fidelity-study.md#split-and-prune).
+/// undoes: guitar bend 0.945 with 0.5, 0.971 with 0.8 (docs/lab/fidelity-study.md#split-and-prune).
 constexpr float kSplitOffset = 0.5f;
 /// Largest offset: alpha' = alpha / (2 sqrt(1 - k^2)) stays below 1 for every parent up to sqrt(3)/2.
 constexpr float kMaxSplitOffset = 0.85f;

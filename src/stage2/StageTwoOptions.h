@@ -13,7 +13,7 @@ struct StageTwoOptions {
     /// lambda2: extra weight where O* = 0 (keeps Gaussians out of empty space). The paper's 99
     /// weighs a tail crossing the cutoff into empty space 100x against the field inside: on the
     /// shared captures 1 is as good or better in every row measured, outside error included
-    /// (train-1000 bend 0.682 -> 0.629, playbot-31k twist 0.661 -> 0.637; docs/fidelity-study.md).
+    /// (train-1000 bend 0.682 -> 0.629, playbot-31k twist 0.661 -> 0.637; docs/lab/fidelity-study.md).
     float boundaryWeight = 1.0f;
     bool lowPassFilter = true;     ///< adaptive anisotropic low-pass filter (--no-lpf turns it off)
     float lambdaLpf = 0.2f;        ///< filter strength: Sigma' += lambdaLpf * spacing^2 * F_k F_k^T (Mip-Splatting's 3D filter value)
