@@ -313,13 +313,15 @@ ColdStart coldStart(const DeformRest& rest, const Deformation& deformation, cons
 /// --keep validated: Stage II's start, its curve shift (when made), the fit or a region mix of them,
 /// whichever the validation points judge best (job/StageTwoChoice.h; report stage2 "keep").
 GaussianCloud keepValidated(const Judge& validation, const GaussianCloud& startModel, const GaussianCloud* shifted,
-                            GaussianCloud fitted, bool sameGaussians, bool perGaussian, nlohmann::json& report)
+                            GaussianCloud fitted, bool sameGaussians, bool perGaussian, std::string& keptName,
+                            nlohmann::json& report)
 {
     StageTwoChoice c;
     std::vector<StageTwoCandidate> candidates{{"start", &startModel}};
     if (shifted && !shifted->empty()) candidates.push_back({"shifted", shifted});
     candidates.push_back({"fit", &fitted});
     GaussianCloud kept = chooseStageTwoModel(validation, candidates, sameGaussians, c);
+    keptName = c.kept;
     nlohmann::json& k = report["stage2"]["keep"];
     k = {{"kept", c.kept}, {"regions", c.regions}, {"ms", c.ms}};
     if (std::isfinite(c.mix)) k.update({{"validationMix", c.mix}, {"mixOf", c.mixOf}});
@@ -340,11 +342,12 @@ GaussianCloud keepValidated(const Judge& validation, const GaussianCloud& startM
 }
 
 /// stage2 "densify" and the Gaussians the kept model gained and lost: the curve split's and, unless
-/// --keep validated went back to a start, those of the split and prune inside Stage II.
+/// --keep validated went back to a start (`keptName`: the keep's choice, "" without a keep), those
+/// of the split and prune inside Stage II.
 void recordGaussianCounts(const ColdStart& cold, const DensifyCounts& counts, const DeformJobOptions& o,
-                          const GaussianCloud& kept, nlohmann::json& stage2)
+                          const GaussianCloud& kept, const std::string& keptName, nlohmann::json& stage2)
 {
-    const bool fitKept = !stage2.contains("keep") || stage2["keep"]["kept"] == "fit" || stage2["keep"]["kept"] == "mix";
+    const bool fitKept = keptName.empty() || keptName == "fit" || keptName == "mix";
     stage2["densify"] = {{"split", o.densify.split ? "auto" : "off"}, {"splitStretch", o.densify.splitStretch},
                          {"splitAfter", o.densify.splitAfter},       {"splitOffset", o.densify.splitOffset},
                          {"pruneBelow", o.densify.pruneBelow},       {"ms", counts.ms}};
@@ -418,10 +421,11 @@ GaussianCloud stageTwo(DeformRest& rest, const Deformation& deformation, const S
     }
     report["stage2"] = stageTwoJson(r2, *rest.grid, o.stage2);
     checkCancelled();
+    std::string keptName; // the keep's choice, passed on as a value (not read back from the report)
     if (o.keepValidated)
         fitted = keepValidated(*validation, rejectedStart ? cold.model : startModel, &cold.shifted, std::move(fitted),
-                               counts.split == 0 && counts.pruned == 0, o.keepPerGaussian, report);
-    recordGaussianCounts(cold, counts, o, fitted, report["stage2"]);
+                               counts.split == 0 && counts.pruned == 0, o.keepPerGaussian, keptName, report);
+    recordGaussianCounts(cold, counts, o, fitted, keptName, report["stage2"]);
     report["timingsMs"]["stage2"] = r2.msTotal + rejectedMs + counts.ms;
     if (start.change) report["stage2"]["start"] = warm && !rejectedStart ? "warm" : "cold";
     if (rejectedStart) report["stage2"]["warmEnergy"] = *rejectedStart;

@@ -128,13 +128,29 @@ void addCommonChecks(CLI::App& app)
     for (CLI::App* sub : app.get_subcommands([](CLI::App*) { return true; })) addCommonChecks(*sub);
 }
 
+namespace {
+constexpr const char* kExpertGroup = "Expert options";
+
+/// --help leaves the expert group out, --help-all shows it. (CLI11's hidden group "" would also
+/// drop the flag's name from its error messages.)
+class LevelFormatter : public CLI::Formatter {
+public:
+    std::string make_group(std::string group, bool is_positional, std::vector<const CLI::Option*> opts) const override
+    {
+        if (group == kExpertGroup && !globalOptions().helpAll) return "";
+        return CLI::Formatter::make_group(std::move(group), is_positional, std::move(opts));
+    }
+};
+} // namespace
+
 void splitHelpLevels(CLI::App* sub, const std::vector<std::string>& userFlags)
 {
     sub->set_help_all_flag("--help-all", "Print every flag, the expert ones too, and exit");
+    sub->formatter(std::make_shared<LevelFormatter>());
     for (CLI::Option* option : sub->get_options()) {
         if (option->get_positional() || option == sub->get_help_ptr() || option == sub->get_help_all_ptr()) continue;
         const bool user = std::any_of(userFlags.begin(), userFlags.end(), [&](const std::string& f) { return option->check_name(f); });
-        if (!user) option->group(globalOptions().helpAll ? "Expert options (--help-all)" : ""); // "": not listed
+        if (!user) option->group(kExpertGroup);
     }
 }
 
