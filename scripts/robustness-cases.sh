@@ -32,7 +32,7 @@ mkdir -p runs2 elsewhere && ln -sfn "$w/elsewhere" runs2/link
 jobs "$(tv link/a.vdb)"; "$sw" -q batch jobs.json -o runs2 >/dev/null 2>&1
 verdict "batch output through a symlinked subfolder" '[ -e elsewhere/a.vdb ]' "wrote through the symlink"
 jobs "$(printf '{"kind":"from-vdb","input":"%s","output":"o.ply","args":["--report","%s","--iterations","1"]}' "$w/runs/x.vdb" "$w/user/r.json")"
-"$sw" -q to-vdb m.ply -o runs-x.vdb --cells 8 >/dev/null 2>&1; mkdir -p runs && cp runs-x.vdb runs/x.vdb
+"$sw" -q to-vdb m.ply -o runs-x.vdb --cells 8 >/dev/null 2>&1; mkdir -p runs && cp runs-x.vdb runs/x.vdb 2>/dev/null
 "$sw" -q batch jobs.json -o runs >/dev/null 2>&1
 verdict "batch args --report outside" '[ -e user/r.json ]' "wrote user/r.json"
 jobs "$(tv same.vdb),$(tv same.vdb)"; "$sw" -q batch jobs.json -o runs3 >/dev/null 2>&1; rc=$?
@@ -42,16 +42,17 @@ jobs "$(tv jobs.json)"; cp jobs.json runs3/jobs.json; before=$(md5sum < runs3/jo
 "$sw" -q batch runs3/jobs.json -o runs3 >/dev/null 2>&1
 verdict "batch output onto its job list" '[ "$(md5sum < runs3/jobs.json)" != "$before" ]' "overwrote jobs.json"
 # inputs as outputs
-"$sw" -q to-vdb m.ply -o v.vdb --cells 8 >/dev/null 2>&1; before=$(md5sum < v.vdb)
-"$sw" -q from-vdb v.vdb -o v.vdb --iterations 1 >/dev/null 2>&1
+"$sw" -q to-vdb m.ply -o v0.vdb --cells 8 >/dev/null 2>&1; before=$(md5sum < v0.vdb)
+cp v0.vdb v.vdb; "$sw" -q from-vdb v.vdb -o v.vdb --iterations 1 >/dev/null 2>&1
 verdict "from-vdb -o its input" '[ "$(md5sum < v.vdb)" != "$before" ]' "overwrote the input"
-"$sw" -q from-vdb v.vdb -o o.ply --report v.vdb --iterations 1 >/dev/null 2>&1
+cp v0.vdb v.vdb; "$sw" -q from-vdb v.vdb -o o.ply --report v.vdb --iterations 1 >/dev/null 2>&1
 verdict "from-vdb --report onto its input" '[ "$(md5sum < v.vdb)" != "$before" ]' "overwrote the input"
-"$sw" -q from-vdb v.vdb -o o.png --render --size 16 --iterations 1 >/dev/null 2>&1; rc=$?
+cp v0.vdb v.vdb; "$sw" -q from-vdb v.vdb -o o.png --render --size 16 --iterations 1 >/dev/null 2>&1; rc=$?
 verdict "from-vdb -o out.png --render" '[ $rc -eq 0 ]' "exit 0, the picture over the model"
-mkdir -p a/frames && cp m.ply a/frames/deformed.0000.ply; before=$(md5sum < a/frames/deformed.0000.ply)
-"$sw" -q animate a/frames/deformed.0000.ply --spec anim.json -o a --iterations 1 --cells 8 >/dev/null 2>&1
-verdict "animate input in its own frames/" '[ "$(md5sum < a/frames/deformed.0000.ply)" != "$before" ]' "overwrote its input"
+# Frame 1 is bent (frame 0 is the rest pose: its bytes equal the input's).
+mkdir -p a/frames && cp m.ply a/frames/deformed.0001.ply; before=$(md5sum < a/frames/deformed.0001.ply)
+"$sw" -q animate a/frames/deformed.0001.ply --spec anim.json -o a --iterations 1 --cells 8 >/dev/null 2>&1
+verdict "animate input in its own frames/" '[ "$(md5sum < a/frames/deformed.0001.ply)" != "$before" ]' "overwrote its input"
 # merge and resume
 "$sw" -q animate m.ply --spec anim.json -o s --stage1-only --shard 0/2 >/dev/null 2>&1
 "$sw" -q animate m.ply --spec anim.json -o s --stage1-only --shard 1/2 >/dev/null 2>&1
@@ -94,7 +95,7 @@ SLURM_ARRAY_TASK_ID=1 SLURM_ARRAY_TASK_MIN=5 SLURM_ARRAY_TASK_COUNT=4 "$sw" -q a
 verdict "SLURM_ARRAY_TASK_MIN above the ID" '[ $rc -eq 0 ]' "exit 0"
 "$sw" info m.ply --json > /dev/full 2>/dev/null; rc=$?
 verdict "info --json > /dev/full" '[ $rc -eq 0 ]' "exit 0"
-"$sw" -q from-vdb v.vdb -o g.ply --gaussians -1 >/dev/null 2>&1; rc=$?
+"$sw" -q from-vdb v0.vdb -o g.ply --gaussians -1 >/dev/null 2>&1; rc=$?
 verdict "from-vdb --gaussians -1" '[ $rc -ne 2 ]' "exit $rc"
 printf '{"camera_angle_x":0,"w":32,"h":32,"frames":[{"file_path":"a","transform_matrix":[[1,0,0,0],[0,1,0,0],[0,0,1,5],[0,0,0,1]]}]}' > t.json
 "$sw" -q render m.ply --camera t.json -o cam.png >/dev/null 2>&1; rc=$?
