@@ -518,6 +518,7 @@ FrameResult poseFrame(DeformRest& rest, const DeformSpec& spec, const DeformJobO
     f.report["input"] = {{"path", o.input}, {"format", rest.read.format}, {"gaussians", rest.model.size()},
                          {"shDegree", rest.model.shDegree}};
     f.report["spec"] = o.specPath;
+    if (!o.recipe.is_null()) f.report["recipe"] = o.recipe;
     f.report["timingsMs"]["read"] = rest.readMs;
     f.ms = clock.ms();
     return f;

@@ -60,6 +60,8 @@ struct DeformJobOptions {
     /// Where every computing step runs (auto: CUDA when compiled in and a GPU is present),
     /// resolved once by prepareDeformRest() (DeformRest::device); the device of the options above is not used.
     Device device = Device::Auto;
+    /// The recipe the settings came from (report.json "recipe"; the settings themselves are above).
+    nlohmann::json recipe;
 };
 
 /// @brief The spec's graph block with the options' --nodes/--k/--seed overrides applied.

@@ -2,6 +2,7 @@
 /// @file DeformArgs.h
 /// @brief The Stage I / Stage II / evaluation flags shared by `deform` and `animate` (one definition).
 #include <cstdint>
+#include <algorithm>
 #include <cstdlib>
 #include <memory>
 #include <string>
@@ -9,6 +10,7 @@
 #include "Command.h"
 #include "DeformPipeline.h"
 #include "GridArgs.h"
+#include "Recipe.h"
 #include "ReadArgs.h"
 #include "SharedArgs.h"
 
@@ -23,6 +25,7 @@ struct DeformArgs {
     std::string stage1Shape = "affine";
     std::string split = "off";
     std::string curveSplit = "auto", validatedSplit = "auto", keep = "validated", curveShift = "auto";
+    std::string recipe = "default";
     float fineBelow = 4.0f;
 };
 
@@ -128,6 +131,12 @@ inline void addDensifyOptions(CLI::App* sub, DeformArgs& args)
 inline void addDeformOptions(CLI::App* sub, DeformArgs& args)
 {
     DeformJobOptions& job = args.job;
+    sub->add_option("--recipe", args.recipe,
+                    "The pipeline: default (ours: the curve split, validated split, curve shift and validated keep "
+                    "around Stage II), paper (the paper's: Stage I with the polar shape, then Stage II with its "
+                    "boundary weight 99, nothing else) or a recipe file (.json, docs/recipes.md); flags given "
+                    "beside it win")
+        ->capture_default_str();
     sub->add_flag("--stage1-only", job.stage1Only,
                   "Stop after Stage I (write the Stage I model only; deform also removes deformed.ply, field.vdb and "
                   "compare.png of an earlier run in the output directory, so no stale result sits beside them)");
@@ -172,9 +181,32 @@ inline void addDeformOptions(CLI::App* sub, DeformArgs& args)
                     "evaluation, Stage II, --render)");
 }
 
-/// @brief The job options once parsed (overrides only for the flags given).
-inline DeformJobOptions deformJobOptions(const DeformArgs& args, const CLI::App* sub)
+/// @brief Set the recipe's flag values on every flag not given on the command line, through the
+///        flags' own conversion and checks (job/Recipe.h).
+inline Recipe applyRecipe(CLI::App* sub, const std::string& nameOrPath)
 {
+    const Recipe recipe = loadRecipe(nameOrPath);
+    std::vector<std::string> given;
+    for (const auto& [flag, value] : recipeFlags(recipe))
+        if (sub->count(flag) > 0) given.push_back(flag);
+    for (const auto& [flag, value] : recipeFlags(recipe)) {
+        if (std::find(given.begin(), given.end(), flag) != given.end()) continue;
+        CLI::Option* option = sub->get_option(flag);
+        try {
+            option->clear();
+            option->add_result(value);
+            option->run_callback();
+        } catch (const CLI::Error& e) {
+            throw InputError(msg("recipe ", recipe.name, ": ", flag, " ", value, ": ", e.what()));
+        }
+    }
+    return recipe;
+}
+
+/// @brief The job options once parsed (the recipe first, then overrides only for the flags given).
+inline DeformJobOptions deformJobOptions(DeformArgs& args, CLI::App* sub)
+{
+    args.job.recipe = recipeJson(applyRecipe(sub, args.recipe));
     DeformJobOptions job = args.job;
     if (sub->count("--nodes")) job.nodes = args.nodes;
     if (sub->count("--k")) job.k = args.k;
