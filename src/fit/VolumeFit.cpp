@@ -8,6 +8,7 @@
 #include "core/Error.h"
 #include "core/Progress.h"
 #include "field/FeatureField.h"
+#include "stage2/Densify.h"
 #include "stage2/StageTwoDevice.h"
 
 namespace splatwarp {
@@ -37,24 +38,12 @@ std::vector<float> opacityResidual(const GaussianCloud& cloud, const SampleSet& 
     return opacity;
 }
 
-void splitOne(GaussianCloud& cloud, std::size_t i)
-{
-    const Vec3f s = cloud.scale(i);
-    int axis = 0;
-    for (int a = 1; a < 3; ++a)
-        if (s[a] > s[axis]) axis = a;
-    const Mat3f r = quatToMatrix(cloud.rotation(i));
-    const float d = 0.5f * s[axis];
-    const Vec3f dir{r.m[0][axis] * d, r.m[1][axis] * d, r.m[2][axis] * d};
-    cloud.logScales[3 * i + std::size_t(axis)] += std::log(0.6f);
-    GaussianCloud copy; // append() from the cloud itself would read from a reallocating vector
-    copy.shDegree = cloud.shDegree;
-    copy.append(cloud, i);
-    cloud.append(copy, 0);
-    const Vec3f m = cloud.mean(i);
-    cloud.setMean(i, Vec3f{m.x + dir.x, m.y + dir.y, m.z + dir.z});
-    cloud.setMean(cloud.size() - 1, Vec3f{m.x - dir.x, m.y - dir.y, m.z - dir.z});
-}
+/// Every Gaussian of a from-vdb fit moves and has no rest cell: the arrays Densify keeps in step.
+struct AllMoving {
+    std::vector<std::uint8_t> moving;
+    std::vector<std::int32_t> cells;
+    explicit AllMoving(std::size_t n) : moving(n, 1), cells(n, -1) {}
+};
 
 } // namespace
 
@@ -66,13 +55,9 @@ std::size_t initialGaussianCount(std::size_t budget, const VolumeFitOptions& o)
 
 std::size_t pruneTransparent(GaussianCloud& cloud, float alpha)
 {
-    GaussianCloud kept;
-    kept.shDegree = cloud.shDegree;
-    for (std::size_t i = 0; i < cloud.size(); ++i)
-        if (cloud.alpha(i) >= alpha) kept.append(cloud, i);
-    const std::size_t removed = cloud.size() - kept.size();
-    cloud = std::move(kept);
-    return removed;
+    AllMoving a(cloud.size()); // one prune: Stage II's (stage2/Densify.h)
+    DensifyCloud d{cloud, a.moving, a.cells};
+    return pruneMovingBelow(d, alpha);
 }
 
 std::size_t splitLargestResidual(GaussianCloud& cloud, const SampleSet& samples, const std::vector<float>& residual,
@@ -95,8 +80,10 @@ std::size_t splitLargestResidual(GaussianCloud& cloud, const SampleSet& samples,
     count = std::min(count, order.size());
     std::partial_sort(order.begin(), order.begin() + std::ptrdiff_t(count), order.end(),
                       [&](std::size_t a, std::size_t b) { return mass[a] > mass[b] || (mass[a] == mass[b] && a < b); });
-    for (std::size_t k = 0; k < count; ++k) splitOne(cloud, order[k]);
-    return count;
+    order.resize(count); // Stage II's split with from-vdb's rule (stage2/Densify.h: SplitPattern::Shrink)
+    AllMoving a(cloud.size());
+    DensifyCloud d{cloud, a.moving, a.cells};
+    return splitGaussians(d, order, 0.5f, SplitPattern::Shrink);
 }
 
 VolumeFitReport fitToSamples(GaussianCloud& cloud, const SampleSet& samples, std::size_t budget, const VolumeFitOptions& o)

@@ -37,11 +37,12 @@ std::size_t initialGaussianCount(std::size_t budget, const VolumeFitOptions& opt
 VolumeFitReport fitToSamples(GaussianCloud& cloud, const SampleSet& samples, std::size_t budget,
                              const VolumeFitOptions& options);
 
-/// @brief Remove Gaussians with opacity below `alpha`; returns how many.
+/// @brief Remove Gaussians with opacity below `alpha` (Stage II's prune); returns how many.
 std::size_t pruneTransparent(GaussianCloud& cloud, float alpha);
 
-/// @brief Split the `count` Gaussians with the largest residual mass into two each (offset
-///        +-0.5 sigma along the widest axis, that axis' scale times 0.6, same opacity and SH).
+/// @brief Split the `count` Gaussians with the largest residual mass into two each, by Stage II's
+///        split with from-vdb's rule (stage2/Densify.h SplitPattern::Shrink: +-0.5 sigma along the
+///        widest axis, that axis' scale times 0.6, same opacity and SH).
 /// @param residual [M] |O* - O| at the samples, each attributed to the nearest Gaussian centre
 /// @return the number split
 std::size_t splitLargestResidual(GaussianCloud& cloud, const SampleSet& samples, const std::vector<float>& residual,

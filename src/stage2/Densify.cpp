@@ -38,15 +38,19 @@ int longestAxis(const GaussianCloud& g, std::size_t i, Vec3f& direction)
 
 } // namespace
 
-void splitGaussian(DensifyCloud& d, std::size_t i, float k)
+void splitGaussian(DensifyCloud& d, std::size_t i, float k, SplitPattern pattern)
 {
     GaussianCloud& g = d.cloud;
     Vec3f u;
     const int axis = longestAxis(g, i, u);
     const float offset = k * g.scale(i)[axis];
-    const float shrink = std::sqrt(1.0f - k * k);
-    g.logScales[3 * i + std::size_t(axis)] += std::log(shrink);
-    g.opacities[i] = scaledOpacityLogit(g.opacities[i], 1.0 / (2.0 * double(shrink)));
+    if (pattern == SplitPattern::Shrink) {
+        g.logScales[3 * i + std::size_t(axis)] += std::log(0.6f);
+    } else {
+        const float shrink = std::sqrt(1.0f - k * k);
+        g.logScales[3 * i + std::size_t(axis)] += std::log(shrink);
+        g.opacities[i] = scaledOpacityLogit(g.opacities[i], 1.0 / (2.0 * double(shrink)));
+    }
     // The second child: a copy of the first, pushed value by value (a range insert from the vector
     // itself is not allowed).
     const std::size_t j = g.size();
@@ -68,14 +72,14 @@ void splitGaussian(DensifyCloud& d, std::size_t i, float k)
     d.gaussianCell.push_back(d.gaussianCell[i]);
 }
 
-std::size_t splitGaussians(DensifyCloud& d, const std::vector<std::size_t>& which, float offset)
+std::size_t splitGaussians(DensifyCloud& d, const std::vector<std::size_t>& which, float offset, SplitPattern pattern)
 {
     if (!(offset > 0.0f && offset <= kMaxSplitOffset))
         throw InputError(msg("split: offset ", offset, " is outside (0, ", kMaxSplitOffset, "]"));
     const std::size_t n = d.cloud.size();
     for (std::size_t i : which) {
         if (i >= n) throw InputError(msg("split: Gaussian ", i, " outside 0..", n - 1));
-        splitGaussian(d, i, offset);
+        splitGaussian(d, i, offset, pattern);
     }
     return which.size();
 }
