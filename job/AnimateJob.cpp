@@ -1,12 +1,12 @@
-#include "AnimateJob.h"
+#include "job/AnimateJob.h"
 
 #include <cstdio>
 #include <filesystem>
 #include <optional>
 #include <set>
 
-#include "WarmStart.h"
-#include "ZipWriter.h"
+#include "job/WarmStart.h"
+#include "job/ZipWriter.h"
 #include "core/AtomicFile.h"
 #include "core/Error.h"
 #include "core/SafePath.h"

@@ -9,9 +9,9 @@
 
 #include <nlohmann/json.hpp>
 
-#include "DeformPipeline.h"
-#include "Sequence.h"
-#include "Shard.h"
+#include "job/DeformPipeline.h"
+#include "job/Sequence.h"
+#include "job/Shard.h"
 
 namespace splatwarp {
 

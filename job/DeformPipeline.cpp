@@ -1,5 +1,5 @@
-#include "DeformPipeline.h"
-#include "DeformSession.h"
+#include "job/DeformPipeline.h"
+#include "job/DeformSession.h"
 
 #include <algorithm>
 #include <cctype>
@@ -8,13 +8,13 @@
 #include <sstream>
 
 #include "deform/SampleWarp.h"
-#include "Judge.h"
-#include "GaussianChoice.h"
-#include "StageTwoChoice.h"
-#include "StageTwoRounds.h"
-#include "ValidatedSplit.h"
-#include "StretchedView.h"
-#include "VdbExport.h"
+#include "job/Judge.h"
+#include "job/GaussianChoice.h"
+#include "job/StageTwoChoice.h"
+#include "job/StageTwoRounds.h"
+#include "job/ValidatedSplit.h"
+#include "job/StretchedView.h"
+#include "vdb/VdbExport.h"
 #include "core/AtomicFile.h"
 #include "core/Error.h"
 #include "core/Memory.h"

@@ -12,8 +12,8 @@
 
 #include <nlohmann/json.hpp>
 
-#include "Judge.h"
-#include "SampleGrid.h"
+#include "job/Judge.h"
+#include "vdb/SampleGrid.h"
 #include "core/Device.h"
 #include "deform/CurveSplit.h"
 #include "deform/DeformSpec.h"
@@ -21,7 +21,7 @@
 #include "deform/StageOne.h"
 #include "deform/StageOneDevice.h"
 #include "io/GaussianIO.h"
-#include "StageTwoRounds.h"
+#include "job/StageTwoRounds.h"
 #include "stage2/StageTwo.h"
 #include "stage2/StageTwoOptions.h"
 

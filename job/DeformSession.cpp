@@ -1,4 +1,4 @@
-#include "DeformSession.h"
+#include "job/DeformSession.h"
 
 #include <filesystem>
 

@@ -10,7 +10,7 @@
 
 #include <nlohmann/json.hpp>
 
-#include "DeformPipeline.h"
+#include "job/DeformPipeline.h"
 #include "core/RunControl.h"
 
 namespace splatwarp {

@@ -1,10 +1,10 @@
-#include "FromVdb.h"
+#include "job/FromVdb.h"
 
 #include <algorithm>
 #include <cmath>
 #include <sys/resource.h>
 
-#include "HeldOutEval.h"
+#include "job/HeldOutEval.h"
 #include "core/Error.h"
 #include "core/Progress.h"
 #include "field/FeatureDevice.h"

@@ -8,7 +8,7 @@
 
 #include <nlohmann/json.hpp>
 
-#include "Volume.h"
+#include "vdb/Volume.h"
 #include "core/GaussianCloud.h"
 #include "field/FieldError.h"
 #include "fit/MomentInit.h"

@@ -1,8 +1,8 @@
-#include "GaussianChoice.h"
+#include "job/GaussianChoice.h"
 
 #include <algorithm>
 
-#include "ValidationResiduals.h"
+#include "job/ValidationResiduals.h"
 #include "core/Progress.h"
 
 namespace splatwarp {

@@ -9,8 +9,8 @@
 #include <cstddef>
 #include <vector>
 
-#include "Judge.h"
-#include "StageTwoChoice.h"
+#include "job/Judge.h"
+#include "job/StageTwoChoice.h"
 #include "core/GaussianCloud.h"
 
 namespace splatwarp {

@@ -1,4 +1,4 @@
-#include "HeldOutEval.h"
+#include "job/HeldOutEval.h"
 
 #include <algorithm>
 #include <cmath>

@@ -10,7 +10,7 @@
 
 #include <nlohmann/json.hpp>
 
-#include "SampleGrid.h"
+#include "vdb/SampleGrid.h"
 #include "core/Device.h"
 #include "deform/Deformation.h"
 #include "field/FieldError.h"

@@ -1,4 +1,4 @@
-#include "JobList.h"
+#include "job/JobList.h"
 
 #include <algorithm>
 #include <filesystem>

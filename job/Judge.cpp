@@ -1,4 +1,4 @@
-#include "Judge.h"
+#include "job/Judge.h"
 
 #include <algorithm>
 #include <numeric>

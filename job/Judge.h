@@ -10,7 +10,7 @@
 
 #include <nlohmann/json.hpp>
 
-#include "HeldOutEval.h"
+#include "job/HeldOutEval.h"
 #include "image/Image.h"
 #include "render/Camera.h"
 #include "render/Rasterizer.h"

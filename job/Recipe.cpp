@@ -1,8 +1,8 @@
-#include "Recipe.h"
+#include "job/Recipe.h"
 
 #include <algorithm>
 
-#include "Sequence.h"
+#include "job/Sequence.h"
 #include "core/Error.h"
 
 namespace splatwarp {

@@ -1,4 +1,4 @@
-#include "Sequence.h"
+#include "job/Sequence.h"
 
 #include <algorithm>
 #include <cstdint>

@@ -10,7 +10,7 @@
 
 #include <nlohmann/json.hpp>
 
-#include "Shard.h"
+#include "job/Shard.h"
 
 namespace splatwarp {
 

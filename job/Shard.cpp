@@ -1,4 +1,4 @@
-#include "Shard.h"
+#include "job/Shard.h"
 
 #include <cstdlib>
 

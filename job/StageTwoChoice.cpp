@@ -1,11 +1,11 @@
-#include "StageTwoChoice.h"
+#include "job/StageTwoChoice.h"
 
 #include <algorithm>
 #include <cmath>
 #include <numeric>
 #include <unordered_map>
 
-#include "ValidationResiduals.h"
+#include "job/ValidationResiduals.h"
 #include "core/Progress.h"
 #include "deform/CurveSplit.h"
 

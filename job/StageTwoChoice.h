@@ -12,7 +12,7 @@
 #include <string>
 #include <vector>
 
-#include "Judge.h"
+#include "job/Judge.h"
 #include "core/GaussianCloud.h"
 
 namespace splatwarp {

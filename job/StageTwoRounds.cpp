@@ -1,4 +1,4 @@
-#include "StageTwoRounds.h"
+#include "job/StageTwoRounds.h"
 
 #include <algorithm>
 #include <cmath>

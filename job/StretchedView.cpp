@@ -1,4 +1,4 @@
-#include "StretchedView.h"
+#include "job/StretchedView.h"
 
 #include <algorithm>
 #include <cmath>

@@ -1,10 +1,10 @@
-#include "ValidatedSplit.h"
+#include "job/ValidatedSplit.h"
 
 #include <algorithm>
 #include <cmath>
 #include <numeric>
 
-#include "ValidationResiduals.h"
+#include "job/ValidationResiduals.h"
 #include "core/ParallelFor.h"
 #include "core/Progress.h"
 #include "deform/CurveSplit.h"

@@ -12,7 +12,7 @@
 #include <cstdint>
 #include <vector>
 
-#include "Judge.h"
+#include "job/Judge.h"
 #include "core/GaussianCloud.h"
 #include "deform/Deformation.h"
 #include "deform/StageOne.h"

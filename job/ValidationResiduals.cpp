@@ -1,4 +1,4 @@
-#include "ValidationResiduals.h"
+#include "job/ValidationResiduals.h"
 
 #include <algorithm>
 #include <cmath>

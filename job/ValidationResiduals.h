@@ -10,7 +10,7 @@
 #include <utility>
 #include <vector>
 
-#include "Judge.h"
+#include "job/Judge.h"
 #include "core/GaussianCloud.h"
 
 namespace splatwarp {

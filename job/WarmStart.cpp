@@ -1,4 +1,4 @@
-#include "WarmStart.h"
+#include "job/WarmStart.h"
 
 #include <algorithm>
 #include <cmath>

@@ -10,7 +10,7 @@
 #include <cstdint>
 #include <vector>
 
-#include "Shard.h"
+#include "job/Shard.h"
 #include "core/GaussianCloud.h"
 
 namespace splatwarp {

@@ -1,4 +1,4 @@
-#include "ZipWriter.h"
+#include "job/ZipWriter.h"
 
 #include <algorithm>
 #include <cerrno>

@@ -11,9 +11,9 @@
 #include <cstddef>
 #include <cstdint>
 
-#include "CudaCheck.h"
-#include "CudaLaunch.cuh"
-#include "DeviceBuffer.h"
+#include "kernels/CudaCheck.h"
+#include "kernels/CudaLaunch.cuh"
+#include "kernels/DeviceBuffer.h"
 #include "core/Error.h"
 
 namespace splatwarp::cuda {

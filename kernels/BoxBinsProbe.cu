@@ -1,7 +1,7 @@
 // See BoxBinsProbe.h.
-#include "BoxBinsProbe.h"
+#include "kernels/BoxBinsProbe.h"
 
-#include "BoxBinsCuda.cuh"
+#include "kernels/BoxBinsCuda.cuh"
 
 namespace splatwarp::cuda {
 

@@ -1,5 +1,5 @@
 // See CudaArch.h.
-#include "CudaArch.h"
+#include "kernels/CudaArch.h"
 
 #include <cuda_runtime.h>
 

@@ -1,16 +1,16 @@
-#include "CudaBackends.h"
+#include "kernels/CudaBackends.h"
 
 #include <cuda_runtime.h>
 
 #include <atomic>
 #include <string>
 
-#include "CudaArch.h"
-#include "FeaturesCuda.h"
-#include "RasterizerCuda.h"
-#include "StageOneCuda.h"
-#include "StageTwoCuda.h"
-#include "WarpCuda.h"
+#include "kernels/CudaArch.h"
+#include "kernels/FeaturesCuda.h"
+#include "kernels/RasterizerCuda.h"
+#include "kernels/StageOneCuda.h"
+#include "kernels/StageTwoCuda.h"
+#include "kernels/WarpCuda.h"
 #include "core/Device.h"
 #include "core/Error.h"
 #include "core/Progress.h"

@@ -8,8 +8,8 @@
 #include <algorithm>
 #include <cstddef>
 
-#include "CudaCheck.h"
-#include "DeviceBuffer.h"
+#include "kernels/CudaCheck.h"
+#include "kernels/DeviceBuffer.h"
 
 namespace splatwarp::cuda {
 

@@ -9,7 +9,7 @@
 #include <utility>
 #include <vector>
 
-#include "CudaCheck.h"
+#include "kernels/CudaCheck.h"
 
 namespace splatwarp::cuda {
 

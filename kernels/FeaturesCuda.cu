@@ -4,7 +4,7 @@
 // the Gaussians' pruning boxes binned (BoxBins), one thread per point summing its bin's
 // Gaussians in ascending order. The per-element work is field/CellTargetMath.h, which the
 // CPU path and the CPU tests share.
-#include "FeaturesCuda.h"
+#include "kernels/FeaturesCuda.h"
 
 #include <cub/cub.cuh>
 
@@ -13,10 +13,10 @@
 #include <type_traits>
 #include <vector>
 
-#include "BoxBinsCuda.cuh"
-#include "CudaCheck.h"
-#include "CudaLaunch.cuh"
-#include "DeviceBuffer.h"
+#include "kernels/BoxBinsCuda.cuh"
+#include "kernels/CudaCheck.h"
+#include "kernels/CudaLaunch.cuh"
+#include "kernels/DeviceBuffer.h"
 #include "core/Error.h"
 #include "field/CellTargetMath.h"
 

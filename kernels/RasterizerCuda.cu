@@ -6,16 +6,16 @@
 // multiply-adds the depths, conics, colours and transmittances are the host's float operations
 // bit for bit, so the splats of a pixel come in exactly the CPU's order (the depth is exact) and
 // only expf (opacity sigmoid, scales, alpha; <= 2 ulp from glibc) differs.
-#include "RasterizerCuda.h"
+#include "kernels/RasterizerCuda.h"
 
 #include <cub/cub.cuh>
 
 #include <cstdint>
 #include <limits>
 
-#include "CudaCheck.h"
-#include "CudaLaunch.cuh"
-#include "DeviceBuffer.h"
+#include "kernels/CudaCheck.h"
+#include "kernels/CudaLaunch.cuh"
+#include "kernels/DeviceBuffer.h"
 #include "render/SplatProjection.h"
 
 namespace splatwarp::cuda {

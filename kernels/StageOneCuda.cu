@@ -1,9 +1,9 @@
-#include "StageOneCuda.h"
+#include "kernels/StageOneCuda.h"
 
 #include <algorithm>
 
-#include "CudaLaunch.cuh"
-#include "DeviceBuffer.h"
+#include "kernels/CudaLaunch.cuh"
+#include "kernels/DeviceBuffer.h"
 #include "deform/StageOneMath.h"
 
 namespace splatwarp::cuda {

@@ -3,7 +3,7 @@
 // StageTwoSetup.h, Coverage.h). Notation: S used samples, G moving Gaussians, P coverage pairs,
 // E bin entries, STRIDE = 3 (degree+1)^2 SH floats, PER_G = 11 + STRIDE packed parameters.
 #include <math_constants.h>
-#include "StageTwoCuda.h"
+#include "kernels/StageTwoCuda.h"
 
 #include <cub/cub.cuh>
 
@@ -11,10 +11,10 @@
 #include <cmath>
 #include <memory>
 
-#include "CudaCheck.h"
-#include "CudaLaunch.cuh"
-#include "BoxBinsCuda.cuh"
-#include "DeviceBuffer.h"
+#include "kernels/CudaCheck.h"
+#include "kernels/CudaLaunch.cuh"
+#include "kernels/BoxBinsCuda.cuh"
+#include "kernels/DeviceBuffer.h"
 #include "core/Progress.h"
 #include "stage2/PairGradients.h"
 #include "stage2/Coverage.h"

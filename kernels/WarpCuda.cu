@@ -1,10 +1,10 @@
-#include "WarpCuda.h"
+#include "kernels/WarpCuda.h"
 
 #include <algorithm>
 #include <vector>
 
-#include "CudaLaunch.cuh"
-#include "DeviceBuffer.h"
+#include "kernels/CudaLaunch.cuh"
+#include "kernels/DeviceBuffer.h"
 #include "deform/SkinWeightMath.h"
 #include "deform/WarpMath.h"
 

@@ -2,9 +2,9 @@
 /// on a rest side computed once; shards, resume and a manifest (job/AnimateJob.h).
 #include <cstdio>
 
-#include "AnimateJob.h"
+#include "job/AnimateJob.h"
 #include "DeformArgs.h"
-#include "WarmStart.h"
+#include "job/WarmStart.h"
 #include "core/Error.h"
 
 namespace splatwarp::cli {

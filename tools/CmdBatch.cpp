@@ -5,9 +5,9 @@
 #include <filesystem>
 
 #include "Command.h"
-#include "JobList.h"
-#include "Sequence.h"
-#include "Shard.h"
+#include "job/JobList.h"
+#include "job/Sequence.h"
+#include "job/Shard.h"
 #include "core/AtomicFile.h"
 #include "core/Error.h"
 #include "splatwarp/Version.h"

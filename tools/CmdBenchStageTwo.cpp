@@ -4,7 +4,7 @@
 #include <cmath>
 
 #include "Command.h"
-#include "SampleGrid.h"
+#include "vdb/SampleGrid.h"
 #include "SharedArgs.h"
 #include "core/Error.h"
 #include "core/Progress.h"

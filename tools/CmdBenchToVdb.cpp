@@ -9,8 +9,8 @@
 
 #include "Command.h"
 #include "SharedArgs.h"
-#include "SampleGrid.h"
-#include "VdbExport.h"
+#include "vdb/SampleGrid.h"
+#include "vdb/VdbExport.h"
 #include "core/Error.h"
 #include "core/Progress.h"
 #include "io/GaussianIO.h"

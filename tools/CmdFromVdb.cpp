@@ -2,7 +2,7 @@
 #include <cstdio>
 
 #include "Command.h"
-#include "FromVdb.h"
+#include "job/FromVdb.h"
 #include "SharedArgs.h"
 #include "core/AtomicFile.h"
 #include "core/Error.h"

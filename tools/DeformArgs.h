@@ -8,9 +8,9 @@
 #include <string>
 
 #include "Command.h"
-#include "DeformPipeline.h"
+#include "job/DeformPipeline.h"
 #include "GridArgs.h"
-#include "Recipe.h"
+#include "job/Recipe.h"
 #include "ReadArgs.h"
 #include "SharedArgs.h"
 

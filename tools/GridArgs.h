@@ -4,7 +4,7 @@
 #include <string>
 
 #include "Command.h"
-#include "SampleGrid.h"
+#include "vdb/SampleGrid.h"
 #include "core/Memory.h"
 
 namespace splatwarp::cli {

@@ -16,9 +16,9 @@
 #include "core/Error.h"
 #include "core/Progress.h"
 #include "splatwarp/Version.h"
-#include "VdbLibrary.h"
+#include "vdb/VdbLibrary.h"
 #ifdef SPLATWARP_WITH_CUDA
-#include "CudaBackends.h"
+#include "kernels/CudaBackends.h"
 #endif
 
 namespace splatwarp::cli {

@@ -1,4 +1,4 @@
-#include "SampleGrid.h"
+#include "vdb/SampleGrid.h"
 
 #include <algorithm>
 #include <cmath>
@@ -11,8 +11,8 @@
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_reduce.h>
 
-#include "SampleGridImpl.h"
-#include "VdbLibrary.h"
+#include "vdb/SampleGridImpl.h"
+#include "vdb/VdbLibrary.h"
 #include "core/Error.h"
 #include "core/ParallelFor.h"
 #include "core/Memory.h"

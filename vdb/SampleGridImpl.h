@@ -4,7 +4,7 @@
 ///        OpenVDB; never include it from src/, tools/ or tests/).
 #include <openvdb/openvdb.h>
 
-#include "SampleGrid.h"
+#include "vdb/SampleGrid.h"
 
 namespace splatwarp {
 

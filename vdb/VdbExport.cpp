@@ -1,4 +1,4 @@
-#include "VdbExport.h"
+#include "vdb/VdbExport.h"
 
 #include <cerrno>
 #include <cstring>
@@ -7,8 +7,8 @@
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_reduce.h>
 
-#include "SampleGridImpl.h"
-#include "VdbLibrary.h"
+#include "vdb/SampleGridImpl.h"
+#include "vdb/VdbLibrary.h"
 #include "core/AtomicFile.h"
 #include "core/Error.h"
 #include "core/Polar.h"

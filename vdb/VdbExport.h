@@ -4,7 +4,7 @@
 ///        back with tests/support/VdbFileReader.h.
 #include <string>
 
-#include "SampleGrid.h"
+#include "vdb/SampleGrid.h"
 
 namespace splatwarp {
 

@@ -1,4 +1,4 @@
-#include "VdbLibrary.h"
+#include "vdb/VdbLibrary.h"
 
 #include <mutex>
 #include <nanovdb/NanoVDB.h>

@@ -1,5 +1,5 @@
 /// Reading fog volumes (vdb/Volume.h): grid choice, input checks, trilinear lookups, samples.
-#include "Volume.h"
+#include "vdb/Volume.h"
 
 #include <cmath>
 #include <fstream>
@@ -12,7 +12,7 @@
 #include <openvdb/tools/LevelSetUtil.h>
 #include <openvdb/tools/Morphology.h>
 
-#include "VdbLibrary.h"
+#include "vdb/VdbLibrary.h"
 #include "core/AtomicFile.h"
 #include "core/Error.h"
 #include "core/ParallelFor.h"

@@ -3,7 +3,7 @@
 // and that a test's CudaBackendsScope leaves nothing registered for the next test.
 #include <gtest/gtest.h>
 
-#include "CudaArch.h"
+#include "kernels/CudaArch.h"
 #include "CudaTestSupport.h"
 #include "core/Device.h"
 #include "field/FeatureDevice.h"

@@ -7,7 +7,7 @@
 #include <cstdio>
 #include <string>
 
-#include "CudaBackends.h"
+#include "kernels/CudaBackends.h"
 
 #define SPLATWARP_REQUIRE_GPU()                                                                         \
     if (!::splatwarp::cuda::cudaDeviceAvailable())                                                      \

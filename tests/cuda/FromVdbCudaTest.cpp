@@ -13,11 +13,11 @@
 
 #include <unistd.h>
 
-#include "CudaBackends.h"
+#include "kernels/CudaBackends.h"
 #include "CudaTestSupport.h"
-#include "FromVdb.h"
-#include "SampleGrid.h"
-#include "VdbExport.h"
+#include "job/FromVdb.h"
+#include "vdb/SampleGrid.h"
+#include "vdb/VdbExport.h"
 #include "core/Device.h"
 #include "field/FieldTestModels.h"
 

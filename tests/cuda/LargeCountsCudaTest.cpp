@@ -12,10 +12,10 @@
 #include <cstdio>
 #include <string>
 
-#include "BoxBinsProbe.h"
+#include "kernels/BoxBinsProbe.h"
 #include "CudaTestSupport.h"
-#include "RasterizerCuda.h"
-#include "StageTwoCuda.h"
+#include "kernels/RasterizerCuda.h"
+#include "kernels/StageTwoCuda.h"
 #include "core/Camera.h"
 #include "core/Device.h"
 #include "core/Error.h"

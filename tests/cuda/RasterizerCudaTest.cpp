@@ -20,8 +20,8 @@
 #include <string>
 
 #include "CudaTestSupport.h"
-#include "CudaBackends.h"
-#include "RasterizerCuda.h"
+#include "kernels/CudaBackends.h"
+#include "kernels/RasterizerCuda.h"
 #include "core/Device.h"
 #include "render/Camera.h"
 #include "render/Rasterizer.h"

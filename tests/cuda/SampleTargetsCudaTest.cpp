@@ -16,10 +16,10 @@
 #include <random>
 #include <vector>
 
-#include "CudaBackends.h"
+#include "kernels/CudaBackends.h"
 #include "CudaTestSupport.h"
-#include "FeaturesCuda.h"
-#include "SampleGrid.h"
+#include "kernels/FeaturesCuda.h"
+#include "vdb/SampleGrid.h"
 #include "core/Device.h"
 #include "field/FeatureDevice.h"
 #include "field/FieldTestModels.h"

@@ -18,7 +18,7 @@
 
 #include "BendSpec.h"
 #include "CudaTestSupport.h"
-#include "StageOneCuda.h"
+#include "kernels/StageOneCuda.h"
 #include "deform/StageOneDevice.h"
 #include "demo/DemoModels.h"
 

@@ -21,9 +21,9 @@
 #include <vector>
 
 #include "CudaTestSupport.h"
-#include "CudaBackends.h"
-#include "DeviceBuffer.h"
-#include "StageTwoCuda.h"
+#include "kernels/CudaBackends.h"
+#include "kernels/DeviceBuffer.h"
+#include "kernels/StageTwoCuda.h"
 #include "core/Device.h"
 #include "SampleCoverage.h"
 #include "stage2/Coverage.h"

@@ -16,8 +16,8 @@
 
 #include "BendSpec.h"
 #include "CudaTestSupport.h"
-#include "SampleGrid.h"
-#include "WarpCuda.h"
+#include "vdb/SampleGrid.h"
+#include "kernels/WarpCuda.h"
 #include "deform/SampleWarp.h"
 #include "demo/DemoModels.h"
 

@@ -4,7 +4,7 @@
 #include <cstdint>
 #include <string>
 
-#include "JobList.h"
+#include "job/JobList.h"
 #include "core/Error.h"
 
 extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size)

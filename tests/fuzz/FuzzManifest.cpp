@@ -6,7 +6,7 @@
 
 #include <nlohmann/json.hpp>
 
-#include "Sequence.h"
+#include "job/Sequence.h"
 #include "core/Error.h"
 
 extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size)

@@ -4,7 +4,7 @@
 #include <cstdint>
 #include <string>
 
-#include "Recipe.h"
+#include "job/Recipe.h"
 #include "core/Error.h"
 
 extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size)

@@ -10,7 +10,7 @@
 
 #include <openvdb/openvdb.h>
 
-#include "Volume.h"
+#include "vdb/Volume.h"
 #include "core/Error.h"
 
 namespace {

@@ -13,7 +13,7 @@
 #include <thread>
 #include <unistd.h>
 
-#include "AnimateJob.h"
+#include "job/AnimateJob.h"
 #include "deform/AnimSpec.h"
 #include "io/GaussianIO.h"
 #include "demo/DemoModels.h"

@@ -9,8 +9,8 @@
 
 #include <nlohmann/json.hpp>
 
-#include "AnimateJob.h"
-#include "JobList.h"
+#include "job/AnimateJob.h"
+#include "job/JobList.h"
 #include "demo/DemoModels.h"
 #include "io/GaussianIO.h"
 #include "support/TestSupport.h"

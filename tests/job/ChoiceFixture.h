@@ -6,8 +6,8 @@
 #include <memory>
 #include <vector>
 
-#include "DeformPipeline.h"
-#include "Judge.h"
+#include "job/DeformPipeline.h"
+#include "job/Judge.h"
 #include "demo/DemoModels.h"
 #include "io/GaussianIO.h"
 #include "support/TestSupport.h"

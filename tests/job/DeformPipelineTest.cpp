@@ -4,7 +4,7 @@
 #include <fstream>
 #include <nlohmann/json.hpp>
 
-#include "DeformPipeline.h"
+#include "job/DeformPipeline.h"
 #include "io/GaussianIO.h"
 #include "demo/DemoModels.h"
 #include "support/TestSupport.h"

@@ -5,7 +5,7 @@
 #include <atomic>
 #include <filesystem>
 
-#include "DeformSession.h"
+#include "job/DeformSession.h"
 #include "demo/DemoModels.h"
 #include "io/GaussianIO.h"
 #include "support/TestSupport.h"

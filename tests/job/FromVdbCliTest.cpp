@@ -11,7 +11,7 @@
 
 #include <openvdb/openvdb.h>
 
-#include "Volume.h"
+#include "vdb/Volume.h"
 #include "support/VdbFileReader.h"
 #include "support/TestSupport.h"
 

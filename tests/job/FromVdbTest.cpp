@@ -7,9 +7,9 @@
 #include <filesystem>
 #include <iostream>
 
-#include "FromVdb.h"
-#include "SampleGrid.h"
-#include "VdbExport.h"
+#include "job/FromVdb.h"
+#include "vdb/SampleGrid.h"
+#include "vdb/VdbExport.h"
 #include "field/FieldTestModels.h"
 #include "fit/Extinction.h"
 #include "image/BitmapFont.h"

@@ -4,9 +4,9 @@
 #include <vector>
 
 #include "ChoiceFixture.h"
-#include "GaussianChoice.h"
-#include "ValidatedSplit.h"
-#include "ValidationResiduals.h"
+#include "job/GaussianChoice.h"
+#include "job/ValidatedSplit.h"
+#include "job/ValidationResiduals.h"
 #include "deform/CurveSplit.h"
 
 using namespace splatwarp;

@@ -5,7 +5,7 @@
 
 #include <string>
 
-#include "HeldOutEval.h"
+#include "job/HeldOutEval.h"
 #include "deform/DeformSpec.h"
 #include "demo/DemoModels.h"
 

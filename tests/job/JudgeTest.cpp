@@ -5,7 +5,7 @@
 #include <cmath>
 #include <set>
 
-#include "Judge.h"
+#include "job/Judge.h"
 #include "deform/DeformSpec.h"
 #include "field/PreparedGaussian.h"
 #include "demo/DemoModels.h"

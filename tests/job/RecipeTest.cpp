@@ -4,7 +4,7 @@
 
 #include <fstream>
 
-#include "Recipe.h"
+#include "job/Recipe.h"
 #include "demo/DemoModels.h"
 #include "io/GaussianIO.h"
 #include "support/TestSupport.h"

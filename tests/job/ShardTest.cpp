@@ -2,7 +2,7 @@
 
 #include <map>
 
-#include "Shard.h"
+#include "job/Shard.h"
 #include "core/Error.h"
 
 using namespace splatwarp;

@@ -4,7 +4,7 @@
 #include <vector>
 
 #include "ChoiceFixture.h"
-#include "StageTwoChoice.h"
+#include "job/StageTwoChoice.h"
 #include "deform/CurveSplit.h"
 
 using namespace splatwarp;

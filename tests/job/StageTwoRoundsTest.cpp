@@ -6,7 +6,7 @@
 #include <utility>
 #include <vector>
 
-#include "StageTwoRounds.h"
+#include "job/StageTwoRounds.h"
 #include "stage2/StageTwoTestProblem.h"
 #include "support/FakeCuda.h"
 

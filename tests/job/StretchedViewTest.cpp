@@ -2,7 +2,7 @@
 
 #include <cmath>
 
-#include "StretchedView.h"
+#include "job/StretchedView.h"
 #include "demo/DemoModels.h"
 #include "field/RigidMotion.h"
 

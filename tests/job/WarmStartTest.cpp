@@ -4,8 +4,8 @@
 #include <set>
 
 #include "ChoiceFixture.h"
-#include "DeformPipeline.h"
-#include "WarmStart.h"
+#include "job/DeformPipeline.h"
+#include "job/WarmStart.h"
 #include "demo/DemoModels.h"
 #include "io/GaussianIO.h"
 #include "support/TestSupport.h"

@@ -6,7 +6,7 @@
 #include <fstream>
 #include <sys/stat.h>
 
-#include "ZipWriter.h"
+#include "job/ZipWriter.h"
 #include "support/TestSupport.h"
 
 using namespace splatwarp;

@@ -11,7 +11,7 @@
 #include <numeric>
 #include <vector>
 
-#include "SampleGrid.h"
+#include "vdb/SampleGrid.h"
 #include "field/CellTargetMath.h"
 #include "field/FeatureDevice.h"
 #include "field/FeatureField.h"

@@ -5,7 +5,7 @@
 ///        straight through along z; the trilinear ramps at the faces add up to whole voxels).
 #include <cstddef>
 
-#include "Volume.h"
+#include "vdb/Volume.h"
 #include "core/SmallMath.h"
 #include "support/TestSupport.h"
 

@@ -2,7 +2,7 @@
 
 #include <openvdb/openvdb.h>
 
-#include "VdbLibrary.h"
+#include "vdb/VdbLibrary.h"
 #include "core/Error.h"
 
 namespace splatwarp::test {

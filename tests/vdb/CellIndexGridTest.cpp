@@ -8,7 +8,7 @@
 #include <numeric>
 #include <vector>
 
-#include "SampleGrid.h"
+#include "vdb/SampleGrid.h"
 #include "support/CellListTargets.h"
 #include "vdb/CellLookup.h"
 #include "field/CellTargetMath.h"

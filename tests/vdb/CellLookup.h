@@ -6,7 +6,7 @@
 #include <map>
 #include <tuple>
 
-#include "SampleGrid.h"
+#include "vdb/SampleGrid.h"
 
 namespace splatwarp::test {
 

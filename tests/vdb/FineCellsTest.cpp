@@ -10,8 +10,8 @@
 #include <set>
 #include <tuple>
 
-#include "SampleGrid.h"
-#include "VdbExport.h"
+#include "vdb/SampleGrid.h"
+#include "vdb/VdbExport.h"
 #include "core/Error.h"
 #include "deform/WarpMath.h"
 #include "field/FieldTestModels.h"

@@ -5,7 +5,7 @@
 #include <random>
 #include <tuple>
 
-#include "SampleGrid.h"
+#include "vdb/SampleGrid.h"
 #include "vdb/CellLookup.h"
 #include "core/Error.h"
 #include "field/GaussianMath.h"

@@ -2,7 +2,7 @@
 
 #include <cmath>
 
-#include "SampleGrid.h"
+#include "vdb/SampleGrid.h"
 #include "deform/SampleWarp.h"
 #include "core/Polar.h"
 #include "deform/DeformSpec.h"

@@ -7,9 +7,9 @@
 #include <map>
 #include <tuple>
 
-#include "SampleGrid.h"
+#include "vdb/SampleGrid.h"
 #include "deform/SampleWarp.h"
-#include "VdbExport.h"
+#include "vdb/VdbExport.h"
 #include "core/Error.h"
 #include "io/GaussianIO.h"
 #include "demo/DemoModels.h"

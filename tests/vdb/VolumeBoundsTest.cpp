@@ -5,7 +5,7 @@
 
 #include <cmath>
 
-#include "Volume.h"
+#include "vdb/Volume.h"
 #include "render/RayMarcher.h"
 #include "support/SlabVolume.h"
 #include "support/TestSupport.h"
