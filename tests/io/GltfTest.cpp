@@ -1,0 +1,171 @@
+/// `.glb` (KHR_gaussian_splatting) reader and writer: splat-transform's file of the 200-Gaussian
+/// model decodes to the source PLY, our writer's file decodes to the same values, and broken files
+/// are InputErrors naming the file. Tolerances are float32 rounding of the stored quantities.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <cstring>
+
+#include <nlohmann/json.hpp>
+
+#include "PlyTestFiles.h"
+#include "core/Error.h"
+#include "io/GaussianIO.h"
+#include "support/TestSupport.h"
+
+using namespace splatwarp;
+using namespace splatwarp::test;
+
+namespace {
+
+std::string fixture(const std::string& name) { return std::string(SPLATWARP_SOURCE_DIR) + "/tests/io/data/" + name; }
+
+double sigmoidD(double x) { return 1 / (1 + std::exp(-x)); }
+
+// Opacity is stored as float(sigmoid(logit)): alpha is off by half a float step at most, and the
+// logit by that over d alpha / d logit = a (1 - a), plus the float rounding of the logit read back.
+double logitTolerance(float logit)
+{
+    const double a = sigmoidD(logit);
+    const double step = double(std::nextafter(float(a), 2.0f)) - double(float(a));
+    return step / (a * (1 - a)) + std::fabs(logit) * std::ldexp(1.0, -23) + 1e-12;
+}
+
+// Values after a float32 glb: centres and SH exact, unit quaternions and log(float(exp s)) to a
+// few float steps, opacity by logitTolerance(). q and -q are one rotation; splat-transform 3.10.2
+// stores the PLY's quaternions unnormalised (the extension asks for unit ones), so both are
+// normalised before comparing.
+void expectSameModel(const GaussianCloud& src, const GaussianCloud& dec)
+{
+    ASSERT_EQ(dec.size(), src.size());
+    ASSERT_EQ(dec.shDegree, src.shDegree);
+    const double f = std::ldexp(1.0, -23);
+    for (std::size_t i = 0; i < src.size(); ++i) {
+        for (int a = 0; a < 3; ++a) {
+            ASSERT_NEAR(dec.means[3 * i + a], src.means[3 * i + a], std::fabs(src.means[3 * i + a]) * f) << i;
+            ASSERT_NEAR(dec.logScales[3 * i + a], src.logScales[3 * i + a], 2 * f * (1 + std::fabs(src.logScales[3 * i + a])))
+                << i;
+        }
+        ASSERT_NEAR(dec.opacities[i], src.opacities[i], 2 * logitTolerance(src.opacities[i])) << i;
+        for (int j = 0; j < 3 * src.shCoeffs(); ++j) ASSERT_EQ(dec.shOf(i)[j], src.shOf(i)[j]) << i << " sh " << j;
+        const Quatf q = src.rotation(i), r = dec.rotation(i);
+        const double n = std::sqrt(double(q.w) * q.w + double(q.x) * q.x + double(q.y) * q.y + double(q.z) * q.z);
+        const double m = std::sqrt(double(r.w) * r.w + double(r.x) * r.x + double(r.y) * r.y + double(r.z) * r.z);
+        const double dot = (q.w * r.w + q.x * r.x + q.y * r.y + q.z * r.z) / (n * m);
+        EXPECT_NEAR(std::fabs(dot), 1.0, 8 * f) << i;
+    }
+}
+
+std::uint32_t le32(const std::string& d, std::size_t at)
+{
+    std::uint32_t v;
+    std::memcpy(&v, d.data() + at, 4);
+    return v;
+}
+
+// A glb with its JSON replaced (the BIN chunk kept).
+std::string withJson(const std::string& glb, const nlohmann::json& doc)
+{
+    const std::size_t jsonLen = le32(glb, 12);
+    const std::string bin = glb.substr(20 + jsonLen);
+    std::string text = doc.dump();
+    text.append((4 - text.size() % 4) % 4, ' ');
+    std::string out = glb.substr(0, 12);
+    const std::uint32_t len = std::uint32_t(20 + text.size() + bin.size()), tl = std::uint32_t(text.size());
+    std::memcpy(&out[8], &len, 4);
+    out.append(reinterpret_cast<const char*>(&tl), 4);
+    out += "JSON";
+    return out + text + bin;
+}
+
+nlohmann::json jsonOf(const std::string& glb) { return nlohmann::json::parse(glb.substr(20, le32(glb, 12))); }
+
+void expectRefused(const TempDir& dir, const std::string& bytes, const std::string& part)
+{
+    const std::string path = dir.file("bad.glb");
+    writeBytes(path, bytes);
+    const std::string m = inputErrorMessage([&] { readGaussians(path); });
+    EXPECT_NE(m.find(path), std::string::npos) << m;
+    EXPECT_NE(m.find(part), std::string::npos) << "'" << part << "' not in: " << m;
+}
+
+} // namespace
+
+TEST(Gltf, SplatTransformGlbMatchesSource)
+{
+    const GaussianCloud src = readGaussians(fixture("random200-sh3.ply"));
+    ReadReport report;
+    const GaussianCloud dec = readGaussians(fixture("random200-sh3.glb"), {}, &report);
+    EXPECT_EQ(report.format, "glb");
+    expectSameModel(src, dec);
+}
+
+TEST(Gltf, OwnGlbDecodesToSourceAndCarriesTheExtension)
+{
+    const GaussianCloud src = readGaussians(fixture("random200-sh3.ply"));
+    const std::string glb = encodeGlb("x.glb", src);
+    expectSameModel(src, readGaussiansFromBytes("x.glb", glb));
+    const nlohmann::json doc = jsonOf(glb);
+    EXPECT_EQ(doc["extensionsUsed"][0], "KHR_gaussian_splatting");
+    const auto& prim = doc["meshes"][0]["primitives"][0];
+    EXPECT_EQ(prim["mode"], 0);
+    EXPECT_EQ(prim["extensions"]["KHR_gaussian_splatting"]["kernel"], "ellipse");
+    EXPECT_EQ(prim["extensions"]["KHR_gaussian_splatting"]["colorSpace"], "srgb_rec709_display");
+    EXPECT_TRUE(prim["attributes"].contains("KHR_gaussian_splatting:SH_DEGREE_3_COEF_6"));
+    EXPECT_FALSE(prim["attributes"].contains("KHR_gaussian_splatting:SH_DEGREE_4_COEF_0"));
+    // The same axes as splat-transform's writer: the accessor bounds agree.
+    const nlohmann::json ref = jsonOf(fileBytes(fixture("random200-sh3.glb")));
+    for (int a = 0; a < 3; ++a) EXPECT_FLOAT_EQ(doc["accessors"][0]["min"][a].get<float>(), ref["accessors"][0]["min"][a].get<float>());
+}
+
+TEST(Gltf, BrokenFilesAreInputErrors)
+{
+    TempDir dir;
+    const std::string glb = fileBytes(fixture("random200-sh3.glb"));
+    expectRefused(dir, glb.substr(0, 10), "truncated");
+    expectRefused(dir, glb.substr(0, glb.size() / 2), "truncated");
+    std::string v = glb;
+    v[4] = 1;
+    expectRefused(dir, v, "version 1");
+    expectRefused(dir, glb.substr(0, 20) + std::string(le32(glb, 12), '{') + glb.substr(20 + le32(glb, 12)), "JSON");
+    nlohmann::json doc = jsonOf(glb);
+    doc["accessors"][4]["count"] = 4000000000u; // opacity: a huge count cannot fit its buffer view
+    expectRefused(dir, withJson(glb, doc), "does not fit");
+    doc = jsonOf(glb);
+    doc["meshes"][0]["primitives"][0]["attributes"].erase("KHR_gaussian_splatting:SH_DEGREE_2_COEF_3");
+    expectRefused(dir, withJson(glb, doc), "SH degree 2 is partially defined");
+    doc = jsonOf(glb);
+    doc["meshes"][0]["primitives"][0]["extensions"]["KHR_gaussian_splatting"]["kernel"] = "cube";
+    expectRefused(dir, withJson(glb, doc), "kernel 'cube'");
+    doc = jsonOf(glb);
+    doc["meshes"][0]["primitives"][0]["extensions"]["KHR_gaussian_splatting"]["kernel"] = 7;
+    expectRefused(dir, withJson(glb, doc), "JSON");
+    doc = jsonOf(glb);
+    doc["nodes"][0]["translation"] = {1, 0, 0};
+    expectRefused(dir, withJson(glb, doc), "transform");
+    doc = jsonOf(glb);
+    doc["meshes"][0]["primitives"][0].erase("extensions");
+    expectRefused(dir, withJson(glb, doc), "without KHR_gaussian_splatting");
+    doc = jsonOf(glb);
+    doc["buffers"][0]["uri"] = "elsewhere.bin";
+    expectRefused(dir, withJson(glb, doc), "external buffer");
+}
+
+TEST(Gltf, NaNAndOutOfRangeOpacityAreRefused)
+{
+    TempDir dir;
+    GaussianCloud g = readGaussians(fixture("random200-sh3.ply"));
+    std::string glb = encodeGlb("x.glb", g);
+    const nlohmann::json doc = jsonOf(glb);
+    const std::size_t bin = 20 + le32(glb, 12) + 8;
+    const std::size_t pos = bin + doc["bufferViews"][0]["byteOffset"].get<std::size_t>();
+    const std::size_t alpha = bin + doc["bufferViews"][doc["accessors"][3]["bufferView"].get<int>()]["byteOffset"].get<std::size_t>();
+    std::string nan = glb;
+    const float q = std::nanf(""), big = 1.5f;
+    std::memcpy(&nan[pos + 12 * 5 + 4], &q, 4); // Gaussian 5's y
+    expectRefused(dir, nan, "Gaussian 5: property 'y' is"); // -nan after the turn to graphdeco axes
+    expectRefused(dir, nan, "nan (1 Gaussians hold");
+    std::string range = glb;
+    std::memcpy(&range[alpha + 4 * 9], &big, 4);
+    expectRefused(dir, range, "Gaussian 9: opacity 1.5 is outside [0, 1]");
+}
