@@ -111,6 +111,26 @@ TEST(VdbPoints, BrokenFilesAreInputErrorsAndVolumesAreNamed)
     EXPECT_NE(m.find("without a point grid"), std::string::npos) << m;
 }
 
+TEST(VdbPoints, NaNInAnAttributeIsNamedWithItsGaussian)
+{
+    registerVdbPointFormat();
+    TempDir dir;
+    writeVdbPoints(dir.file("m.vdb"), readGaussians(fixture("random200-sh3.ply")));
+    const auto grid = firstPointGrid(dir.file("m.vdb"));
+    ASSERT_TRUE(grid);
+    int changed = 0;
+    for (auto leaf = grid->tree().beginLeaf(); leaf; ++leaf) {
+        openvdb::points::AttributeHandle<openvdb::Int32> id(leaf->constAttributeArray("id"));
+        openvdb::points::AttributeWriteHandle<openvdb::Vec3f> scale(leaf->attributeArray("scale"));
+        for (auto it = leaf->beginIndexOn(); it; ++it)
+            if (id.get(*it) == 5) scale.set(*it, openvdb::Vec3f(std::nanf(""), 1, 1)), ++changed;
+    }
+    ASSERT_EQ(changed, 1);
+    openvdb::io::File(dir.file("nan.vdb")).write({grid});
+    const std::string m = inputErrorMessage([&] { readGaussians(dir.file("nan.vdb")); });
+    EXPECT_NE(m.find(dir.file("nan.vdb") + ": Gaussian 5: property 'scale_0' is nan"), std::string::npos) << m;
+}
+
 TEST(VdbPoints, CliConvertsBothWaysAndNeedsPointsFlag)
 {
     TempDir dir;
