@@ -263,3 +263,16 @@ TEST(SpzReader, CliConvertsSpzToPly)
     EXPECT_EQ(a.means, b.means);
     EXPECT_EQ(a.opacities, b.opacities);
 }
+
+// The PlayCanvas engine's example (examples/assets/splats/biker.spz, a v4 file), when someone has
+// put it into ../shared/data/splats: its count and degree, and values inside the header's ranges.
+TEST(SpzReader, EngineBikerVersion4)
+{
+    SPLATWARP_REQUIRE_DATA(biker, "splats/biker.spz");
+    ReadReport report;
+    const GaussianCloud g = readGaussians(biker, {}, &report);
+    EXPECT_EQ(report.format, "spz-v4");
+    EXPECT_EQ(g.size(), 152746u);
+    EXPECT_EQ(g.shDegree, 0);
+    for (float v : g.means) ASSERT_LE(std::fabs(v), 2048.0f);
+}
