@@ -2,8 +2,8 @@
 /// KHR_gaussian_splatting/README.md): point primitives whose attributes hold linear scales,
 /// unit quaternions (x, y, z, w), opacity after the sigmoid and SH coefficients per degree and
 /// order (`KHR_gaussian_splatting:SH_DEGREE_l_COEF_n`, RGB each). Only the GLB's own BIN chunk is
-/// read (no external or data: URIs); node transforms other than the identity are refused. glTF's
-/// axes are turned into graphdeco's (turnAboutZ(), GltfWriter.cpp).
+/// read (no external or data: URIs). Node transforms are applied (GltfNodes.cpp), then glTF's axes
+/// are turned into graphdeco's (turnAboutZ(), GltfWriter.cpp).
 #include <cmath>
 #include <cstring>
 #include <limits>
@@ -12,6 +12,7 @@
 
 #include "core/Error.h"
 #include "io/FormatReaders.h"
+#include "io/GltfNodes.h"
 
 namespace splatwarp {
 
@@ -138,29 +139,6 @@ View accessorView(const Glb& g, std::size_t index, const std::string& name)
     return v;
 }
 
-// Node transforms are not applied (yet): a splat mesh under a non-identity node is refused.
-void checkIdentityNodes(const Glb& g)
-{
-    if (!g.doc.contains("nodes") || !g.doc["nodes"].is_array()) return;
-    static const double kIdentity[16] = {1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1};
-    for (const json& n : g.doc["nodes"]) {
-        bool identity = true;
-        if (n.contains("matrix") && n["matrix"].is_array())
-            for (std::size_t k = 0; k < 16 && k < n["matrix"].size(); ++k)
-                identity = identity && n["matrix"][k].is_number() && n["matrix"][k].get<double>() == kIdentity[k];
-        for (const char* key : {"translation", "rotation", "scale"})
-            if (n.contains(key)) {
-                const json ref = std::string(key) == "rotation" ? json{0, 0, 0, 1}
-                                 : std::string(key) == "scale"  ? json{1, 1, 1}
-                                                                : json{0, 0, 0};
-                identity = identity && n[key] == ref;
-            }
-        if (!identity)
-            throw InputError(msg(g.path, ": .glb: a node has a transform; splatwarp reads splats in their mesh's space "
-                                         "only (apply the transform in the writer)"));
-    }
-}
-
 // The highest SH degree whose coefficients (and those of every lower degree) are all present.
 int shDegreeOf(const Glb& g, const json& attributes)
 {
@@ -196,7 +174,7 @@ float opacityLogit(const std::string& path, std::size_t i, double a)
     return float(std::log(a / (1 - a)));
 }
 
-void readPrimitive(const Glb& g, const json& prim, GaussianCloud& out, ReadReport& report)
+GaussianCloud readPrimitive(const Glb& g, const json& prim, ReadReport& report)
 {
     const json& ext = prim["extensions"]["KHR_gaussian_splatting"];
     const json& attrs = prim.value("attributes", json::object());
@@ -224,40 +202,77 @@ void readPrimitive(const Glb& g, const json& prim, GaussianCloud& out, ReadRepor
         }
         p.setRotation(i, {float(component(rot, i, 3)), float(component(rot, i, 0)), float(component(rot, i, 1)),
                           float(component(rot, i, 2))});
-        p.opacities[i] = opacityLogit(g.path, out.size() + i, component(alpha, i, 0));
+        p.opacities[i] = opacityLogit(g.path, i, component(alpha, i, 0));
         for (std::size_t j = 0; j < sh.size(); ++j)
             for (int c = 0; c < 3; ++c) p.shOf(i)[3 * j + c] = float(component(sh[j], i, c));
     }
-    if (out.empty()) out = std::move(p);
-    else {
-        const int d = std::min(out.shDegree, p.shDegree);
-        if (d != out.shDegree || d != p.shDegree) report.notes.push_back(msg("splat primitives of several SH degrees read at degree ", d));
-        out = withShDegree(out, d);
-        const GaussianCloud q = withShDegree(p, d);
-        for (std::size_t i = 0; i < q.size(); ++i) out.append(q, i);
-    }
+    return p;
 }
 
+// Appends `part`; primitives of different SH degrees meet at the lower one.
+void appendCloud(GaussianCloud& out, const GaussianCloud& part, ReadReport& report)
+{
+    if (out.empty()) {
+        out = part;
+        return;
+    }
+    const int d = std::min(out.shDegree, part.shDegree);
+    if (d != out.shDegree || d != part.shDegree)
+        report.notes.push_back(msg("splat primitives of several SH degrees read at degree ", d));
+    out = withShDegree(out, d);
+    const GaussianCloud q = withShDegree(part, d);
+    for (std::size_t i = 0; i < q.size(); ++i) out.append(q, i);
+}
+
+bool isSplatPrimitive(const json& prim)
+{
+    return prim.is_object() && prim.contains("extensions") && prim["extensions"].is_object() &&
+           prim["extensions"].contains("KHR_gaussian_splatting") && prim["extensions"]["KHR_gaussian_splatting"].is_object();
+}
+
+// The splat primitives of one mesh, concatenated; returns how many there were.
+std::size_t readMesh(const Glb& g, std::size_t index, GaussianCloud& out, ReadReport& report)
+{
+    const json& mesh = member(g, g.doc, "meshes", index);
+    if (!mesh.is_object() || !mesh.contains("primitives") || !mesh["primitives"].is_array()) return 0;
+    std::size_t primitives = 0;
+    for (const json& prim : mesh["primitives"]) {
+        if (!isSplatPrimitive(prim)) continue;
+        if (!prim.value("attributes", json()).is_object())
+            throw InputError(msg(g.path, ": .glb: splat primitive without attributes"));
+        appendCloud(out, readPrimitive(g, prim, report), report);
+        ++primitives;
+    }
+    return primitives;
+}
+
+bool isIdentity(const NodeTransform& t)
+{
+    const Mat3d one = Mat3d::identity();
+    for (int a = 0; a < 3; ++a)
+        for (int b = 0; b < 3; ++b)
+            if (t.m[a][b] != one[a][b]) return false;
+    return t.t[0] == 0 && t.t[1] == 0 && t.t[2] == 0;
+}
+
+// Every mesh a node of the scene places, moved by the node's transform (each placement is a copy);
+// a file without nodes: every mesh in its own space.
 GaussianCloud readGlbDocument(const std::string& path, const std::string& data, ReadReport& report)
 {
     const Glb g = parseContainer(path, data, report);
-    checkIdentityNodes(g);
+    std::vector<MeshInstance> instances = meshInstances(path, g.doc);
+    if (instances.empty() && g.doc.contains("meshes") && g.doc["meshes"].is_array())
+        for (std::size_t m = 0; m < g.doc["meshes"].size(); ++m) instances.push_back({m, NodeTransform{}});
     GaussianCloud out;
     std::size_t primitives = 0;
-    if (g.doc.contains("meshes") && g.doc["meshes"].is_array())
-        for (const json& mesh : g.doc["meshes"]) {
-            if (!mesh.is_object() || !mesh.contains("primitives") || !mesh["primitives"].is_array()) continue;
-            for (const json& prim : mesh["primitives"]) {
-                if (!prim.is_object() || !prim.contains("extensions") || !prim["extensions"].is_object() ||
-                    !prim["extensions"].contains("KHR_gaussian_splatting") ||
-                    !prim["extensions"]["KHR_gaussian_splatting"].is_object())
-                    continue;
-                if (!prim.value("attributes", json()).is_object())
-                    throw InputError(msg(path, ": .glb: splat primitive without attributes"));
-                readPrimitive(g, prim, out, report);
-                ++primitives;
-            }
-        }
+    for (const MeshInstance& inst : instances) {
+        GaussianCloud part;
+        const std::size_t n = readMesh(g, inst.mesh, part, report);
+        if (n == 0) continue;
+        primitives += n;
+        if (!isIdentity(inst.transform)) applyNodeTransform(path, inst.transform, part);
+        appendCloud(out, part, report);
+    }
     if (primitives == 0) throw InputError(msg(path, ": .glb without KHR_gaussian_splatting primitives"));
     turnAboutZ(out);
     report.format = "glb";

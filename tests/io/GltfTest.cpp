@@ -11,6 +11,7 @@
 #include "PlyTestFiles.h"
 #include "core/Error.h"
 #include "io/GaussianIO.h"
+#include "sh/SphericalHarmonics.h"
 #include "support/TestSupport.h"
 
 using namespace splatwarp;
@@ -141,14 +142,62 @@ TEST(Gltf, BrokenFilesAreInputErrors)
     doc["meshes"][0]["primitives"][0]["extensions"]["KHR_gaussian_splatting"]["kernel"] = 7;
     expectRefused(dir, withJson(glb, doc), "JSON");
     doc = jsonOf(glb);
-    doc["nodes"][0]["translation"] = {1, 0, 0};
-    expectRefused(dir, withJson(glb, doc), "transform");
+    doc["nodes"][0]["scale"] = {1, 2, 1};
+    expectRefused(dir, withJson(glb, doc), "not a rotation times a uniform positive scale");
+    doc = jsonOf(glb);
+    doc["nodes"][0]["children"] = {0};
+    expectRefused(dir, withJson(glb, doc), "reached twice");
     doc = jsonOf(glb);
     doc["meshes"][0]["primitives"][0].erase("extensions");
     expectRefused(dir, withJson(glb, doc), "without KHR_gaussian_splatting");
     doc = jsonOf(glb);
     doc["buffers"][0]["uri"] = "elsewhere.bin";
     expectRefused(dir, withJson(glb, doc), "external buffer");
+}
+
+// A parent node turning by 90 degrees about glTF's Y and scaling by 2, a child translating and
+// placing the mesh: the splats are moved by parent * child in glTF space (centres, orientation, SH
+// by the rotation, log scale + ln 2), then turned to graphdeco's axes.
+TEST(Gltf, NodeTransformsAreApplied)
+{
+    const GaussianCloud src = readGaussians(fixture("random200-sh3.ply"));
+    const std::string glb = encodeGlb("x.glb", src);
+    nlohmann::json doc = jsonOf(glb);
+    const double h = std::sqrt(0.5);
+    doc["nodes"] = {{{"rotation", {0, h, 0, h}}, {"scale", {2, 2, 2}}, {"children", {1}}},
+                    {{"translation", {1, 2, 3}}, {"mesh", 0}}};
+    const GaussianCloud moved = readGaussiansFromBytes("moved.glb", withJson(glb, doc));
+    ASSERT_EQ(moved.size(), src.size());
+    // Expected, by hand: glTF coordinates of the source (x, y -> -x, -y), then R (x, y, z) ->
+    // (z, y, -x) for 90 degrees about Y, times 2, plus 2 R (1, 2, 3), then back.
+    GaussianCloud expected = src;
+    for (std::size_t i = 0; i < src.size(); ++i) {
+        const Vec3d p(-src.means[3 * i], -src.means[3 * i + 1], src.means[3 * i + 2]), t(1, 2, 3);
+        const Vec3d q = (Vec3d(p.z, p.y, -p.x) + Vec3d(t.z, t.y, -t.x)) * 2.0;
+        expected.setMean(i, Vec3f(float(-q.x), float(-q.y), float(q.z)));
+        for (int a = 0; a < 3; ++a) expected.logScales[3 * i + a] += float(std::log(2.0));
+    }
+    for (std::size_t i = 0; i < src.size(); ++i) {
+        for (int a = 0; a < 3; ++a) {
+            ASSERT_NEAR(moved.means[3 * i + a], expected.means[3 * i + a], 1e-5) << i;
+            ASSERT_NEAR(moved.logScales[3 * i + a], expected.logScales[3 * i + a], 1e-6) << i;
+        }
+    }
+    // In graphdeco's axes the whole motion turns by Q: (x, y, z) -> (-z, y, x). Orientations are
+    // Q R_i, and the view-dependent colour seen along Q d is the source's along d.
+    const double qRows[9] = {0, 0, -1, 0, 1, 0, 1, 0, 0};
+    const Mat3d q = Mat3d::fromRowMajor(qRows);
+    const Vec3d dirs[3] = {{0.3, -0.5, 0.8}, {1, 0, 0}, {-0.2, 0.9, 0.1}};
+    for (std::size_t i = 0; i < src.size(); ++i) {
+        const Quatf a = src.rotation(i), b = moved.rotation(i);
+        const Mat3d want = q * quatToMatrix(Quatd{a.w, a.x, a.y, a.z}), got = quatToMatrix(Quatd{b.w, b.x, b.y, b.z});
+        for (int r = 0; r < 3; ++r)
+            for (int c = 0; c < 3; ++c) ASSERT_NEAR(got[r][c], want[r][c], 1e-5) << i;
+        for (const Vec3d& d : dirs) {
+            const Vec3d before = evalShSum<double>(3, src.shOf(i), d), after = evalShSum<double>(3, moved.shOf(i), q * d);
+            for (int c = 0; c < 3; ++c) ASSERT_NEAR(after[c], before[c], 1e-5) << i;
+        }
+    }
 }
 
 TEST(Gltf, NaNAndOutOfRangeOpacityAreRefused)
