@@ -1,13 +1,14 @@
 #!/usr/bin/env python3
 """Precision loss of each model format (docs/formats.md): converts a PLY to each format with the
 splatwarp CLI, back to PLY, and prints the largest and RMS differences against the source:
-centre distance, DC colour 0.5 + C0 f_dc in 8-bit levels (as stored, and clamped to [0, 1] as a
+centre distance (a compressed PLY is compared in the Morton order its writer stores), DC colour
+0.5 + C0 f_dc in 8-bit levels (as stored, and clamped to [0, 1] as a
 viewer shows it), alpha, log scale, rotation angle (degrees), higher SH coefficients.
 Usage: format-precision.py SPLATWARP_CLI MODEL.ply [MODEL.ply ...]"""
 import math, os, struct, subprocess, sys, tempfile
 
 FORMATS = [('spz v3', '.spz', []), ('spz v4', '.spz', ['--spz-version', '4']), ('glb', '.glb', []),
-           ('vdb points', '.vdb', ['--points']), ('splat', '.splat', [])]
+           ('vdb points', '.vdb', ['--points']), ('compr. ply', '.compressed.ply', []), ('splat', '.splat', [])]
 C0 = 0.28209479177387814
 
 
@@ -23,6 +24,27 @@ def read_ply(path):
     vals = struct.unpack('<%df' % (n * len(names)), data[end:end + 4 * n * len(names)])
     k = len(names)
     return {name: vals[i::k] for i, name in enumerate(names)}, n
+
+
+def morton_order(cols, n):
+    """The order splatwarp's compressed PLY writer stores Gaussians in (compressedPlyOrder())."""
+    def spread(v):
+        out = 0
+        for b in range(10):
+            out |= ((v >> b) & 1) << (3 * b)
+        return out
+    lo = [min(cols[c]) for c in 'xyz']; hi = [max(cols[c]) for c in 'xyz']
+    def norm(x, a):
+        if x <= lo[a]: return 0.0
+        if x >= hi[a]: return 1.0
+        return 0.0 if hi[a] - lo[a] < 1e-5 else (x - lo[a]) / (hi[a] - lo[a])
+    code = [sum(spread(int(min(1023.0, norm(cols[c][i], a) * 1024.0))) << (2 - a) for a, c in enumerate('xyz'))
+            for i in range(n)]
+    return sorted(range(n), key=lambda i: code[i])
+
+
+def permuted(cols, order):
+    return {k: [v[i] for i in order] for k, v in cols.items()}
 
 
 def sigmoid(x): return 1 / (1 + math.exp(-x)) if x > -700 else 0.0
@@ -68,7 +90,8 @@ def main():
                 subprocess.run([cli, '-q', 'convert', out, os.path.join(tmp, 'back.ply')], check=True)
                 back, m = read_ply(os.path.join(tmp, 'back.ply'))
                 assert m == n, (name, m, n)
-                s = compare(src, back, n)
+                ref = permuted(src, morton_order(src, n)) if ext == '.compressed.ply' else src
+                s = compare(ref, back, n)
                 print('  %-10s %9d %10.3g %10.3g %9.3g %9.3g %9.3g %10.3g %12.3g %9.3g %9.3g' % (
                     name, os.path.getsize(out), s['pos'][0], s['pos'][1], s['rgb'][0], s['rgb'][1], s['rgb01'][0],
                     s['alpha'][0], s['logscale'][0], s['rot_deg'][0], s['sh_rest'][0]))

@@ -39,7 +39,8 @@ const CommandRegistrar reg(21, [](CLI::App& app) {
     auto args = std::make_shared<ConvertArgs>();
     CLI::App* sub = app.add_subcommand(
         "convert", "Convert a Gaussian model between formats: reads PLY (any layout), compressed PLY, .splat, .spz, "
-                   ".glb, .vdb points; writes .ply, .splat, .spz, .glb, .vdb (--points) by the output's extension");
+                   ".glb, .vdb points; writes .ply, .compressed.ply, .splat, .spz, .glb, .vdb (--points) by the "
+                   "output's extension");
     sub->add_option("input", args->input, "Input Gaussian file (format detected from the content)")->required();
     sub->add_option("output", args->output, "Output path; its extension picks the format (written atomically)")
         ->required();

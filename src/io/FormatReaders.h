@@ -47,6 +47,10 @@ bool hasSpzMagic(const std::string& data);
 ///        and 4 (NGSP header, one zstd stream per attribute, each checked against the count).
 GaussianCloud readSpz(const std::string& path, const std::string& data, ReadReport& report);
 
+/// @brief The order writeCompressedPly() stores Gaussians in: by the Morton code of their centres
+///        (10 bits an axis over the bounding box), so each 256-Gaussian chunk is compact.
+std::vector<std::size_t> compressedPlyOrder(const GaussianCloud& g);
+
 /// @brief True when the data starts with the GLB magic "glTF".
 bool hasGlbMagic(const std::string& data);
 /// @brief glTF 2.0 binary with KHR_gaussian_splatting primitives (every one, concatenated), turned

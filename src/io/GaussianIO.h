@@ -1,8 +1,8 @@
 #pragma once
 /// @file GaussianIO.h
 /// @brief Reading and writing Gaussian models: graphdeco PLY (read any layout, write exactly
-///        graphdeco), `.splat`, SuperSplat compressed PLY (read), Niantic `.spz` (read 2-4, write
-///        3, 4), glTF `.glb` with KHR_gaussian_splatting, and formats registered from above src/io
+///        graphdeco), `.splat`, SuperSplat compressed PLY, Niantic `.spz` (read 2-4, write 3, 4),
+///        glTF `.glb` with KHR_gaussian_splatting, and formats registered from above src/io
 ///        (OpenVDB point grids: vdb/VdbPoints.h). See docs/formats.md.
 #include <string>
 #include <vector>
@@ -57,6 +57,9 @@ void checkFiniteForWriting(const std::string& path, const GaussianCloud& cloud);
 std::string encodeSpz(const std::string& path, const GaussianCloud& cloud, int version = 3);
 /// @brief encodeSpz() written atomically.
 void writeSpz(const std::string& path, const GaussianCloud& cloud, int version = 3);
+/// @brief SuperSplat compressed PLY (chunks of 256 in Morton order, 11-10-11 bit centres and
+///        scales, 8-bit colour and alpha, smallest-three rotation, uchar SH): what the reader reads.
+void writeCompressedPly(const std::string& path, const GaussianCloud& cloud);
 /// @brief antimatter15 `.splat` (32-byte records, SH degree 0 only: higher bands are dropped).
 void writeSplat(const std::string& path, const GaussianCloud& cloud);
 /// @brief The `.glb` bytes (glTF 2.0, KHR_gaussian_splatting, float32 attributes) of a cloud.
@@ -80,8 +83,8 @@ void registerModelFormat(const ModelFormatHooks& hooks);
 struct WriteOptions {
     int spzVersion = 3; ///< 3 (gzip, read by every spz reader) or 4 (zstd)
 };
-/// @brief The format writeGaussians() picks for a path: "ply", "splat", "spz", "glb" or a
-///        registered one; "" when the extension is not one we write.
+/// @brief The format writeGaussians() picks for a path: "compressed-ply" (".compressed.ply"), "ply",
+///        "splat", "spz", "glb" or a registered one; "" when the extension is not one we write.
 std::string outputFormatOf(const std::string& path);
 /// @brief Write a model in the format its extension names (outputFormatOf()).
 /// @throws UsageError for an extension we do not write (the message lists those we do).

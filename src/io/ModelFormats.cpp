@@ -50,7 +50,7 @@ std::vector<ModelFormatHooks> registeredModelFormats()
 
 std::string outputFormatOf(const std::string& path)
 {
-    if (endsWith(path, ".compressed.ply")) return ""; // SuperSplat's layout: read, not written
+    if (endsWith(path, ".compressed.ply")) return "compressed-ply"; // SuperSplat's name for it
     for (const char* ext : {"ply", "splat", "spz", "glb"})
         if (endsWith(path, std::string(".") + ext)) return ext;
     for (const ModelFormatHooks& f : registeredModelFormats())
@@ -61,17 +61,17 @@ std::string outputFormatOf(const std::string& path)
 void writeGaussians(const std::string& path, const GaussianCloud& g, const WriteOptions& options)
 {
     const std::string format = outputFormatOf(path);
+    if (format == "compressed-ply") return writeCompressedPly(path, g);
     if (format == "ply") return writePly(path, g);
     if (format == "splat") return writeSplat(path, g);
     if (format == "spz") return writeSpz(path, g, options.spzVersion);
     if (format == "glb") return writeGlb(path, g);
-    std::string known = ".ply, .splat, .spz, .glb";
+    std::string known = ".ply, .compressed.ply, .splat, .spz, .glb";
     for (const ModelFormatHooks& f : registeredModelFormats()) {
         if (f.name == format) return f.write(path, g);
         known += ", " + f.extension;
     }
-    throw UsageError(msg(path, ": cannot tell the output format from the extension (written: ", known,
-                         "; compressed PLY is read only)"));
+    throw UsageError(msg(path, ": cannot tell the output format from the extension (written: ", known, ")"));
 }
 
 // antimatter15 records: float32 centre and linear scales, RGBA u8 (colour 0.5 + C0 f_dc, alpha),
