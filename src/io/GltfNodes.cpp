@@ -51,9 +51,13 @@ NodeTransform localTransform(const std::string& path, const json& node)
     return t;
 }
 
-void visit(const std::string& path, const json& nodes, std::size_t index, const NodeTransform& parent,
+// Deeper node chains are refused: the walk recurses (a crafted chain must not exhaust the stack).
+constexpr int kMaxNodeDepth = 256;
+
+void visit(const std::string& path, const json& nodes, std::size_t index, const NodeTransform& parent, int depth,
            std::vector<int>& seen, std::vector<MeshInstance>& out)
 {
+    if (depth > kMaxNodeDepth) throw InputError(msg(path, ": .glb: node hierarchy deeper than ", kMaxNodeDepth));
     if (index >= nodes.size() || !nodes[index].is_object())
         throw InputError(msg(path, ": .glb: node ", index, " does not exist"));
     if (seen[index]++) throw InputError(msg(path, ": .glb: node ", index, " is reached twice (the node graph must be a forest)"));
@@ -69,7 +73,7 @@ void visit(const std::string& path, const json& nodes, std::size_t index, const 
     if (node.contains("children") && node["children"].is_array())
         for (const json& c : node["children"]) {
             if (!c.is_number_unsigned()) throw InputError(msg(path, ": .glb: node ", index, ": bad child index"));
-            visit(path, nodes, c.get<std::size_t>(), global, seen, out);
+            visit(path, nodes, c.get<std::size_t>(), global, depth + 1, seen, out);
         }
 }
 
@@ -96,7 +100,7 @@ std::vector<MeshInstance> meshInstances(const std::string& path, const json& doc
             if (!child[i]) roots.push_back(i);
     }
     std::vector<int> seen(nodes.size(), 0);
-    for (std::size_t r : roots) visit(path, nodes, r, NodeTransform{}, seen, out);
+    for (std::size_t r : roots) visit(path, nodes, r, NodeTransform{}, 0, seen, out);
     return out;
 }
 

@@ -148,6 +148,12 @@ TEST(Gltf, BrokenFilesAreInputErrors)
     doc["nodes"][0]["children"] = {0};
     expectRefused(dir, withJson(glb, doc), "reached twice");
     doc = jsonOf(glb);
+    for (int k = 1; k <= 300; ++k) { // a chain of 300 nodes above the mesh
+        doc["nodes"][k - 1]["children"] = {k};
+        doc["nodes"][k] = nlohmann::json::object();
+    }
+    expectRefused(dir, withJson(glb, doc), "deeper than 256");
+    doc = jsonOf(glb);
     doc["meshes"][0]["primitives"][0].erase("extensions");
     expectRefused(dir, withJson(glb, doc), "without KHR_gaussian_splatting");
     doc = jsonOf(glb);
