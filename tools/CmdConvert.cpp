@@ -1,8 +1,9 @@
-/// `splatwarp convert IN OUT.ply [--drop-invalid]`: any supported input to graphdeco PLY.
+/// `splatwarp convert IN OUT [--points] [--spz-version 3|4] [--drop-invalid]`: any model read by
+/// content to the format OUT's extension names (docs/formats.md).
 #include "Command.h"
+#include "core/AtomicFile.h"
 #include "core/Error.h"
 #include "core/Progress.h"
-#include "core/AtomicFile.h"
 #include "io/GaussianIO.h"
 #include "ReadArgs.h"
 
@@ -11,26 +12,43 @@ namespace {
 
 struct ConvertArgs {
     std::string input, output;
-    bool dropInvalid = false;
+    bool dropInvalid = false, points = false;
+    int spzVersion = 3;
 };
+
+void convert(const ConvertArgs& args)
+{
+    const std::string format = outputFormatOf(args.output);
+    if (format == "vdb-points" && !args.points)
+        throw UsageError(msg(args.output, ": a .vdb model output is an OpenVDB point grid: add --points "
+                                          "(volumes are written by 'to-vdb')"));
+    if (args.points && format != "vdb-points") throw UsageError(msg("--points needs a .vdb output, not ", args.output));
+    OutputSet outputs({args.input});
+    outputs.checkTarget(args.output);
+    ReadReport report;
+    const GaussianCloud g = readModel(args.input, args.dropInvalid, &report);
+    WriteOptions options;
+    options.spzVersion = args.spzVersion;
+    writeGaussians(args.output, g, options);
+    outputs.commit();
+    progress(msg("converted ", g.size(), " Gaussians (", report.format, ", SH degree ", g.shDegree, ") to ",
+                 args.output, " (", format == "spz" ? msg("spz-v", args.spzVersion) : format, ")"));
+}
 
 const CommandRegistrar reg(21, [](CLI::App& app) {
     auto args = std::make_shared<ConvertArgs>();
     CLI::App* sub = app.add_subcommand(
-        "convert", "Convert a Gaussian file (any PLY layout, compressed PLY, .splat, .spz) to graphdeco binary PLY");
+        "convert", "Convert a Gaussian model between formats: reads PLY (any layout), compressed PLY, .splat, .spz, "
+                   ".glb, .vdb points; writes .ply, .compressed.ply, .splat, .spz, .glb, .vdb (--points) by the "
+                   "output's extension");
     sub->add_option("input", args->input, "Input Gaussian file (format detected from the content)")->required();
-    sub->add_option("output", args->output, "Output graphdeco .ply path (written atomically)")->required();
+    sub->add_option("output", args->output, "Output path; its extension picks the format (written atomically)")
+        ->required();
+    sub->add_flag("--points", args->points, "Write a .vdb output as an OpenVDB point grid (Houdini GSplat attributes)");
+    sub->add_option("--spz-version", args->spzVersion, "Version of a .spz output: 3 (gzip, default) or 4 (zstd)")
+        ->check(CLI::IsMember({3, 4}));
     addDropInvalidFlag(sub, args->dropInvalid);
-    sub->callback([args] {
-        OutputSet outputs({args->input});
-        outputs.checkTarget(args->output);
-        ReadReport report;
-        const GaussianCloud g = readModel(args->input, args->dropInvalid, &report);
-        writePly(args->output, g);
-        outputs.commit();
-        progress(msg("converted ", g.size(), " Gaussians (", report.format, ", SH degree ", g.shDegree, ") to ",
-                     args->output));
-    });
+    sub->callback([args] { convert(*args); });
 });
 
 } // namespace

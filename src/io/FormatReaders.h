@@ -4,6 +4,7 @@
 ///        detects the format and applies the invalid-value policy).
 #include <cstdint>
 #include <string>
+#include <vector>
 
 #include "core/GaussianCloud.h"
 #include "io/GaussianIO.h"
@@ -42,7 +43,24 @@ GaussianCloud readSplat(const std::string& path, const std::string& data, ReadRe
 
 /// @brief True when the data starts like an `.spz`: gzip magic (versions 2, 3) or "NGSP" (version 4).
 bool hasSpzMagic(const std::string& data);
-/// @brief Niantic `.spz` versions 2 and 3 (gzip); the inflated size is capped by the header's count.
+/// @brief Niantic `.spz` versions 2 and 3 (gzip; the inflated size is capped by the header's count)
+///        and 4 (NGSP header, one zstd stream per attribute, each checked against the count).
 GaussianCloud readSpz(const std::string& path, const std::string& data, ReadReport& report);
+
+/// @brief The order writeCompressedPly() stores Gaussians in: by the Morton code of their centres
+///        (10 bits an axis over the bounding box), so each 256-Gaussian chunk is compact.
+std::vector<std::size_t> compressedPlyOrder(const GaussianCloud& g);
+
+/// @brief True when the data starts with the GLB magic "glTF".
+bool hasGlbMagic(const std::string& data);
+/// @brief glTF 2.0 binary with KHR_gaussian_splatting primitives (every one, concatenated), turned
+///        from glTF's axes to graphdeco's (turnAboutZ()).
+GaussianCloud readGlb(const std::string& path, const std::string& data, ReadReport& report);
+/// @brief Turn every Gaussian (centre, orientation, SH) by 180 degrees about Z: graphdeco (COLMAP:
+///        x right, y down, z forward) <-> glTF (x left, y up, z forward); its own inverse.
+void turnAboutZ(GaussianCloud& g);
+
+/// @brief The formats registered with registerModelFormat(), in registration order.
+std::vector<ModelFormatHooks> registeredModelFormats();
 
 } // namespace splatwarp

@@ -93,6 +93,9 @@ void applyInvalidPolicy(const std::string& path, GaussianCloud& g, const ReadOpt
     g = std::move(kept);
 }
 
+// OpenVDB files start with the 64-bit magic 0x56444220 ("VDB " read as little-endian).
+bool hasOpenVdbMagic(const std::string& data) { return data.compare(0, 8, std::string(" BDV\0\0\0\0", 8)) == 0; }
+
 } // namespace
 
 std::string shPropertyName(int shDegree, int j, int c)
@@ -107,14 +110,26 @@ GaussianCloud readGaussiansFromBytes(const std::string& name, const std::string&
     if (data.empty()) throw InputError(msg(name, ": empty file"));
     ReadReport local;
     GaussianCloud g;
+    // A .splat may start with another format's magic by chance (gzip: 1 in 65536); its records decide.
+    const auto notSplat = [&] { return !(data.size() % kSplatRecordBytes == 0 && splatImplausibility(data).empty()); };
+    const ModelFormatHooks* other = nullptr;
+    const std::vector<ModelFormatHooks> registered = registeredModelFormats();
+    for (const ModelFormatHooks& f : registered)
+        if (!other && f.detect(data)) other = &f;
     if (hasPlyMagic(data)) {
         const PlyHeader header = parsePlyHeader(name, data);
         const PlyBody body(name, data, header);
         g = isCompressedPly(header) ? readCompressedPly(name, header, body, local)
                                     : readGraphdecoPly(name, header, body, local);
-    } else if (hasSpzMagic(data) && !(data.size() % kSplatRecordBytes == 0 && splatImplausibility(data).empty())) {
-        // A .splat may start with the gzip bytes by chance (1 in 65536); its records decide.
+    } else if (hasGlbMagic(data) && notSplat()) {
+        g = readGlb(name, data, local);
+    } else if (other && notSplat()) {
+        g = other->read(name, data, local);
+    } else if (hasSpzMagic(data) && notSplat()) {
         g = readSpz(name, data, local);
+    } else if (hasOpenVdbMagic(data) && notSplat()) {
+        throw InputError(msg(name, ": an OpenVDB file; point grids are read by programs linked with splatwarp_vdb "
+                                   "(registerVdbPointFormat() in vdb/VdbPoints.h), volumes by 'from-vdb'"));
     } else {
         g = readSplat(name, data, local);
     }

@@ -1,7 +1,9 @@
 #pragma once
 /// @file GaussianIO.h
 /// @brief Reading and writing Gaussian models: graphdeco PLY (read any layout, write exactly
-///        graphdeco), `.splat`, SuperSplat compressed PLY, Niantic `.spz` (versions 2, 3).
+///        graphdeco), `.splat`, SuperSplat compressed PLY, Niantic `.spz` (read 2-4, write 3, 4),
+///        glTF `.glb` with KHR_gaussian_splatting, and formats registered from above src/io
+///        (OpenVDB point grids: vdb/VdbPoints.h). See docs/formats.md.
 #include <string>
 #include <vector>
 
@@ -22,7 +24,7 @@ struct ReadOptions {
 
 /// @brief What a read found besides the Gaussians.
 struct ReadReport {
-    std::string format;               ///< "ply-binary-le", "ply-binary-be", "ply-ascii", "splat", "ply-compressed", "spz-v2", "spz-v3"
+    std::string format;               ///< "ply-binary-le", "ply-binary-be", "ply-ascii", "splat", "ply-compressed", "spz-v2".."spz-v4", "glb", "vdb-points"
     std::size_t dropped = 0;          ///< Gaussians dropped by dropInvalid
     std::size_t invalidValues = 0;    ///< NaN/Inf or unusable values found (before any drop)
     std::size_t invalidGaussians = 0; ///< Gaussians holding at least one of them
@@ -46,6 +48,47 @@ GaussianCloud readGaussiansFromBytes(const std::string& name, const std::string&
 /// @brief Write graphdeco 3DGS PLY (binary little-endian, normals = 0, float32) atomically.
 /// @throws InputError if the cloud holds NaN/Inf (a viewer would choke on it).
 void writePly(const std::string& path, const GaussianCloud& cloud);
+
+/// @brief Throws InputError naming the first Gaussian and graphdeco property that is NaN/Inf.
+void checkFiniteForWriting(const std::string& path, const GaussianCloud& cloud);
+
+/// @brief The `.spz` bytes of a cloud, version 3 (gzip) or 4 (NGSP + zstd); `path` names it in messages.
+/// @throws UsageError for another version; InputError for NaN/Inf or centres beyond the 24-bit range.
+std::string encodeSpz(const std::string& path, const GaussianCloud& cloud, int version = 3);
+/// @brief encodeSpz() written atomically.
+void writeSpz(const std::string& path, const GaussianCloud& cloud, int version = 3);
+/// @brief SuperSplat compressed PLY (chunks of 256 in Morton order, 11-10-11 bit centres and
+///        scales, 8-bit colour and alpha, smallest-three rotation, uchar SH): what the reader reads.
+void writeCompressedPly(const std::string& path, const GaussianCloud& cloud);
+/// @brief antimatter15 `.splat` (32-byte records, SH degree 0 only: higher bands are dropped).
+void writeSplat(const std::string& path, const GaussianCloud& cloud);
+/// @brief The `.glb` bytes (glTF 2.0, KHR_gaussian_splatting, float32 attributes) of a cloud.
+std::string encodeGlb(const std::string& path, const GaussianCloud& cloud);
+/// @brief encodeGlb() written atomically.
+void writeGlb(const std::string& path, const GaussianCloud& cloud);
+
+/// @brief A model format whose code lives above src/io (src/io must not include OpenVDB): the
+///        OpenVDB point grids of vdb/VdbPoints.h register themselves with registerModelFormat().
+struct ModelFormatHooks {
+    std::string name;      ///< as in ReadReport::format, e.g. "vdb-points"
+    std::string extension; ///< written for paths ending so, e.g. ".vdb"
+    bool (*detect)(const std::string& data) = nullptr;
+    GaussianCloud (*read)(const std::string& name, const std::string& data, ReadReport& report) = nullptr;
+    void (*write)(const std::string& path, const GaussianCloud& cloud) = nullptr;
+};
+/// @brief Make readGaussians() and writeGaussians() handle one more format (idempotent by name).
+void registerModelFormat(const ModelFormatHooks& hooks);
+
+/// @brief Options for writeGaussians().
+struct WriteOptions {
+    int spzVersion = 3; ///< 3 (gzip, read by every spz reader) or 4 (zstd)
+};
+/// @brief The format writeGaussians() picks for a path: "compressed-ply" (".compressed.ply"), "ply",
+///        "splat", "spz", "glb" or a registered one; "" when the extension is not one we write.
+std::string outputFormatOf(const std::string& path);
+/// @brief Write a model in the format its extension names (outputFormatOf()).
+/// @throws UsageError for an extension we do not write (the message lists those we do).
+void writeGaussians(const std::string& path, const GaussianCloud& cloud, const WriteOptions& options = {});
 
 /// @brief The graphdeco property names in file order for a given SH degree.
 std::vector<std::string> graphdecoPropertyNames(int shDegree);

@@ -1,12 +1,16 @@
-/// Niantic `.spz` reader (versions 2 and 3): a gzip stream holding a 16-byte header and the
-/// Gaussians attribute by attribute (positions, alphas, colours, scales, rotations, SH).
-/// Layout and decoding follow github.com/nianticlabs/spz (README, src/cc/load-spz.cc). Values are
-/// read without a coordinate conversion, as splat-transform and spz's UNSPECIFIED default do.
+/// Niantic `.spz` reader. Versions 2 and 3: a gzip stream holding a 16-byte header and the
+/// Gaussians attribute by attribute (positions, alphas, colours, scales, rotations, SH). Version 4:
+/// a plain 32-byte NGSP header, extension records, a table of contents and one zstd stream per
+/// attribute, in the same order and encoding. Layout and decoding follow github.com/nianticlabs/spz
+/// (README, src/cc/load-spz.cc). Values are read without a coordinate conversion, as
+/// splat-transform and spz's UNSPECIFIED default do.
 #include <zlib.h>
+#include <zstd.h>
 
 #include <cmath>
 #include <cstdint>
 #include <cstring>
+#include <vector>
 
 #include "core/Error.h"
 #include "io/FormatReaders.h"
@@ -23,6 +27,10 @@ constexpr double kSpzColorScale = 0.15;
 // Deflate cannot expand more than 1032:1 (RFC 1951 block limits, zlib's technical FAQ); a header
 // claiming more than that many bytes of Gaussians lies, and is refused before any allocation.
 constexpr double kMaxDeflateRatio = 1032.0;
+// zstd cannot expand more than 32768:1: a block yields at most 128 KiB and costs at least 4 bytes
+// (an RLE block: 3-byte header + 1 byte), RFC 8878 section 3.1.1.2.
+constexpr double kMaxZstdRatio = 32768.0;
+constexpr std::size_t kNgspHeaderBytes = 32;
 
 struct SpzHeader {
     std::uint32_t magic = 0, version = 0, count = 0;
@@ -65,11 +73,15 @@ bool inflateUpTo(const std::string& path, const std::string& data, std::size_t l
                          " inflated bytes (", rc == Z_BUF_ERROR ? "stream ends early" : why, ")"));
 }
 
-SpzHeader parseHeader(const std::string& path, const std::string& head)
+void checkCountAndDegree(const std::string& path, const SpzHeader& h)
 {
-    if (head.size() < kSpzHeaderBytes)
-        throw InputError(msg(path, ": .spz: inflated data holds ", head.size(), " bytes, less than the 16-byte header"));
-    const auto* p = reinterpret_cast<const unsigned char*>(head.data());
+    if (h.shDegree > 4) throw InputError(msg(path, ": .spz: SH degree ", h.shDegree, " is not in 0..4"));
+    if (h.count == 0) throw InputError(msg(path, ": .spz holds no Gaussians"));
+}
+
+// The first 16 bytes, common to every version (v4 adds the stream count and TOC offset).
+SpzHeader headerFields(const unsigned char* p)
+{
     SpzHeader h;
     h.magic = u32le(p);
     h.version = u32le(p + 4);
@@ -77,14 +89,23 @@ SpzHeader parseHeader(const std::string& path, const std::string& head)
     h.shDegree = p[12];
     h.fractionalBits = p[13];
     h.flags = p[14];
+    return h;
+}
+
+SpzHeader parseHeader(const std::string& path, const std::string& head)
+{
+    if (head.size() < kSpzHeaderBytes)
+        throw InputError(msg(path, ": .spz: inflated data holds ", head.size(), " bytes, less than the 16-byte header"));
+    const auto* p = reinterpret_cast<const unsigned char*>(head.data());
+    SpzHeader h = headerFields(p);
     if (h.magic != kSpzMagic)
         throw InputError(msg(path, ": gzip data that is not .spz (no NGSP magic after inflating)"));
     if (h.version != 2 && h.version != 3)
-        throw InputError(msg(path, ": .spz version ", h.version, " is not supported (versions 2 and 3 are)"));
-    if (h.shDegree > 4) throw InputError(msg(path, ": .spz: SH degree ", h.shDegree, " is not in 0..4"));
+        throw InputError(msg(path, ": .spz version ", h.version,
+                             " is not supported in a gzip stream (versions 2 and 3 are; 4 has a plain NGSP header)"));
     if (h.flags & kSpzFlagExtensions)
         throw InputError(msg(path, ": .spz with extensions (flag 0x2) is not supported"));
-    if (h.count == 0) throw InputError(msg(path, ": .spz holds no Gaussians"));
+    checkCountAndDegree(path, h);
     return h;
 }
 
@@ -146,6 +167,107 @@ GaussianCloud decode(const SpzHeader& h, const std::string& body)
     return g;
 }
 
+
+// Bytes of each attribute stream in file order (positions, alphas, colours, scales, rotations, SH);
+// v4 writers leave out empty ones (the SH of degree 0).
+std::vector<std::size_t> streamBytes(const SpzHeader& h)
+{
+    const std::size_t n = h.count;
+    std::vector<std::size_t> sizes = {9 * n, n, 3 * n, 3 * n, (h.version >= 3 ? 4 : 3) * n,
+                                      3 * std::size_t(shRestCoeffs(h.shDegree)) * n};
+    if (sizes.back() == 0) sizes.pop_back();
+    return sizes;
+}
+
+// Decompresses one zstd stream of exactly `expected` bytes, appending to `out`. The output grows
+// with what the stream really yields, so a table of contents that lies allocates nothing.
+void unzstdAppend(const std::string& path, int stream, const char* src, std::size_t size, std::size_t expected,
+                  std::string& out)
+{
+    ZSTD_DStream* z = ZSTD_createDStream();
+    if (!z) throw InputError(msg(path, ": .spz: cannot start zstd"));
+    ZSTD_inBuffer in{src, size, 0};
+    const std::size_t start = out.size();
+    std::size_t rc = 1;
+    while (in.pos < in.size || rc != 0) {
+        const std::size_t have = out.size() - start;
+        const std::size_t chunk = std::min<std::size_t>(std::max<std::size_t>(have, 1 << 16), expected - have + 1);
+        out.resize(out.size() + chunk);
+        ZSTD_outBuffer o{&out[start + have], chunk, 0};
+        rc = ZSTD_decompressStream(z, &o, &in);
+        out.resize(start + have + o.pos);
+        if (ZSTD_isError(rc) || out.size() - start > expected || (o.pos == 0 && in.pos == in.size && rc != 0)) {
+            const std::string why = ZSTD_isError(rc) ? ZSTD_getErrorName(rc)
+                                    : out.size() - start > expected ? "more data than the table of contents says"
+                                                                    : "stream ends early";
+            ZSTD_freeDStream(z);
+            throw InputError(msg(path, ": .spz: zstd stream ", stream, " is corrupt or truncated after ",
+                                 out.size() - start, " of ", expected, " bytes (", why, ")"));
+        }
+    }
+    ZSTD_freeDStream(z);
+    if (out.size() - start != expected)
+        throw InputError(msg(path, ": .spz: zstd stream ", stream, " holds ", out.size() - start, " bytes, ", expected,
+                             " expected"));
+}
+
+SpzHeader parseNgspHeader(const std::string& path, const std::string& data, std::size_t& numStreams,
+                          std::size_t& toc)
+{
+    if (data.size() < kNgspHeaderBytes)
+        throw InputError(msg(path, ": .spz truncated: ", data.size(), " bytes, less than the 32-byte NGSP header"));
+    const auto* p = reinterpret_cast<const unsigned char*>(data.data());
+    const SpzHeader h = headerFields(p);
+    numStreams = p[15];
+    toc = u32le(p + 16);
+    if (h.version != 4)
+        throw InputError(msg(path, ": .spz version ", h.version, " with a plain NGSP header is not supported (version 4 is)"));
+    checkCountAndDegree(path, h);
+    if (toc < kNgspHeaderBytes || toc > data.size() || numStreams * 16 > data.size() - toc)
+        throw InputError(msg(path, ": .spz truncated or corrupt: table of contents at byte ", toc, " (", numStreams,
+                             " streams) does not fit in ", data.size(), " bytes"));
+    return h;
+}
+
+// Version 4: [32-byte header][extension records][TOC: per stream u64 compressed, u64 inflated][streams].
+GaussianCloud readSpzV4(const std::string& path, const std::string& data, ReadReport& report)
+{
+    std::size_t numStreams = 0, toc = 0;
+    const SpzHeader h = parseNgspHeader(path, data, numStreams, toc);
+    const std::vector<std::size_t> expected = streamBytes(h);
+    if (numStreams != expected.size())
+        throw InputError(msg(path, ": .spz: ", numStreams, " attribute streams, SH degree ", h.shDegree, " needs ",
+                             expected.size()));
+    const auto* p = reinterpret_cast<const unsigned char*>(data.data());
+    std::string body(kSpzHeaderBytes, '\0'); // decode() reads the attributes after a 16-byte header
+    std::size_t offset = toc + 16 * numStreams;
+    for (std::size_t s = 0; s < numStreams; ++s) {
+        const std::uint64_t packed = u32le(p + toc + 16 * s) | std::uint64_t(u32le(p + toc + 16 * s + 4)) << 32;
+        const std::uint64_t inflated = u32le(p + toc + 16 * s + 8) | std::uint64_t(u32le(p + toc + 16 * s + 12)) << 32;
+        if (inflated != expected[s])
+            throw InputError(msg(path, ": .spz: stream ", s, " inflates to ", inflated, " bytes, ", h.count,
+                                 " Gaussians need ", expected[s]));
+        if (packed > data.size() - offset)
+            throw InputError(msg(path, ": .spz truncated: stream ", s, " needs ", packed, " bytes, ", data.size() - offset,
+                                 " left"));
+        if (double(inflated) > kMaxZstdRatio * double(packed) + 64.0)
+            throw InputError(msg(path, ": .spz header claims ", h.count, " Gaussians (", inflated, " bytes in stream ", s,
+                                 "), more than its ", packed, " compressed bytes can hold"));
+        unzstdAppend(path, int(s), data.data() + offset, std::size_t(packed), std::size_t(inflated), body);
+        offset += std::size_t(packed);
+    }
+    body.resize(kSpzHeaderBytes + std::size_t(h.count) * bytesPerGaussian(h)); // degree 0: no SH stream
+    GaussianCloud g = decode(h, body);
+    if (h.flags & kSpzFlagExtensions)
+        report.notes.push_back(msg("skipped ", toc - kNgspHeaderBytes,
+                                   " bytes of .spz extension records (not applied; a coordinate-system extension "
+                                   "would change how the values are meant)"));
+    if (offset != data.size()) report.notes.push_back("data after the last .spz stream ignored");
+    if (h.shDegree > 3) report.notes.push_back("SH band 4 of the .spz dropped (splatwarp uses degree 0..3)");
+    report.format = "spz-v4";
+    return g;
+}
+
 } // namespace
 
 bool hasSpzMagic(const std::string& data)
@@ -157,10 +279,7 @@ bool hasSpzMagic(const std::string& data)
 
 GaussianCloud readSpz(const std::string& path, const std::string& data, ReadReport& report)
 {
-    if (data.compare(0, 4, "NGSP") == 0)
-        throw InputError(msg(path, ": .spz version ",
-                             data.size() >= 8 ? u32le(reinterpret_cast<const unsigned char*>(data.data()) + 4) : 0,
-                             " (uncompressed NGSP header) is not supported (versions 2 and 3 are)"));
+    if (data.compare(0, 4, "NGSP") == 0) return readSpzV4(path, data, report);
     std::string head;
     inflateUpTo(path, data, kSpzHeaderBytes, head);
     const SpzHeader h = parseHeader(path, head);

@@ -237,5 +237,6 @@ TEST(BadInput, OnlyPlausibleRecordsReadAsSplat)
 
     const std::string vdb = dataPath("volumes/sphere.vdb");
     if (vdb.empty()) GTEST_SKIP() << "../shared/data/volumes/sphere.vdb missing: cut .vdb case not run";
-    check(dir, "cut.splat", multipleOf32(readBytes(vdb).substr(0, 40000)), {"do not read as .splat records"});
+    // Its magic says OpenVDB (a point reader registered or not): named so, not read as records.
+    check(dir, "cut.splat", multipleOf32(readBytes(vdb).substr(0, 40000)), {"OpenVDB"});
 }

@@ -124,6 +124,95 @@ TEST(SpzReader, Version3FromSplatTransformMatchesSource) { expectDecodesSource("
 
 TEST(SpzReader, Version2FromSpzJsMatchesSource) { expectDecodesSource("random200-sh3.v2.spz", 2); }
 
+TEST(SpzReader, Version4FromSplatTransformMatchesSource) { expectDecodesSource("random200-sh3.v4.spz", 4); }
+
+// Our encoder quantises as the official one (splat-transform writes through its WASM): the
+// inflated v3 payload and the v4 header are byte for byte the reference's, and the v4 streams
+// decode to the same values bit for bit.
+TEST(SpzWriter, BytesEqualTheReferenceEncoders)
+{
+    const GaussianCloud src = readGaussians(fixture("random200-sh3.ply"));
+    EXPECT_EQ(gunzip(encodeSpz("x.spz", src, 3)), gunzip(readBytes(fixture("random200-sh3.v3.spz"))));
+    const std::string ours = encodeSpz("x.spz", src, 4), theirs = readBytes(fixture("random200-sh3.v4.spz"));
+    EXPECT_EQ(ours.substr(0, 32), theirs.substr(0, 32));
+    const GaussianCloud a = readGaussiansFromBytes("ours", ours), b = readGaussiansFromBytes("theirs", theirs);
+    ASSERT_EQ(a.size(), b.size());
+    for (std::size_t i = 0; i < a.size(); ++i) ASSERT_TRUE(a.sameGaussian(i, b, i)) << i;
+}
+
+TEST(SpzWriter, LargeCoordinatesGetFewerFractionalBitsAndNaNIsRefused)
+{
+    GaussianCloud g = readGaussians(fixture("random200-sh3.ply"));
+    g.means[0] = 3000.0f; // beyond 2048 = 2^23 / 2^12: 11 fractional bits
+    for (int version : {3, 4}) {
+        const GaussianCloud back = readGaussiansFromBytes("x", encodeSpz("x.spz", g, version));
+        EXPECT_NEAR(back.means[0], 3000.0f, 0.5 / 2048 + 1e-6);
+        EXPECT_NEAR(back.means[1], g.means[1], 0.5 / 2048 + 1e-6);
+    }
+    g.opacities[7] = std::nanf("");
+    const std::string m = inputErrorMessage([&] { encodeSpz("out.spz", g, 4); });
+    EXPECT_NE(m.find("out.spz: refusing to write Gaussian 7: property 'opacity'"), std::string::npos) << m;
+    EXPECT_THROW(encodeSpz("out.spz", g, 2), UsageError);
+}
+
+// Version 4 files cut, lying or inflating beyond their table of contents are InputErrors naming
+// the file, before any allocation their claims would need.
+TEST(SpzReader, BrokenVersion4FilesAreInputErrors)
+{
+    TempDir dir;
+    const std::string v4 = readBytes(fixture("random200-sh3.v4.spz"));
+    ASSERT_EQ(std::string(v4, 0, 4), "NGSP");
+    expectRefused(dir, v4.substr(0, 20), "less than the 32-byte NGSP header");
+    expectRefused(dir, v4.substr(0, 40), "table of contents");
+    expectRefused(dir, v4.substr(0, v4.size() - 10), "truncated");
+    std::string bad = v4;
+    putU32(bad, 4, 5);
+    expectRefused(dir, bad, "version 5 with a plain NGSP header is not supported");
+    bad = v4;
+    bad[15] = 5; // stream count
+    expectRefused(dir, bad, "5 attribute streams");
+    bad = v4;
+    putU32(bad, 8, 0xffffffffu); // count: every stream then disagrees with the table of contents
+    expectRefused(dir, bad, "inflates to");
+    bad = v4;
+    bad[32 + 16 * 2] = char(bad[32 + 16 * 2] ^ 0x40); // a compressed size that leaves the file
+    expectRefused(dir, bad, "stream 2");
+    bad = v4;
+    std::size_t sh = 32 + 16 * 6; // the SH stream's frame starts after the TOC and streams 0..4
+    for (int s = 0; s < 5; ++s) sh += std::uint8_t(v4[32 + 16 * s]) | std::uint8_t(v4[33 + 16 * s]) << 8;
+    bad[sh] = char(bad[sh] ^ 0xff); // its zstd magic
+    expectRefused(dir, bad, "zstd stream 5 is corrupt");
+    // A bomb: a header whose count needs 4 GB in a 200-byte file is refused by zstd's ratio bound.
+    std::string bomb(32 + 16 * 5 + 40, '\0');
+    bomb.replace(0, 4, "NGSP");
+    putU32(bomb, 4, 4);
+    putU32(bomb, 8, 400000000u);
+    bomb[15] = 5;
+    putU32(bomb, 16, 32);
+    const std::uint64_t n = 400000000u, sizes[5] = {9 * n, n, 3 * n, 3 * n, 4 * n};
+    for (int s = 0; s < 5; ++s) {
+        putU32(bomb, 32 + 16 * s, 8);
+        putU32(bomb, 32 + 16 * s + 8, std::uint32_t(sizes[s]));
+        putU32(bomb, 32 + 16 * s + 12, std::uint32_t(sizes[s] >> 32));
+    }
+    expectRefused(dir, bomb, "more than its 8 compressed bytes can hold");
+}
+
+TEST(SpzReader, ZstdStreamLongerThanItsTableOfContentsIsRefused)
+{
+    // A real zstd stream that inflates to more than the TOC says: decoding stops at the claim.
+    const GaussianCloud src = readGaussians(fixture("random200-sh3.ply"));
+    std::string v4 = encodeSpz("x.spz", withShDegree(src, 0), 4);
+    ASSERT_EQ(v4[15], 5);
+    putU32(v4, 8, 100); // 100 Gaussians: every stream holds twice that
+    for (int s = 0; s < 5; ++s) {
+        const std::uint32_t per[5] = {9, 1, 3, 3, 4};
+        putU32(v4, 32 + 16 * s + 8, 100 * per[s]);
+    }
+    TempDir dir;
+    expectRefused(dir, v4, "more data than the table of contents says");
+}
+
 TEST(SpzReader, OwnGzipOfTheSameBytesDecodesIdentically)
 {
     // The test's gzip helper is what the bad-input cases below rely on.
@@ -151,7 +240,7 @@ TEST(SpzReader, BrokenFilesAreInputErrors)
     expectRefused(dir, gzip(v), "version 4 is not supported");
     putU32(v, 4, 1);
     expectRefused(dir, gzip(v), "version 1 is not supported");
-    expectRefused(dir, std::string("NGSP\x04\0\0\0 plain header of a version 4 file", 40), "version 4");
+    expectRefused(dir, std::string("NGSP\x04\0\0\0 plain header of a version 4 file", 40), "SH degree 105");
     std::string more = raw;
     putU32(more, 8, 201); // one Gaussian more than the data holds
     expectRefused(dir, gzip(more), "truncated: 201 Gaussians need");
@@ -173,4 +262,17 @@ TEST(SpzReader, CliConvertsSpzToPly)
     const GaussianCloud a = readGaussians(fixture("random200-sh3.v3.spz")), b = readGaussians(out);
     EXPECT_EQ(a.means, b.means);
     EXPECT_EQ(a.opacities, b.opacities);
+}
+
+// The PlayCanvas engine's example (examples/assets/splats/biker.spz, a v4 file), when someone has
+// put it into ../shared/data/splats: its count and degree, and values inside the header's ranges.
+TEST(SpzReader, EngineBikerVersion4)
+{
+    SPLATWARP_REQUIRE_DATA(biker, "splats/biker.spz");
+    ReadReport report;
+    const GaussianCloud g = readGaussians(biker, {}, &report);
+    EXPECT_EQ(report.format, "spz-v4");
+    EXPECT_EQ(g.size(), 152746u);
+    EXPECT_EQ(g.shDegree, 0);
+    for (float v : g.means) ASSERT_LE(std::fabs(v), 2048.0f);
 }
