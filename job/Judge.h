@@ -28,7 +28,7 @@ struct RigidMotion {
 ///        extent); nothing otherwise. The solved node transforms follow it to the ED solver's tolerance.
 std::optional<RigidMotion> rigidMotionOf(const Deformation& deformation);
 
-/// @brief Image PSNR over all views and colour channels (linear RGB on black, peak 1).
+/// @brief Image PSNR over all views and colour channels (display RGB on black, peak 1).
 struct ImagePsnr {
     double db = 0.0;   ///< +infinity for identical images
     int views = 0;

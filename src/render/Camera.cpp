@@ -21,6 +21,26 @@ double coordinateQuantile(const GaussianCloud& g, int axis, double q)
     return v[k];
 }
 
+/// Sign of the automatic up axis: captures sit on a ground patch or a base, so their centres crowd
+/// at the bottom (playbot, y-down: mean 0.38 of the extent below the box middle); a clear skew
+/// (over kAutoUpSkew) points up away from it, anything else keeps +axis (the donut's icing: 0.12).
+constexpr double kAutoUpSkew = 0.25;
+
+double autoUpSign(const GaussianCloud& g, int axis, double lo, double hi)
+{
+    if (!(hi > lo)) return 1.0;
+    double sum = 0;
+    std::size_t n = 0;
+    for (std::size_t i = 0; i < g.size(); ++i) {
+        const double v = g.means[3 * i + std::size_t(axis)];
+        if (v < lo || v > hi) continue; // the robust box, as the extent
+        sum += v;
+        ++n;
+    }
+    const double skew = n > 0 ? (sum / double(n) - 0.5 * (lo + hi)) / (hi - lo) : 0.0;
+    return skew > kAutoUpSkew ? -1.0 : 1.0;
+}
+
 } // namespace
 
 PinholeView pinholeView(const Camera& camera)
@@ -72,7 +92,7 @@ std::vector<Camera> orbitCameras(const GaussianCloud& cloud, const OrbitOptions&
     if (o.up == "auto") {
         for (int a = 1; a < 3; ++a)
             if (extent[a] < extent[upAxis]) upAxis = a;
-        up[upAxis] = 1;
+        up[upAxis] = autoUpSign(cloud, upAxis, lo[upAxis], hi[upAxis]);
     } else {
         up = parseUpAxis(o.up);
         upAxis = up.x != 0 ? 0 : (up.y != 0 ? 1 : 2);

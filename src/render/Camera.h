@@ -23,7 +23,9 @@ struct OrbitOptions {
     /// (robust) box just fits the field of view; > 1 leaves a margin.
     double distanceFactor = 1.1;
     int width = 512, height = 512; ///< image size
-    /// Up axis: "x", "y", "z", "-x", "-y", "-z", or "auto" (+ the axis of the smallest extent).
+    /// Up axis: "x", "y", "z", "-x", "-y", "-z", or "auto": the axis of the smallest extent,
+    /// pointing away from the end where the centres crowd when they clearly do (by more than a
+    /// quarter of the extent: a ground patch or a base, as in y-down captures), else +.
     std::string up = "auto";
     /// Fraction of centres ignored at each end of each axis when bounding the model, so that a few
     /// far floaters of a trained model do not shrink it to a dot.
