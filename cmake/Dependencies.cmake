@@ -6,6 +6,8 @@ find_package(nlohmann_json 3 REQUIRED)
 find_package(PNG REQUIRED)
 find_package(ZLIB REQUIRED)  # .spz (gzip)
 find_package(OpenEXR REQUIRED)
+find_package(assimp REQUIRED)  # meshes for image ground truth (OBJ, PLY, glTF, OFF ...)
+find_package(JPEG REQUIRED)    # JPEG textures of those meshes
 find_path(CLI11_INCLUDE_DIR CLI/CLI.hpp REQUIRED)
 find_path(NANOFLANN_INCLUDE_DIR nanoflann.hpp REQUIRED)
 

@@ -7,6 +7,7 @@ PACKAGES=(
   libopenvdb-dev libnanovdb-dev libopenvdb-tools python3-openvdb
   libtbb-dev libeigen3-dev libopenexr-dev libpng-dev
   libgtest-dev libcli11-dev nlohmann-json3-dev libnanoflann-dev libboost-iostreams-dev zlib1g-dev libzip-dev
+  libassimp-dev libjpeg-dev  # meshes (OBJ/PLY/glTF/OFF) and their JPEG textures: image ground truth
   clang libclang-rt-14-dev  # scripts/fuzz.sh: libFuzzer targets (clang 14 on Debian 12)
 )
 missing=()
