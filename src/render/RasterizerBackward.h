@@ -4,8 +4,8 @@
 ///        bins and per-pixel state, and the backward pass from dLoss/dImage to every Gaussian's raw
 ///        parameters (mean, log-scale, quaternion, opacity logit, SH). Deterministic: per-pixel
 ///        terms are summed per tile entry inside one thread, then per Gaussian in entry order.
-/// @note  The SH colour's dependence on the view direction is not propagated to the mean (a small
-///        term, as in the original 3DGS code's choice to keep it; here it is dropped for speed).
+/// @note  The SH colour's dependence on the view direction is not carried to the mean: a small
+///        term (3DGS keeps it), left out to keep the backward pass short.
 #include <vector>
 
 #include "core/GaussianCloud.h"
