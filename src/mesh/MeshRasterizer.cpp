@@ -15,19 +15,16 @@ namespace {
 /// Rows per band: each band owns its z-buffer rows, so bands run in parallel without sharing.
 constexpr int kBandRows = 16;
 
-/// A clipped vertex in camera space with its attributes.
+/// A clipped vertex in camera space with its barycentric coordinates in the mesh triangle.
 struct ClipVertex {
-    Vec3d p;
-    double u = 0, v = 0;
-    Vec3d colour;
+    Vec3d p, bary;
 };
 
-/// A screen triangle: pixel positions, 1/z and attributes divided by z (perspective-correct).
+/// A screen triangle: pixel positions, 1/z and the mesh barycentrics divided by z (perspective-correct).
 struct ScreenTriangle {
     double x[3], y[3], invZ[3];
-    double uz[3], vz[3];
-    Vec3d cz[3];
-    std::uint32_t material;
+    Vec3d baryZ[3];
+    std::size_t face;
     int y0, y1; ///< inclusive pixel rows whose centres it may cover
 };
 
@@ -35,9 +32,7 @@ ClipVertex lerp(const ClipVertex& a, const ClipVertex& b, double t)
 {
     ClipVertex r;
     r.p = a.p + (b.p - a.p) * t;
-    r.u = a.u + (b.u - a.u) * t;
-    r.v = a.v + (b.v - a.v) * t;
-    r.colour = a.colour + (b.colour - a.colour) * t;
+    r.bary = a.bary + (b.bary - a.bary) * t;
     return r;
 }
 
@@ -54,7 +49,7 @@ int clipNear(const ClipVertex in[3], ClipVertex out[4])
     return n;
 }
 
-void addScreenTriangle(const ClipVertex& a, const ClipVertex& b, const ClipVertex& c, std::uint32_t material,
+void addScreenTriangle(const ClipVertex& a, const ClipVertex& b, const ClipVertex& c, std::size_t face,
                        const Camera& cam, std::vector<ScreenTriangle>& out)
 {
     ScreenTriangle t;
@@ -65,16 +60,14 @@ void addScreenTriangle(const ClipVertex& a, const ClipVertex& b, const ClipVerte
         t.x[k] = cam.fx * v[k]->p.x * iz + cam.cx;
         t.y[k] = cam.fy * v[k]->p.y * iz + cam.cy;
         t.invZ[k] = iz;
-        t.uz[k] = v[k]->u * iz;
-        t.vz[k] = v[k]->v * iz;
-        t.cz[k] = v[k]->colour * iz;
+        t.baryZ[k] = v[k]->bary * iz;
         ylo = std::min(ylo, t.y[k]);
         yhi = std::max(yhi, t.y[k]);
     }
     // Rows whose centre y + 0.5 lies in [ylo, yhi].
     t.y0 = int(std::max(0.0, std::ceil(ylo - 0.5)));
     t.y1 = int(std::min(double(cam.height - 1), std::floor(yhi - 0.5)));
-    t.material = material;
+    t.face = face;
     if (t.y0 <= t.y1) out.push_back(t);
 }
 
@@ -87,48 +80,12 @@ std::vector<ScreenTriangle> projectTriangles(const TriangleMesh& mesh, const Cam
         for (int k = 0; k < 3; ++k) {
             const std::size_t i = mesh.triangles[3 * f + std::size_t(k)];
             in[k].p = cam.rotation * Vec3d(mesh.vertex(i)) + cam.translation;
-            if (!mesh.uvs.empty()) {
-                in[k].u = mesh.uvs[2 * i];
-                in[k].v = mesh.uvs[2 * i + 1];
-            }
-            in[k].colour = mesh.colours.empty() ? Vec3d(1, 1, 1)
-                                                : Vec3d(mesh.colours[3 * i], mesh.colours[3 * i + 1], mesh.colours[3 * i + 2]);
+            in[k].bary[k] = 1.0;
         }
         const int n = clipNear(in, clipped);
-        for (int k = 1; k + 1 < n; ++k) addScreenTriangle(clipped[0], clipped[k], clipped[k + 1], mesh.materialOf[f], cam, out);
+        for (int k = 1; k + 1 < n; ++k) addScreenTriangle(clipped[0], clipped[k], clipped[k + 1], f, cam, out);
     }
     return out;
-}
-
-/// Bilinear texel lookup with wrap-around; v = 0 is the bottom row (OBJ/assimp convention).
-Vec3d sampleTexture(const Image& t, double u, double v)
-{
-    const double x = u * t.width - 0.5, y = (1.0 - v) * t.height - 0.5;
-    const double fx = std::floor(x), fy = std::floor(y);
-    const double ax = x - fx, ay = y - fy;
-    const auto wrap = [](long long i, int n) { return int(((i % n) + n) % n); };
-    Vec3d r;
-    for (int dy = 0; dy < 2; ++dy)
-        for (int dx = 0; dx < 2; ++dx) {
-            const int xi = wrap((long long)fx + dx, t.width), yi = wrap((long long)fy + dy, t.height);
-            const double w = (dx ? ax : 1.0 - ax) * (dy ? ay : 1.0 - ay);
-            for (int c = 0; c < 3; ++c) r[c] += w * t.at(xi, yi, c);
-        }
-    return r;
-}
-
-/// The colour a triangle shows at perspective-correct barycentrics b.
-Vec3d shade(const TriangleMesh& mesh, const ScreenTriangle& t, const double b[3])
-{
-    const MeshMaterial& m = mesh.materials[t.material];
-    const Vec3d vertexColour = t.cz[0] * b[0] + t.cz[1] * b[1] + t.cz[2] * b[2];
-    if (m.texture >= 0) {
-        const double u = t.uz[0] * b[0] + t.uz[1] * b[1] + t.uz[2] * b[2];
-        const double v = t.vz[0] * b[0] + t.vz[1] * b[1] + t.vz[2] * b[2];
-        const Vec3d tex = sampleTexture(mesh.textures[std::size_t(m.texture)], u, v);
-        return Vec3d(tex.x * vertexColour.x, tex.y * vertexColour.y, tex.z * vertexColour.z);
-    }
-    return mesh.colours.empty() ? Vec3d(m.colour) : vertexColour;
 }
 
 /// Rasterise every triangle into rows [r0, r1] of a colour + coverage image (z-buffered).
@@ -155,9 +112,9 @@ void rasteriseBand(const TriangleMesh& mesh, const std::vector<ScreenTriangle>& 
                 const std::size_t k = std::size_t(y - r0) * std::size_t(width) + std::size_t(x);
                 if (!(1.0 / iz < depth[k])) continue;
                 depth[k] = 1.0 / iz;
-                const double b[3] = {w[0] / iz, w[1] / iz, w[2] / iz};
+                const Vec3d bary = (t.baryZ[0] * w[0] + t.baryZ[1] * w[1] + t.baryZ[2] * w[2]) / iz;
                 const std::size_t o = std::size_t(y) * std::size_t(width) + std::size_t(x);
-                colour[o] = shade(mesh, t, b);
+                colour[o] = mesh.colourAt(t.face, bary);
                 covered[o] = 1;
             }
     }

@@ -43,6 +43,47 @@ void TriangleMesh::bounds(Vec3d& lo, Vec3d& hi) const
         }
 }
 
+namespace {
+
+/// Bilinear texel lookup with wrap-around; v = 0 is the bottom row (OBJ/assimp convention).
+Vec3d sampleTexture(const Image& t, double u, double v)
+{
+    const double x = u * t.width - 0.5, y = (1.0 - v) * t.height - 0.5;
+    const double fx = std::floor(x), fy = std::floor(y);
+    const double ax = x - fx, ay = y - fy;
+    const auto wrap = [](long long i, int n) { return int(((i % n) + n) % n); };
+    Vec3d r;
+    for (int dy = 0; dy < 2; ++dy)
+        for (int dx = 0; dx < 2; ++dx) {
+            const int xi = wrap((long long)fx + dx, t.width), yi = wrap((long long)fy + dy, t.height);
+            const double w = (dx ? ax : 1.0 - ax) * (dy ? ay : 1.0 - ay);
+            for (int c = 0; c < 3; ++c) r[c] += w * t.at(xi, yi, c);
+        }
+    return r;
+}
+
+} // namespace
+
+Vec3d TriangleMesh::colourAt(std::size_t f, const Vec3d& b) const
+{
+    const MeshMaterial& m = materials[materialOf[f]];
+    const std::uint32_t* v = &triangles[3 * f];
+    Vec3d colour(1, 1, 1);
+    if (!colours.empty()) {
+        colour = Vec3d();
+        for (int k = 0; k < 3; ++k)
+            colour += Vec3d(colours[3 * v[k]], colours[3 * v[k] + 1], colours[3 * v[k] + 2]) * b[k];
+    }
+    if (m.texture < 0) return colours.empty() ? Vec3d(m.colour) : colour;
+    double u = 0, w = 0;
+    for (int k = 0; k < 3; ++k) {
+        u += uvs[2 * v[k]] * b[k];
+        w += uvs[2 * v[k] + 1] * b[k];
+    }
+    const Vec3d tex = sampleTexture(textures[std::size_t(m.texture)], u, w);
+    return Vec3d(tex.x * colour.x, tex.y * colour.y, tex.z * colour.z);
+}
+
 void applyProceduralColour(TriangleMesh& mesh, double periods)
 {
     Vec3d lo, hi;

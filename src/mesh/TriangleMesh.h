@@ -39,6 +39,10 @@ struct TriangleMesh {
     void checkValid() const;
     /// @brief Axis-aligned bounds of the vertices (of the whole array, used or not).
     void bounds(Vec3d& lo, Vec3d& hi) const;
+    /// @brief The colour triangle f shows at barycentric coordinates b (weights of its three
+    ///        vertices): bilinear wrapped texel at the interpolated UV (v = 0 the bottom row), times
+    ///        the interpolated vertex colour; or that colour; or the material's (see MeshMaterial).
+    Vec3d colourAt(std::size_t f, const Vec3d& b) const;
 };
 
 /// @brief Replace the colours by a smooth procedural pattern of the position (three sinusoids of

@@ -36,6 +36,21 @@ struct OrbitOptions {
 /// @throws InputError for an unknown name.
 Vec3d parseUpAxis(const std::string& name);
 
+/// @brief Options for sphereCameras().
+struct SphereViewOptions {
+    int views = 100;              ///< directions of a Fibonacci lattice over the whole sphere
+    double fovDeg = 40.0;         ///< vertical field of view, degrees
+    double distanceFactor = 1.1;  ///< as OrbitOptions::distanceFactor, for the sphere of `radius`
+    int width = 256, height = 256;
+    Vec3d up{0.0, 1.0, 0.0};      ///< image up where the view allows it (rolls only; any axis will do)
+    double phase = 0.0;           ///< lattice offset in [0, 1): another set of directions, e.g. held-out views
+};
+
+/// @brief Cameras looking at `centre` from directions spread evenly over the sphere, at the
+///        distance where a sphere of `radius` just fits the view (times the distance factor).
+/// @throws InputError for invalid options or a radius that is not positive.
+std::vector<Camera> sphereCameras(const Vec3d& centre, double radius, const SphereViewOptions& options = {});
+
 /// @brief Cameras on a circle around the model's robust bounding box.
 /// @throws InputError for an empty model or invalid options.
 std::vector<Camera> orbitCameras(const GaussianCloud& cloud, const OrbitOptions& options = {});

@@ -24,8 +24,10 @@ struct EntryGrad {
     float d[kSlots] = {};
 };
 
-/// Walk each pixel's splats back to front (3DGS's backward), one tile per task.
-struct PixelBackwardOp {
+/// Walk each tile's splats back to front (the mirror of the forward compositing): per pixel the
+/// transmittance in front of the splat and the colour behind it, as 3DGS's per-pixel backward,
+/// but splat by splat over the pixels it can reach, so each splat's sums stay in registers.
+struct TileBackwardOp {
     const TileBins& bins;
     const detail::PixelState& state;
     const std::vector<float>& dImage;
@@ -34,43 +36,61 @@ struct PixelBackwardOp {
     std::vector<EntryGrad>& out;
     void operator()(std::size_t beginTile, std::size_t endTile) const
     {
+        constexpr int kPixels = kSplatTileSize * kSplatTileSize;
+        float t[kPixels];
+        Vec3f behind[kPixels], dC[kPixels];
+        std::size_t stop[kPixels];
         for (std::size_t tile = beginTile; tile < endTile; ++tile) {
             const int tx0 = int(tile % std::size_t(bins.tilesX)) * kSplatTileSize;
             const int ty0 = int(tile / std::size_t(bins.tilesX)) * kSplatTileSize;
             const int tx1 = std::min(width, tx0 + kSplatTileSize) - 1, ty1 = std::min(height, ty0 + kSplatTileSize) - 1;
+            std::size_t last = bins.tileStart[tile];
             for (int y = ty0; y <= ty1; ++y)
-                for (int x = tx0; x <= tx1; ++x) pixel(tile, x, y);
+                for (int x = tx0; x <= tx1; ++x) {
+                    const int k = (y - ty0) * kSplatTileSize + (x - tx0);
+                    const std::size_t p = std::size_t(y) * std::size_t(width) + std::size_t(x);
+                    t[k] = state.transmittance[p];
+                    behind[k] = background;
+                    dC[k] = Vec3f(dImage[3 * p], dImage[3 * p + 1], dImage[3 * p + 2]);
+                    stop[k] = state.stopEntry[p];
+                    last = std::max(last, stop[k]);
+                }
+            for (std::size_t e = last; e-- > bins.tileStart[tile];) {
+                const ScreenSplat& s = bins.splats[std::uint32_t(bins.keys[e])];
+                const int x0 = std::max(tx0, s.reach.x0), x1 = std::min(tx1, s.reach.x1);
+                const int y0 = std::max(ty0, s.reach.y0), y1 = std::min(ty1, s.reach.y1);
+                float g[kSlots] = {};
+                for (int y = y0; y <= y1; ++y)
+                    for (int x = x0; x <= x1; ++x) {
+                        const int k = (y - ty0) * kSplatTileSize + (x - tx0);
+                        if (e >= stop[k]) continue;
+                        pixel(s, float(x) + 0.5f, float(y) + 0.5f, t[k], behind[k], dC[k], g);
+                    }
+                for (int k = 0; k < kSlots; ++k) out[e].d[k] = g[k];
+            }
         }
     }
-    void pixel(std::size_t tile, int x, int y) const
+    /// One (splat, pixel) pair: gradients into g, the pixel's state moved in front of the splat.
+    static void pixel(const ScreenSplat& s, float px, float py, float& t, Vec3f& behind, const Vec3f& dC, float* g)
     {
-        const std::size_t p = std::size_t(y) * std::size_t(width) + std::size_t(x);
-        const Vec3f dC(dImage[3 * p], dImage[3 * p + 1], dImage[3 * p + 2]);
-        float t = state.transmittance[p];
-        Vec3f behind = background; // colour seen behind the current splat, per unit transmittance
-        const float px = float(x) + 0.5f, py = float(y) + 0.5f;
-        for (std::size_t e = state.stopEntry[p]; e-- > bins.tileStart[tile];) {
-            const ScreenSplat& s = bins.splats[std::uint32_t(bins.keys[e])];
-            const float alpha = splatAlpha(s.p, px, py);
-            if (alpha == 0.0f) continue;
-            const float ti = t / (1.0f - alpha);
-            float* g = out[e].d;
-            for (int c = 0; c < 3; ++c) g[kColour + c] += alpha * ti * dC[c];
-            const float dAlpha = ti * dot(dC, s.colour - behind);
-            behind = s.colour * alpha + behind * (1.0f - alpha);
-            t = ti;
-            const float dx = px - s.p.u, dy = py - s.p.v;
-            const float power = -0.5f * (s.p.conicA * dx * dx + s.p.conicC * dy * dy) - s.p.conicB * dx * dy;
-            const float gauss = std::exp(power);
-            if (s.p.opacity * gauss >= kSplatMaxAlpha) continue; // clamped: alpha does not move
-            const float dPower = dAlpha * alpha;
-            g[kOpacity] += dAlpha * gauss;
-            g[kU] += dPower * (s.p.conicA * dx + s.p.conicB * dy);
-            g[kV] += dPower * (s.p.conicC * dy + s.p.conicB * dx);
-            g[kConicA] += -0.5f * dPower * dx * dx;
-            g[kConicC] += -0.5f * dPower * dy * dy;
-            g[kConicB] += -dPower * dx * dy;
-        }
+        const float alpha = splatAlpha(s.p, px, py);
+        if (alpha == 0.0f) return;
+        const float ti = t / (1.0f - alpha);
+        for (int c = 0; c < 3; ++c) g[kColour + c] += alpha * ti * dC[c];
+        const float dAlpha = ti * dot(dC, s.colour - behind);
+        behind = s.colour * alpha + behind * (1.0f - alpha);
+        t = ti;
+        const float dx = px - s.p.u, dy = py - s.p.v;
+        const float power = -0.5f * (s.p.conicA * dx * dx + s.p.conicC * dy * dy) - s.p.conicB * dx * dy;
+        const float gauss = std::exp(power);
+        if (s.p.opacity * gauss >= kSplatMaxAlpha) return; // clamped: alpha does not move
+        const float dPower = dAlpha * alpha;
+        g[kOpacity] += dAlpha * gauss;
+        g[kU] += dPower * (s.p.conicA * dx + s.p.conicB * dy);
+        g[kV] += dPower * (s.p.conicC * dy + s.p.conicB * dx);
+        g[kConicA] += -0.5f * dPower * dx * dx;
+        g[kConicC] += -0.5f * dPower * dy * dy;
+        g[kConicB] += -dPower * dx * dy;
     }
 };
 
@@ -190,7 +210,7 @@ void renderBackward(const GaussianCloud& cloud, const RenderTape& tape, const st
     if (grads.opacities.size() != cloud.size()) throw InputError("renderBackward: gradients not sized for the model");
     std::vector<EntryGrad> entries(tape.bins.keys.size());
     parallelForRange(tape.bins.tiles(), 1, threaded,
-                     PixelBackwardOp{tape.bins, tape.state, dImage, tape.background, w, h, entries});
+                     TileBackwardOp{tape.bins, tape.state, dImage, tape.background, w, h, entries});
     // Entry order (tile-major) is fixed, so these sums do not depend on the thread count.
     std::vector<SplatGrad> splat(cloud.size());
     for (std::size_t e = 0; e < entries.size(); ++e) {

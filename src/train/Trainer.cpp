@@ -38,15 +38,19 @@ struct DensifyStats {
     }
 };
 
+/// One Adam step of an array; element i uses lrFirst when i % stride < first (SH band 0), else lr.
 void adamArray(std::vector<float>& p, const std::vector<float>& g, std::vector<float>& m, std::vector<float>& v,
-               const std::function<double(std::size_t)>& lr, int step, bool threaded)
+               double lr, int step, bool threaded, std::size_t stride = 1, std::size_t first = 1, double lrFirst = -1)
 {
-    const double c1 = 1.0 - std::pow(kBeta1, step), c2 = 1.0 - std::pow(kBeta2, step);
-    parallelForRange(p.size(), 4096, threaded, [&](std::size_t b, std::size_t e) {
+    const float c1 = float(1.0 - std::pow(kBeta1, step)), c2 = float(1.0 - std::pow(kBeta2, step));
+    const float b1 = float(kBeta1), b2 = float(kBeta2);
+    const float rate = float(lr), rateFirst = float(lrFirst < 0 ? lr : lrFirst);
+    parallelForRange(p.size(), 16384, threaded, [&](std::size_t b, std::size_t e) {
         for (std::size_t i = b; i < e; ++i) {
-            m[i] = float(kBeta1 * m[i] + (1 - kBeta1) * g[i]);
-            v[i] = float(kBeta2 * v[i] + (1 - kBeta2) * double(g[i]) * g[i]);
-            p[i] -= float(lr(i) * (m[i] / c1) / (std::sqrt(v[i] / c2) + kAdamEps));
+            m[i] = b1 * m[i] + (1 - b1) * g[i];
+            v[i] = b2 * v[i] + (1 - b2) * g[i] * g[i];
+            const float r = i % stride < first ? rateFirst : rate;
+            p[i] -= r * (m[i] / c1) / (std::sqrt(v[i] / c2) + float(kAdamEps));
         }
     });
 }
@@ -54,14 +58,11 @@ void adamArray(std::vector<float>& p, const std::vector<float>& g, std::vector<f
 void adamStep(GaussianCloud& c, const CloudGradients& g, AdamState& s, const TrainOptions& o, double positionLr)
 {
     ++s.step;
-    const auto constant = [](double lr) { return [lr](std::size_t) { return lr; }; };
-    adamArray(c.means, g.means, s.m1.means, s.m2.means, constant(positionLr), s.step, o.threaded);
-    adamArray(c.logScales, g.logScales, s.m1.logScales, s.m2.logScales, constant(o.scalingLr), s.step, o.threaded);
-    adamArray(c.rotations, g.rotations, s.m1.rotations, s.m2.rotations, constant(o.rotationLr), s.step, o.threaded);
-    adamArray(c.opacities, g.opacities, s.m1.opacities, s.m2.opacities, constant(o.opacityLr), s.step, o.threaded);
-    const std::size_t stride = std::size_t(c.shStride());
-    adamArray(c.sh, g.sh, s.m1.sh, s.m2.sh,
-              [&](std::size_t i) { return i % stride < 3 ? o.featureLr : o.featureRestLr; }, s.step, o.threaded);
+    adamArray(c.means, g.means, s.m1.means, s.m2.means, positionLr, s.step, o.threaded);
+    adamArray(c.logScales, g.logScales, s.m1.logScales, s.m2.logScales, o.scalingLr, s.step, o.threaded);
+    adamArray(c.rotations, g.rotations, s.m1.rotations, s.m2.rotations, o.rotationLr, s.step, o.threaded);
+    adamArray(c.opacities, g.opacities, s.m1.opacities, s.m2.opacities, o.opacityLr, s.step, o.threaded);
+    adamArray(c.sh, g.sh, s.m1.sh, s.m2.sh, o.featureRestLr, s.step, o.threaded, std::size_t(c.shStride()), 3, o.featureLr);
 }
 
 /// A copy of Gaussian i of `from` appended to `to`, and zero moments for it.
@@ -145,7 +146,8 @@ TrainOptions compressedSchedule(int iterations)
     o.shInterval = scaled(o.shInterval);
     o.densifyFrom = scaled(o.densifyFrom);
     o.densifyUntil = scaled(o.densifyUntil);
-    o.densifyInterval = scaled(o.densifyInterval);
+    // At least 25 views between densifications: fewer make the mean gradient too noisy to judge by.
+    o.densifyInterval = std::max(25, scaled(o.densifyInterval));
     o.opacityResetInterval = scaled(o.opacityResetInterval);
     return o;
 }

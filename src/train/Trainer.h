@@ -48,7 +48,7 @@ struct TrainOptions {
 };
 
 /// @brief The 30,000-step schedule scaled to `iterations` (every step count times iterations /
-///        30000, at least 1), the learning rates unchanged.
+///        30000, at least 1; the densification interval at least 25), the learning rates unchanged.
 TrainOptions compressedSchedule(int iterations);
 
 /// @brief Image metrics of a model on a set of views.

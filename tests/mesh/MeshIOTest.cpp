@@ -12,6 +12,7 @@
 #include "image/TextureIO.h"
 #include "mesh/MeshIO.h"
 #include "mesh/MeshRasterizer.h"
+#include "mesh/BadMeshes.h"
 #include "support/TestSupport.h"
 
 namespace splatwarp {
@@ -121,24 +122,7 @@ TEST(MeshIOTest, PlyVertexColoursAndTextureOption)
 TEST(MeshIOTest, BadMeshesNameTheFile)
 {
     test::TempDir dir;
-    writeFileAtomic(dir.file("empty.obj"), "");
-    expectErrorNaming(dir.file("empty.obj"), "empty.obj");
-    writeFileAtomic(dir.file("nofaces.obj"), "v 0 0 0\nv 1 0 0\nv 0 1 0\n");
-    expectErrorNaming(dir.file("nofaces.obj"), "nofaces.obj");
-    // Binary PLY: the NaN reaches the reader untouched.
-    std::string ply = "ply\nformat binary_little_endian 1.0\nelement vertex 3\nproperty float x\nproperty float y\n"
-                      "property float z\nelement face 1\nproperty list uchar int vertex_indices\nend_header\n";
-    const float v[9] = {0, 0, 0, 1, 0, 0, 0, std::nanf(""), 0};
-    ply.append(reinterpret_cast<const char*>(v), sizeof(v));
-    const unsigned char n = 3;
-    const int idx[3] = {0, 1, 2};
-    ply.append(reinterpret_cast<const char*>(&n), 1);
-    ply.append(reinterpret_cast<const char*>(idx), sizeof(idx));
-    writeFileAtomic(dir.file("nan.ply"), ply);
-    expectErrorNaming(dir.file("nan.ply"), "nan.ply");
-    writeFileAtomic(dir.file("q.mtl"), "newmtl quad\nmap_Kd missing.png\n");
-    writeFileAtomic(dir.file("notex.obj"), quadObj("q.mtl"));
-    expectErrorNaming(dir.file("notex.obj"), "missing.png");
+    for (const auto& [name, named] : test::writeBadMeshes(dir)) expectErrorNaming(dir.file(name), named);
     expectErrorNaming(dir.file("nothere.obj"), "nothere.obj");
     writeFileAtomic(dir.file("junk.png"), "not an image");
     EXPECT_THROW(readTexture(dir.file("junk.png")), InputError);
