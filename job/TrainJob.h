@@ -29,7 +29,7 @@ struct FromMeshOptions {
     MeshReadOptions read;
     SphereViewOptions views;       ///< training views (views.views of them)
     int testViews = 20;            ///< held-out views: another lattice (phase 0.5)
-    MeshRenderOptions render;      ///< supersampling and background of the mesh renders
+    MeshRenderOptions render{Vec3f(0.0f, 0.0f, 0.0f), 2}; ///< 2x2 samples (anti-aliased edges); background from train
     std::size_t initGaussians = 20000; ///< surface samples to start from
     TrainOptions train;
 };
