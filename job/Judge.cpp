@@ -14,10 +14,7 @@
 
 namespace splatwarp {
 
-namespace {
-
-/// The rest cameras moved with the model: x_cam = C (R X + t) must equal x_cam = C X for the
-/// rest camera C, so the moved camera's rotation is C.rotation R^T.
+// x_cam = C' (R X + t) must equal x_cam = C X for the rest camera C: C'.rotation = C.rotation R^T.
 Camera movedCamera(const Camera& restCamera, const RigidMotion& m)
 {
     Camera c = restCamera;
@@ -25,8 +22,6 @@ Camera movedCamera(const Camera& restCamera, const RigidMotion& m)
     c.translation = restCamera.translation - c.rotation * m.translation;
     return c;
 }
-
-} // namespace
 
 std::optional<RigidMotion> rigidMotionOf(const Deformation& d)
 {

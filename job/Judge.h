@@ -28,7 +28,10 @@ struct RigidMotion {
 ///        extent); nothing otherwise. The solved node transforms follow it to the ED solver's tolerance.
 std::optional<RigidMotion> rigidMotionOf(const Deformation& deformation);
 
-/// @brief Image PSNR over all views and colour channels (linear RGB on black, peak 1).
+/// @brief A rest camera moved with the model: it sees the moved model as the rest one saw the rest.
+Camera movedCamera(const Camera& restCamera, const RigidMotion& motion);
+
+/// @brief Image PSNR over all views and colour channels (display RGB on black, peak 1).
 struct ImagePsnr {
     double db = 0.0;   ///< +infinity for identical images
     int views = 0;

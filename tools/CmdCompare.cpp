@@ -16,24 +16,16 @@ struct CompareArgs {
     bool json = false;
 };
 
-/// PNGs are compared on their stored (sRGB-encoded) values, as displayed; EXRs on linear values.
-Image readForMetrics(const std::string& path)
-{
-    if (!isImagePath(path)) throw InputError(msg(path, ": unknown image type (use .png or .exr)"));
-    const bool png = path.size() >= 4 && (path.compare(path.size() - 4, 4, ".png") == 0 ||
-                                          path.compare(path.size() - 4, 4, ".PNG") == 0);
-    return png ? readPng(path, PngValues::Encoded) : readExr(path);
-}
 
 const CommandRegistrar reg(61, [](CLI::App& app) {
     auto args = std::make_shared<CompareArgs>();
     CLI::App* sub = app.add_subcommand(
-        "compare", "PSNR (dB) and SSIM (11x11 Gaussian window, sigma 1.5) of two images of the same size, colour channels only");
+        "compare", "PSNR (dB) and SSIM (11x11 Gaussian window, sigma 1.5) of two images of the same size, colour channels only, on display values (an EXR is sRGB-encoded first)");
     sub->add_option("a", args->a, "First image (.png or .exr)")->required()->check(CLI::ExistingFile);
     sub->add_option("b", args->b, "Second image (.png or .exr)")->required()->check(CLI::ExistingFile);
     sub->add_flag("--json", args->json, "Print {\"psnr\": ..., \"ssim\": ...} on stdout (psnr null for identical images)");
     sub->callback([args] {
-        const Image a = readForMetrics(args->a), b = readForMetrics(args->b);
+        const Image a = readImage(args->a), b = readImage(args->b);
         double p = 0, s = 0;
         try {
             p = psnr(a, b);

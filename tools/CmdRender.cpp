@@ -83,7 +83,7 @@ void run(const RenderArgs& a)
 
 const CommandRegistrar reg(60, [](CLI::App& app) {
     auto args = std::make_shared<RenderArgs>();
-    CLI::App* sub = app.add_subcommand("render", "Render a Gaussian model to PNG (sRGB) or EXR (linear RGBA) with the splat rasteriser (CPU or CUDA)");
+    CLI::App* sub = app.add_subcommand("render", "Render a Gaussian model to PNG (the splat colours as they are: display values) or EXR (their linear decode, RGBA) with the splat rasteriser (CPU or CUDA)");
     sub->add_option("input", args->input, "Input Gaussian file (.ply, compressed .ply, .splat, .spz, .glb, .vdb points)")->required();
     sub->add_option("-o,--output", args->output,
                     "Output image (.png/.exr) for one view, or a directory receiving view_000.png ... for several")
@@ -105,10 +105,10 @@ const CommandRegistrar reg(60, [](CLI::App& app) {
                     "Orbit distance as a multiple of the distance at which the model's bounding sphere just fits")
         ->capture_default_str()
         ->check(positive());
-    sub->add_option("--up", args->orbitOptions.up, "Orbit up axis: x, y, z, -x, -y, -z or auto (smallest extent)")
+    sub->add_option("--up", args->orbitOptions.up, "Orbit up axis: x, y, z, -x, -y, -z or auto (the smallest extent, pointing away from the end where the centres crowd: y-down captures stand upright)")
         ->capture_default_str()
         ->check(CLI::IsMember({"auto", "x", "y", "z", "-x", "-y", "-z", "+x", "+y", "+z"}));
-    sub->add_option("--background", args->background, "Background colour r,g,b (linear, 0..1)")->capture_default_str();
+    sub->add_option("--background", args->background, "Background colour r,g,b (display values 0..1, as the splat colours; 1,1,1 is white)")->capture_default_str();
     sub->add_option("--format", args->format, "Image format of the files written into an output directory")
         ->capture_default_str()
         ->check(CLI::IsMember({"png", "exr"}));

@@ -34,7 +34,7 @@ inline void parseImageSize(const std::string& text, int& width, int& height)
     if (*end != '\0') throw UsageError(msg("--size must be WIDTHxHEIGHT, e.g. 800x600, got '", text, "'"));
 }
 
-/// @brief "r,g,b" (linear, each in [0, 1]) -> colour. @throws UsageError otherwise.
+/// @brief "r,g,b" (display values, each in [0, 1]) -> colour. @throws UsageError otherwise.
 inline Vec3f parseColour(const std::string& text)
 {
     Vec3f c;

@@ -2,12 +2,17 @@
 /// @file Image.h
 /// @brief A float image (interleaved channels, row-major, top row first) and the sRGB transfer
 ///        functions.
+/// @note  Colour convention: renders hold display (sRGB-encoded) values, because splat colours
+///        0.5 + C0 f_dc (+ SH) are display values: 3DGS models are trained on sRGB photographs and
+///        graphdeco's renderer, PlayCanvas and the usual viewers show that value as it is (glTF
+///        KHR_gaussian_splatting's default colour space is srgb_rec709_display). PNG files store
+///        the value as it is; EXR files store its linear decode (image/ImageIO.h).
 #include <cstddef>
 #include <vector>
 
 namespace splatwarp {
 
-/// @brief width x height pixels of `channels` floats (3 = RGB, 4 = RGBA), linear unless stated.
+/// @brief width x height pixels of `channels` floats (3 = RGB, 4 = RGBA), display values unless stated.
 struct Image {
     int width = 0, height = 0, channels = 0;
     std::vector<float> pixels; ///< [height, width, channels]
@@ -31,5 +36,12 @@ struct Image {
 float linearToSrgb(float linear);
 /// @brief Inverse of linearToSrgb() on [0, 1].
 float srgbToLinear(float encoded);
+
+/// @brief The image with its colour channels decoded display -> linear light (alpha unchanged).
+///        The sRGB curve is extended past 1 (same formula) and below 0 (the linear segment), so
+///        out-of-range splat colours survive the round trip through an EXR.
+Image displayToLinear(const Image& image);
+/// @brief Inverse of displayToLinear().
+Image linearToDisplay(const Image& image);
 
 } // namespace splatwarp

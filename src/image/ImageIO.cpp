@@ -170,9 +170,17 @@ void writeImage(const std::string& path, const Image& image)
     if (ext == ".png")
         writePng(path, image);
     else if (ext == ".exr")
-        writeExr(path, image);
+        writeExr(path, displayToLinear(image));
     else
         throw InputError(msg(path, ": unknown image extension (use .png or .exr)"));
+}
+
+Image readImage(const std::string& path)
+{
+    const std::string ext = lowerExtension(path);
+    if (ext == ".png") return readPng(path);
+    if (ext == ".exr") return linearToDisplay(readExr(path));
+    throw InputError(msg(path, ": unknown image extension (use .png or .exr)"));
 }
 
 } // namespace splatwarp

@@ -2,6 +2,9 @@
 /// @file ImageIO.h
 /// @brief PNG (8-bit sRGB, libpng) and OpenEXR (linear half/float RGBA) image files, written
 ///        atomically.
+/// @note  Renders hold display values (image/Image.h): a PNG stores them as they are (what
+///        graphdeco's renderer and the splat viewers show), writeImage() stores an EXR as their
+///        linear decode (displayToLinear()).
 #include <string>
 
 #include "image/Image.h"
@@ -10,13 +13,13 @@ namespace splatwarp {
 
 /// @brief How PNG values map to Image values.
 enum class PngValues {
-    Linear, ///< decode sRGB on read / encode linear -> sRGB on write (renders)
-    Encoded ///< the stored 8-bit values / 255 as they are (metrics on displayed images)
+    Display, ///< the stored 8-bit values / 255 as they are (renders, photographs, metrics)
+    Linear   ///< the image holds linear light: encode linear -> sRGB on write, decode on read
 };
 
 /// @brief Options for writePng().
 struct PngWriteOptions {
-    PngValues values = PngValues::Linear;
+    PngValues values = PngValues::Display;
     /// Keep the alpha channel of a 4-channel image (straight alpha). Default off: renders are already
     /// composited over their background, and RGB is what every viewer shows as rendered.
     bool alpha = false;
@@ -27,22 +30,28 @@ struct PngWriteOptions {
 void writePng(const std::string& path, const Image& image, const PngWriteOptions& options = {});
 /// @brief Read any PNG as RGB (or RGBA when the file has alpha), values in [0, 1].
 /// @throws IoError/InputError naming the file.
-Image readPng(const std::string& path, PngValues values = PngValues::Linear);
+Image readPng(const std::string& path, PngValues values = PngValues::Display);
 
 /// @brief Pixel type of EXR channels.
 enum class ExrPixelType { Half, Float };
 
-/// @brief Write a linear OpenEXR (RGB, or RGBA for 4 channels; ZIP compression) atomically.
+/// @brief Write an OpenEXR (RGB, or RGBA for 4 channels; ZIP compression) atomically, values as
+///        they are (callers pass linear light; writeImage() decodes a render first).
 /// @note  EXR consumers treat RGB as premultiplied by alpha: that holds for renders over the
-///        default black background.
+///        default black background (up to the sRGB curve applied after compositing).
 void writeExr(const std::string& path, const Image& image, ExrPixelType type = ExrPixelType::Half);
 /// @brief Read the R, G, B (and A when present) channels of an OpenEXR file as float.
 Image readExr(const std::string& path);
 
-/// @brief Write .png (linear -> sRGB) or .exr (half) chosen by the extension (case-insensitive).
+/// @brief Write a render (display values) as .png (the values as they are) or .exr (half, their
+///        linear decode, displayToLinear()), chosen by the extension (case-insensitive).
 /// @throws InputError for any other extension.
 void writeImage(const std::string& path, const Image& image);
 /// @brief True when the path ends in .png or .exr (case-insensitive).
 bool isImagePath(const std::string& path);
+/// @brief Read what writeImage() wrote (or any PNG/EXR) as display values: PNG as stored, EXR
+///        encoded from linear (linearToDisplay()).
+/// @throws InputError for any other extension; IoError/InputError naming an unreadable file.
+Image readImage(const std::string& path);
 
 } // namespace splatwarp

@@ -21,6 +21,26 @@ double coordinateQuantile(const GaussianCloud& g, int axis, double q)
     return v[k];
 }
 
+/// Sign of the automatic up axis: captures sit on a ground patch or a base, so their centres crowd
+/// at the bottom (playbot, y-down: mean 0.38 of the extent below the box middle); a clear skew
+/// (over kAutoUpSkew) points up away from it, anything else keeps +axis (the donut's icing: 0.12).
+constexpr double kAutoUpSkew = 0.25;
+
+double autoUpSign(const GaussianCloud& g, int axis, double lo, double hi)
+{
+    if (!(hi > lo)) return 1.0;
+    double sum = 0;
+    std::size_t n = 0;
+    for (std::size_t i = 0; i < g.size(); ++i) {
+        const double v = g.means[3 * i + std::size_t(axis)];
+        if (v < lo || v > hi) continue; // the robust box, as the extent
+        sum += v;
+        ++n;
+    }
+    const double skew = n > 0 ? (sum / double(n) - 0.5 * (lo + hi)) / (hi - lo) : 0.0;
+    return skew > kAutoUpSkew ? -1.0 : 1.0;
+}
+
 } // namespace
 
 PinholeView pinholeView(const Camera& camera)
@@ -54,6 +74,28 @@ Vec3d parseUpAxis(const std::string& name)
     return negative ? -v : v;
 }
 
+std::vector<Camera> sphereCameras(const Vec3d& centre, double radius, const SphereViewOptions& o)
+{
+    if (o.views < 1) throw InputError(msg("sphere views need at least one view, got ", o.views));
+    if (!(o.fovDeg > 0 && o.fovDeg < 180)) throw InputError(msg("field of view must be in (0, 180) degrees, got ", o.fovDeg));
+    if (!(radius > 0) || !(o.distanceFactor > 0)) throw InputError("sphere views need a positive radius and distance");
+    if (o.width <= 0 || o.height <= 0) throw InputError(msg("image size must be positive, got ", o.width, "x", o.height));
+    const double halfFovY = 0.5 * radians(o.fovDeg);
+    const double halfFovX = std::atan(std::tan(halfFovY) * double(o.width) / o.height);
+    const double distance = o.distanceFactor * radius / std::sin(std::min(halfFovX, halfFovY));
+    const double golden = kPi * (3.0 - std::sqrt(5.0)); // the Fibonacci lattice's azimuth step
+    std::vector<Camera> cams;
+    for (int k = 0; k < o.views; ++k) {
+        const double z = 1.0 - 2.0 * (k + 0.5) / o.views, r = std::sqrt(std::max(0.0, 1.0 - z * z));
+        const double azimuth = golden * k + 2.0 * kPi * o.phase;
+        const Vec3d dir(r * std::cos(azimuth), z, r * std::sin(azimuth)); // y: the lattice axis
+        Camera c = Camera::lookAt(centre + dir * distance, centre, o.up, o.fovDeg, o.width, o.height);
+        c.name = msg("view_", k);
+        cams.push_back(c);
+    }
+    return cams;
+}
+
 std::vector<Camera> orbitCameras(const GaussianCloud& cloud, const OrbitOptions& o)
 {
     if (cloud.empty()) throw InputError("cannot place orbit cameras around an empty model");
@@ -72,7 +114,7 @@ std::vector<Camera> orbitCameras(const GaussianCloud& cloud, const OrbitOptions&
     if (o.up == "auto") {
         for (int a = 1; a < 3; ++a)
             if (extent[a] < extent[upAxis]) upAxis = a;
-        up[upAxis] = 1;
+        up[upAxis] = autoUpSign(cloud, upAxis, lo[upAxis], hi[upAxis]);
     } else {
         up = parseUpAxis(o.up);
         upAxis = up.x != 0 ? 0 : (up.y != 0 ? 1 : 2);

@@ -23,7 +23,9 @@ struct OrbitOptions {
     /// (robust) box just fits the field of view; > 1 leaves a margin.
     double distanceFactor = 1.1;
     int width = 512, height = 512; ///< image size
-    /// Up axis: "x", "y", "z", "-x", "-y", "-z", or "auto" (+ the axis of the smallest extent).
+    /// Up axis: "x", "y", "z", "-x", "-y", "-z", or "auto": the axis of the smallest extent,
+    /// pointing away from the end where the centres crowd when they clearly do (by more than a
+    /// quarter of the extent: a ground patch or a base, as in y-down captures), else +.
     std::string up = "auto";
     /// Fraction of centres ignored at each end of each axis when bounding the model, so that a few
     /// far floaters of a trained model do not shrink it to a dot.
@@ -33,6 +35,21 @@ struct OrbitOptions {
 /// @brief Unit vector of an up-axis name ("x", "-y", ...). "auto" is not accepted here.
 /// @throws InputError for an unknown name.
 Vec3d parseUpAxis(const std::string& name);
+
+/// @brief Options for sphereCameras().
+struct SphereViewOptions {
+    int views = 100;              ///< directions of a Fibonacci lattice over the whole sphere
+    double fovDeg = 40.0;         ///< vertical field of view, degrees
+    double distanceFactor = 1.1;  ///< as OrbitOptions::distanceFactor, for the sphere of `radius`
+    int width = 256, height = 256;
+    Vec3d up{0.0, 1.0, 0.0};      ///< image up where the view allows it (rolls only; any axis will do)
+    double phase = 0.0;           ///< lattice offset in [0, 1): another set of directions, e.g. held-out views
+};
+
+/// @brief Cameras looking at `centre` from directions spread evenly over the sphere, at the
+///        distance where a sphere of `radius` just fits the view (times the distance factor).
+/// @throws InputError for invalid options or a radius that is not positive.
+std::vector<Camera> sphereCameras(const Vec3d& centre, double radius, const SphereViewOptions& options = {});
 
 /// @brief Cameras on a circle around the model's robust bounding box.
 /// @throws InputError for an empty model or invalid options.

@@ -17,8 +17,8 @@ struct ComparisonSheetOptions {
     RenderOptions render;                    ///< how and where each cell is rendered (render/RenderDevice.h)
     int labelScale = 2;                      ///< image pixels per font pixel of the column labels
     int padding = 4;                         ///< pixels between cells and around labels
-    Vec3f sheetColour{0.02f, 0.02f, 0.02f};  ///< linear RGB of the gaps and the label band
-    Vec3f labelColour{1.0f, 1.0f, 1.0f};     ///< linear RGB of the label text
+    Vec3f sheetColour{0.02f, 0.02f, 0.02f};  ///< RGB of the gaps and the label band
+    Vec3f labelColour{1.0f, 1.0f, 1.0f};     ///< RGB of the label text
 };
 
 /// @brief Render every model from every camera into one RGBA image: a label band on top

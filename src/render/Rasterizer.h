@@ -14,13 +14,13 @@ namespace splatwarp {
 /// @brief Options for renderGaussians(). The rasteriser constants (near plane, dilation, alpha
 ///        limits) are fixed 3DGS values, see render/SplatProjection.h.
 struct RenderOptions {
-    Vec3f background{0.0f, 0.0f, 0.0f}; ///< linear RGB behind the splats
+    Vec3f background{0.0f, 0.0f, 0.0f}; ///< RGB behind the splats (display values, as the splat colours)
     bool threaded = true;               ///< oneTBB over Gaussians and tiles
     ResolvedDevice device;              ///< where renderGaussiansOn() (render/RenderDevice.h) renders
 };
 
 /// @brief Render a model from a camera.
-/// @return RGBA linear float image of the camera's size: RGB = composited colour + T * background,
+/// @return RGBA float image of display values (image/Image.h) of the camera's size: RGB = composited colour + T * background,
 ///         A = 1 - T (T = final transmittance).
 /// @throws InputError for an inconsistent model or a camera without a positive size/focal length.
 Image renderGaussians(const GaussianCloud& cloud, const Camera& camera, const RenderOptions& options = {});

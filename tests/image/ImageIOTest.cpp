@@ -26,14 +26,13 @@ TEST(ImageIOTest, SrgbCurveRoundTripsAndMatchesKnownPoints)
 TEST(ImageIOTest, PngRoundTrip)
 {
     test::TempDir dir;
-    // Encoded values: exact 8-bit levels survive unchanged.
+    // Display values (the default): exact 8-bit levels survive unchanged.
     Image levels(7, 5, 4);
     for (std::size_t i = 0; i < levels.pixels.size(); ++i) levels.pixels[i] = float(i * 37 % 256) / 255.0f;
     PngWriteOptions raw;
-    raw.values = PngValues::Encoded;
     raw.alpha = true;
     writePng(dir.file("levels.png"), levels, raw);
-    const Image back = readPng(dir.file("levels.png"), PngValues::Encoded);
+    const Image back = readPng(dir.file("levels.png"));
     ASSERT_EQ(back.width, 7);
     ASSERT_EQ(back.height, 5);
     ASSERT_EQ(back.channels, 4);
@@ -41,8 +40,10 @@ TEST(ImageIOTest, PngRoundTrip)
 
     // Linear values: encode, quantise, decode. Error bounded by half an 8-bit step in sRGB space.
     const Image lin = randomImage(9, 6, 4, 3);
-    writePng(dir.file("lin.png"), lin);
-    const Image rgb = readPng(dir.file("lin.png"));
+    PngWriteOptions linear;
+    linear.values = PngValues::Linear;
+    writePng(dir.file("lin.png"), lin, linear);
+    const Image rgb = readPng(dir.file("lin.png"), PngValues::Linear);
     ASSERT_EQ(rgb.channels, 3); // alpha dropped by default
     for (int y = 0; y < 6; ++y)
         for (int x = 0; x < 9; ++x)
@@ -64,7 +65,7 @@ TEST(ImageIOTest, ExrRoundTripKeepsValuesAndAlpha)
     ASSERT_EQ(f.width, 13);
     EXPECT_TRUE(f.pixels == img.pixels);
 
-    writeImage(dir.file("h.exr"), img); // half by default
+    writeExr(dir.file("h.exr"), img); // half by default
     const Image h = readExr(dir.file("h.exr"));
     ASSERT_EQ(h.channels, 4);
     for (std::size_t i = 0; i < img.pixels.size(); ++i)
@@ -73,6 +74,32 @@ TEST(ImageIOTest, ExrRoundTripKeepsValuesAndAlpha)
     Image rgb = randomImage(4, 3, 3, 9);
     writeExr(dir.file("rgb.exr"), rgb, ExrPixelType::Float);
     EXPECT_EQ(readExr(dir.file("rgb.exr")).channels, 3);
+}
+
+// The stripes red band: a display value of (224, 52, 40) / 255 is stored as those bytes in
+// a PNG (as graphdeco's renderer and PlayCanvas show it; the old linear -> sRGB encoding wrote
+// (241, 125, 111)), and as its linear decode in an EXR, which readImage() encodes back.
+TEST(ImageIOTest, RenderValuesAreDisplayValuesPngAsIsExrLinear)
+{
+    test::TempDir dir;
+    Image red(2, 1, 4, 1.0f);
+    const float bytes[3] = {224, 52, 40};
+    for (int x = 0; x < 2; ++x)
+        for (int c = 0; c < 3; ++c) red.at(x, 0, c) = bytes[c] / 255.0f;
+    writeImage(dir.file("red.png"), red);
+    const Image png = readPng(dir.file("red.png"));
+    for (int c = 0; c < 3; ++c) EXPECT_EQ(std::lround(png.at(1, 0, c) * 255.0f), std::lround(bytes[c])) << c;
+    writeExr(dir.file("red.exr"), displayToLinear(red), ExrPixelType::Float);
+    writeImage(dir.file("half.exr"), red);
+    const Image lin = readExr(dir.file("red.exr"));
+    EXPECT_NEAR(lin.at(0, 0, 0), std::pow((224.0 / 255 + 0.055) / 1.055, 2.4), 1e-6); // 0.7454
+    EXPECT_NEAR(lin.at(0, 0, 2), std::pow((40.0 / 255 + 0.055) / 1.055, 2.4), 1e-6);  // 0.0212
+    EXPECT_FLOAT_EQ(lin.at(0, 0, 3), 1.0f);                                            // alpha as is
+    const Image back = readImage(dir.file("half.exr"));
+    for (int c = 0; c < 3; ++c) EXPECT_NEAR(back.at(0, 0, c), bytes[c] / 255.0f, 1e-3) << c;
+    // Out-of-range values (SH can exceed 1) survive the EXR round trip.
+    Image bright(1, 1, 3, 1.25f);
+    EXPECT_NEAR(linearToDisplay(displayToLinear(bright)).pixels[0], 1.25f, 1e-5);
 }
 
 TEST(ImageIOTest, ErrorsNameTheFileAndLeaveNothingBehind)

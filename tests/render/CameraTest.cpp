@@ -6,6 +6,7 @@
 #include "render/Camera.h"
 #include "render/RenderTestUtil.h"
 #include "demo/DemoModels.h"
+#include "io/GaussianIO.h"
 #include "support/TestSupport.h"
 
 namespace splatwarp {
@@ -51,6 +52,47 @@ TEST(CameraTest, OrbitCamerasFrameTheModel)
     EXPECT_LT(project(cz, mid + Vec3d(0, 0, 0.5)).y, project(cz, mid).y);
     EXPECT_THROW(parseUpAxis("w"), InputError);
     EXPECT_NEAR(parseUpAxis("-y").y, -1.0, 0);
+}
+
+/// Centres of a y-down capture: a wide ground slab at y in [0.9, 1] under a thin post up to y = -1.
+GaussianCloud groundAndPost()
+{
+    GaussianCloud g;
+    g.resize(1200, 0);
+    for (std::size_t i = 0; i < g.size(); ++i) {
+        const float t = float(i % 40) / 39.0f, u = float(i / 40) / 29.0f;
+        if (i < 1000)
+            g.setMean(i, Vec3f(-2.0f + 4.0f * t, 0.9f + 0.1f * u, -2.0f + 4.0f * u));
+        else
+            g.setMean(i, Vec3f(0.05f * t, 1.0f - 2.0f * float(i - 1000) / 199.0f, 0.05f * u));
+    }
+    return g;
+}
+
+// --up auto: a capture standing on a ground patch at +y (y down, as graphdeco/PlayCanvas files)
+// renders upright: -y is up, so the post's top (y = -1) lands above the ground in the image.
+TEST(CameraTest, AutoUpStandsYDownCapturesUpright)
+{
+    const GaussianCloud g = groundAndPost();
+    OrbitOptions o;
+    o.views = 3;
+    o.boundsQuantile = 0.0;
+    for (const Camera& c : orbitCameras(g, o))
+        EXPECT_LT(project(c, Vec3d(0, -1, 0)).y, project(c, Vec3d(0, 1, 0)).y) << c.name;
+    // A symmetric bar keeps +axis (the old choice).
+    const GaussianCloud bar = test::smallSample("stripes", 2000);
+    const Camera b = orbitCameras(bar, o)[0];
+    const Vec3d up = Vec3d(b.rotation.m[1][0], b.rotation.m[1][1], b.rotation.m[1][2]) * -1.0; // -(image down)
+    EXPECT_GT(up.y + up.z, 0.3);
+}
+
+TEST(CameraTest, AutoUpOnPlaybotIsMinusY)
+{
+    SPLATWARP_REQUIRE_DATA(path, "splats/playbot-31k-sh2.ply");
+    const GaussianCloud g = readGaussians(path);
+    const Camera c = orbitCameras(g)[0];
+    // Image "down" (camera row 1) points along +y in world: world up is -y.
+    EXPECT_GT(c.rotation.m[1][1], 0.5);
 }
 
 TEST(CameraTest, ResizedScalesIntrinsics)

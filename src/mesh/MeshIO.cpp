@@ -1,0 +1,121 @@
+#include "mesh/MeshIO.h"
+
+#include <assimp/Importer.hpp>
+#include <assimp/material.h>
+#include <assimp/postprocess.h>
+#include <assimp/scene.h>
+#include <filesystem>
+#include <map>
+
+#include "core/Error.h"
+#include "image/TextureIO.h"
+
+namespace splatwarp {
+
+namespace {
+
+namespace fs = std::filesystem;
+
+/// Texture of a material: an embedded one ("*0" or a name the scene resolves) or a file beside
+/// the mesh. Returns an index into mesh.textures, loading each distinct source once.
+int loadTexture(const aiScene& scene, const std::string& ref, const std::string& meshPath, TriangleMesh& mesh,
+                std::map<std::string, int>& loaded)
+{
+    const auto it = loaded.find(ref);
+    if (it != loaded.end()) return it->second;
+    Image image;
+    if (const aiTexture* t = scene.GetEmbeddedTexture(ref.c_str())) {
+        if (t->mHeight != 0) { // raw texels, BGRA
+            image = Image(int(t->mWidth), int(t->mHeight), 4);
+            for (std::size_t i = 0; i < std::size_t(t->mWidth) * t->mHeight; ++i) {
+                const aiTexel& p = t->pcData[i];
+                const float v[4] = {p.r / 255.0f, p.g / 255.0f, p.b / 255.0f, p.a / 255.0f};
+                for (int c = 0; c < 4; ++c) image.pixels[4 * i + std::size_t(c)] = v[c];
+            }
+        } else {
+            image = decodeTexture(reinterpret_cast<const unsigned char*>(t->pcData), t->mWidth,
+                                  msg(meshPath, ": embedded texture ", ref));
+        }
+    } else {
+        const fs::path file = fs::path(ref).is_absolute() ? fs::path(ref) : fs::path(meshPath).parent_path() / ref;
+        if (!fs::is_regular_file(file)) throw InputError(msg(meshPath, ": texture '", ref, "' not found (", file.string(), ")"));
+        image = readTexture(file.string());
+    }
+    mesh.textures.push_back(std::move(image));
+    loaded[ref] = int(mesh.textures.size() - 1);
+    return loaded[ref];
+}
+
+std::vector<MeshMaterial> readMaterials(const aiScene& scene, const std::string& path, const MeshReadOptions& o,
+                                        TriangleMesh& mesh)
+{
+    std::map<std::string, int> loaded;
+    std::vector<MeshMaterial> out;
+    for (unsigned m = 0; m < scene.mNumMaterials; ++m) {
+        const aiMaterial& mat = *scene.mMaterials[m];
+        MeshMaterial mm;
+        aiColor4D c;
+        aiString name;
+        mat.Get(AI_MATKEY_NAME, name);
+        // assimp's stand-in for "no material" is grey: show the mesh white instead.
+        if (std::string(name.C_Str()) != AI_DEFAULT_MATERIAL_NAME &&
+            (mat.Get(AI_MATKEY_BASE_COLOR, c) == AI_SUCCESS || mat.Get(AI_MATKEY_COLOR_DIFFUSE, c) == AI_SUCCESS))
+            mm.colour = Vec3f(c.r, c.g, c.b);
+        aiString tex;
+        if (mat.GetTexture(aiTextureType_BASE_COLOR, 0, &tex) == AI_SUCCESS || mat.GetTexture(aiTextureType_DIFFUSE, 0, &tex) == AI_SUCCESS)
+            mm.texture = loadTexture(scene, tex.C_Str(), path, mesh, loaded);
+        else if (!o.texture.empty())
+            mm.texture = loadTexture(scene, fs::absolute(o.texture).string(), path, mesh, loaded);
+        out.push_back(mm);
+    }
+    if (out.empty()) out.push_back(MeshMaterial());
+    return out;
+}
+
+void appendMesh(const aiMesh& m, TriangleMesh& mesh, bool& anyUv, bool& anyColour)
+{
+    const std::uint32_t base = std::uint32_t(mesh.vertexCount());
+    for (unsigned i = 0; i < m.mNumVertices; ++i) {
+        const aiVector3D& p = m.mVertices[i];
+        mesh.positions.insert(mesh.positions.end(), {p.x, p.y, p.z});
+        const aiVector3D uv = m.HasTextureCoords(0) ? m.mTextureCoords[0][i] : aiVector3D(0, 0, 0);
+        mesh.uvs.insert(mesh.uvs.end(), {uv.x, uv.y});
+        const aiColor4D col = m.HasVertexColors(0) ? m.mColors[0][i] : aiColor4D(1, 1, 1, 1);
+        mesh.colours.insert(mesh.colours.end(), {col.r, col.g, col.b});
+    }
+    anyUv = anyUv || m.HasTextureCoords(0);
+    anyColour = anyColour || m.HasVertexColors(0);
+    for (unsigned f = 0; f < m.mNumFaces; ++f) {
+        const aiFace& face = m.mFaces[f];
+        if (face.mNumIndices != 3) continue; // points and lines left by the importer
+        for (int k = 0; k < 3; ++k) mesh.triangles.push_back(base + face.mIndices[k]);
+        mesh.materialOf.push_back(m.mMaterialIndex);
+    }
+}
+
+} // namespace
+
+TriangleMesh readMesh(const std::string& path, const MeshReadOptions& o)
+{
+    if (!fs::is_regular_file(path)) throw InputError(msg(path, ": mesh file not found"));
+    Assimp::Importer importer;
+    importer.SetPropertyInteger(AI_CONFIG_PP_SBP_REMOVE, aiPrimitiveType_POINT | aiPrimitiveType_LINE);
+    const aiScene* scene = importer.ReadFile(path, aiProcess_Triangulate | aiProcess_PreTransformVertices | aiProcess_SortByPType);
+    if (!scene || !scene->mRootNode) throw InputError(msg(path, ": cannot read mesh: ", importer.GetErrorString()));
+    TriangleMesh mesh;
+    mesh.name = path;
+    mesh.materials = readMaterials(*scene, path, o, mesh);
+    bool anyUv = false, anyColour = false;
+    for (unsigned i = 0; i < scene->mNumMeshes; ++i) appendMesh(*scene->mMeshes[i], mesh, anyUv, anyColour);
+    if (!anyUv) {
+        for (const MeshMaterial& m : mesh.materials)
+            if (m.texture >= 0) throw InputError(msg(path, ": a texture but no texture coordinates in the mesh"));
+        mesh.uvs.clear();
+    }
+    if (!anyColour) mesh.colours.clear();
+    if (o.proceduralColour && mesh.vertexCount() > 0) applyProceduralColour(mesh);
+    mesh.checkValid();
+    return mesh;
+}
+
+} // namespace splatwarp

@@ -1,0 +1,146 @@
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <cstdio>
+#include <cstring>
+#include <fstream>
+#include <jpeglib.h>
+
+#include "core/AtomicFile.h"
+#include "core/Error.h"
+#include "image/ImageIO.h"
+#include "image/TextureIO.h"
+#include "mesh/MeshIO.h"
+#include "mesh/MeshRasterizer.h"
+#include "mesh/BadMeshes.h"
+#include "support/TestSupport.h"
+
+namespace splatwarp {
+namespace {
+
+/// A 2x2-texel image with four distinct 8-bit colours.
+Image fourTexels()
+{
+    Image t(2, 2, 3);
+    const float v[12] = {200, 20, 20, 20, 200, 20, 20, 20, 200, 240, 240, 40};
+    for (int i = 0; i < 12; ++i) t.pixels[std::size_t(i)] = v[i] / 255.0f;
+    return t;
+}
+
+/// Write an RGB image as a baseline JPEG at the highest quality.
+void writeJpeg(const std::string& path, const Image& image)
+{
+    jpeg_compress_struct info{};
+    jpeg_error_mgr err{};
+    info.err = jpeg_std_error(&err);
+    jpeg_create_compress(&info);
+    FILE* f = std::fopen(path.c_str(), "wb");
+    ASSERT_NE(f, nullptr);
+    jpeg_stdio_dest(&info, f);
+    info.image_width = JDIMENSION(image.width);
+    info.image_height = JDIMENSION(image.height);
+    info.input_components = 3;
+    info.in_color_space = JCS_RGB;
+    jpeg_set_defaults(&info);
+    jpeg_set_quality(&info, 100, TRUE);
+    info.comp_info[0].h_samp_factor = info.comp_info[0].v_samp_factor = 1; // 4:4:4, no chroma blur
+    jpeg_start_compress(&info, TRUE);
+    std::vector<unsigned char> row(std::size_t(image.width) * 3);
+    for (int y = 0; y < image.height; ++y) {
+        for (int i = 0; i < image.width * 3; ++i) row[std::size_t(i)] = (unsigned char)std::lround(image.pixels[std::size_t(y * image.width * 3 + i)] * 255);
+        JSAMPROW r = row.data();
+        jpeg_write_scanlines(&info, &r, 1);
+    }
+    jpeg_finish_compress(&info);
+    jpeg_destroy_compress(&info);
+    std::fclose(f);
+}
+
+/// A unit quad in the plane z = 0 with UVs, using material `quad` of `mtl` (when given).
+std::string quadObj(const std::string& mtl)
+{
+    std::string s = mtl.empty() ? "" : "mtllib " + mtl + "\nusemtl quad\n";
+    return s + "v -1 -1 0\nv 1 -1 0\nv 1 1 0\nv -1 1 0\nvt 0 0\nvt 1 0\nvt 1 1\nvt 0 1\nf 1/1 2/2 3/3 4/4\n";
+}
+
+void expectErrorNaming(const std::string& path, const std::string& name)
+{
+    try {
+        readMesh(path);
+        FAIL() << "expected an error for " << path;
+    } catch (const InputError& e) {
+        EXPECT_NE(std::string(e.what()).find(name), std::string::npos) << e.what();
+    }
+}
+
+TEST(MeshIOTest, ObjWithMtlAndPngOrJpegTexture)
+{
+    test::TempDir dir;
+    writePng(dir.file("tex.png"), fourTexels());
+    writeJpeg(dir.file("tex.jpg"), fourTexels());
+    for (const char* tex : {"tex.png", "tex.jpg"}) {
+        writeFileAtomic(dir.file("quad.mtl"), std::string("newmtl quad\nKd 1 1 1\nmap_Kd ") + tex + "\n");
+        writeFileAtomic(dir.file("quad.obj"), quadObj("quad.mtl"));
+        const TriangleMesh m = readMesh(dir.file("quad.obj"));
+        ASSERT_EQ(m.triangleCount(), 2u) << tex; // the quad is triangulated
+        ASSERT_EQ(m.textures.size(), 1u);
+        EXPECT_EQ(m.textures[0].width, 2);
+        // The texel at the top left of the picture is at uv (0, 1): the first stored row.
+        for (int c = 0; c < 3; ++c) EXPECT_NEAR(m.textures[0].at(0, 0, c), fourTexels().at(0, 0, c), 4.0 / 255) << tex;
+        // Seen from z = -4 looking at +z, up = +y: the top-left quadrant shows texel (0, 0).
+        const Camera cam = Camera::lookAt(Vec3d(0, 0, -4), Vec3d(0, 0, 0), Vec3d(0, 1, 0), 40.0, 64, 64);
+        const Image img = renderMesh(m, cam);
+        EXPECT_FLOAT_EQ(img.at(32, 32, 3), 1.0f);
+        EXPECT_FLOAT_EQ(img.at(0, 0, 3), 0.0f);
+    }
+}
+
+TEST(MeshIOTest, PlyVertexColoursAndTextureOption)
+{
+    test::TempDir dir;
+    writeFileAtomic(dir.file("tri.ply"), "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\n"
+                                         "property float z\nproperty uchar red\nproperty uchar green\nproperty uchar blue\n"
+                                         "element face 1\nproperty list uchar int vertex_indices\nend_header\n"
+                                         "0 0 0 255 0 0\n1 0 0 255 0 0\n0 1 0 255 0 0\n3 0 1 2\n");
+    const TriangleMesh m = readMesh(dir.file("tri.ply"));
+    ASSERT_EQ(m.colours.size(), 9u);
+    EXPECT_FLOAT_EQ(m.colours[0], 1.0f);
+    EXPECT_FLOAT_EQ(m.colours[1], 0.0f);
+    // An OBJ without .mtl takes --texture (as the Spot cow).
+    writePng(dir.file("t.png"), fourTexels());
+    writeFileAtomic(dir.file("bare.obj"), quadObj(""));
+    MeshReadOptions o;
+    o.texture = dir.file("t.png");
+    EXPECT_EQ(readMesh(dir.file("bare.obj"), o).textures.size(), 1u);
+    o.texture.clear();
+    o.proceduralColour = true;
+    const TriangleMesh p = readMesh(dir.file("bare.obj"), o);
+    EXPECT_EQ(p.colours.size(), 12u);
+    EXPECT_TRUE(p.textures.empty());
+}
+
+TEST(MeshIOTest, BadMeshesNameTheFile)
+{
+    test::TempDir dir;
+    for (const auto& [name, named] : test::writeBadMeshes(dir)) expectErrorNaming(dir.file(name), named);
+    expectErrorNaming(dir.file("nothere.obj"), "nothere.obj");
+    writeFileAtomic(dir.file("junk.png"), "not an image");
+    EXPECT_THROW(readTexture(dir.file("junk.png")), InputError);
+}
+
+TEST(MeshIOTest, SpotAndBunnyLoad)
+{
+    SPLATWARP_REQUIRE_DATA(spot, "meshes/spot/spot_triangulated.obj");
+    SPLATWARP_REQUIRE_DATA(bunny, "meshes/bunny/bun_zipper.ply");
+    MeshReadOptions o;
+    o.texture = test::dataPath("meshes/spot/spot_texture.png");
+    const TriangleMesh s = readMesh(spot, o);
+    EXPECT_EQ(s.triangleCount(), 5856u);
+    EXPECT_EQ(s.textures.at(0).width, 1024);
+    const TriangleMesh b = readMesh(bunny);
+    EXPECT_EQ(b.triangleCount(), 69451u);
+    EXPECT_TRUE(b.colours.empty());
+}
+
+} // namespace
+} // namespace splatwarp
