@@ -41,8 +41,9 @@ public:
 
     /// @brief Write what `deform -o dir` writes for the last pose (and refine): baseline.ply,
     ///        deformed.ply, report.json and the extras the options ask for, all together or none;
-    ///        a stale deformed.ply of an earlier refine is removed. Returns the report.
-    nlohmann::json write(const std::string& dir);
+    ///        a stale deformed.ply of an earlier refine is removed. Returns the report
+    ///        (report.json is its toJson()).
+    FrameReport write(const std::string& dir);
 
     bool refined() const { return mFrame && mFrame->fitted.has_value(); }
 
