@@ -110,6 +110,21 @@ class Model:
         self.path = path
 
 
+# Sign of each SH coefficient j = 1..15 (m = -l..l a band) under (x, y, z) -> (x, -y, -z): the parity
+# in y and z of the basis monomials: y z x | xy yz 3z2-1 xz x2-y2 | y(3x2-y2) xyz y(5z2-1) z(5z2-3)
+# x(5z2-1) z(x2-y2) x(x2-3y2).
+FLIP_YZ_SH = [-1, -1, 1, -1, 1, 1, -1, 1, -1, 1, -1, -1, 1, -1, 1]
+
+
+def flip_yz(m):
+    """The model turned 180 degrees about x (y and z negated: RDF <-> RUB), exactly (signs only)."""
+    neg = lambda col: tuple(-v for v in col)
+    m.pos = [m.pos[0], neg(m.pos[1]), neg(m.pos[2])]
+    m.rot = [m.rot[0], m.rot[1], neg(m.rot[2]), neg(m.rot[3])]
+    m.rest = [neg(col) if FLIP_YZ_SH[k % m.k] < 0 else col for k, col in enumerate(m.rest)]
+    return m
+
+
 def sigmoid(x):
     if x != x:
         return x
@@ -203,8 +218,9 @@ class Spz(Tolerance):
     def __init__(self, path):
         self.version, bits = spz_fractional_bits(path)
         self.pos_tol = 2.0 ** -(bits + 1)
-        self.name = '.spz v%d (centre 2^-%d, log scale 1/32, f_dc 0.0131, alpha 0.5/255, rot %.2f deg, SH 4.5/128 8.5/128)' % (
-            self.version, bits + 1, math.degrees(smallest_three_angle(math.sqrt(0.5) / 1022)))
+        self.name = ('.spz v%d (centre 2^-%d, log scale 1/32, f_dc 0.0131, alpha 0.5/255, rot %.2f deg, '
+                     'SH 4.5/128 8.5/128)' % (self.version, bits + 1,
+                                              math.degrees(smallest_three_angle(math.sqrt(0.5) / 1022))))
 
     def pos(self, src, j, i, a): return self.pos_tol + slack(src.pos[a][i])
     def logscale(self, src, j, i, a): return 1 / 32 + slack(src.logscale[a][i])
@@ -300,8 +316,9 @@ class Sog(Tolerance):
         self.scales = sorted(m['scales']['codebook'])
         self.colours = sorted(m['sh0']['codebook'])
         self.rot_e = math.sqrt(2) / 255
-        self.name = 'SOG v%s, count %d (centre D (|x|+1) e^D, codebook distance, alpha 1/255, rot %.2f deg, SH palette: reported)' % (
-            m.get('version'), m.get('count', -1), math.degrees(smallest_three_angle(self.rot_e)))
+        self.name = ('SOG v%s, count %d (centre D (|x|+1) e^D, codebook distance, alpha 1/255, rot %.2f deg, '
+                     'SH palette: reported)' % (m.get('version'), m.get('count', -1),
+                                                math.degrees(smallest_three_angle(self.rot_e))))
 
     @staticmethod
     def _nearest(book, v):
@@ -445,16 +462,32 @@ def compare(src, dec, tol, reorder=None):
     return stats, problems
 
 
-def print_table(title, stats, problems):
-    print('  %s: %s' % (title, 'ok' if not problems else 'FAIL'))
-    if stats:
-        print('    %-9s %11s %11s %9s' % ('attribute', 'max |err|', 'mean |err|', 'max/tol'))
-        for attr in ATTRS:
-            mx, total, cnt, ratio = stats[attr]
-            if cnt:
-                print('    %-9s %11.4g %11.4g %9s' % (attr, mx, total / cnt, '%.3f' % ratio if ratio else '-'))
+ROWS = []  # (model, comparison, stats, passed) for the table printed at the end
+
+
+def report(model, title, tol_name, stats, problems):
+    print('  %s, %s: %s' % (title, tol_name, 'ok' if not problems else 'FAIL'))
     for p in problems:
         print('    problem: ' + p)
+    sys.stdout.flush()
+    ROWS.append((model, title, stats, not problems))
+
+
+def print_rows(heading):
+    """The measured errors as a Markdown table: max / mean |error| an attribute, and the largest
+    error / tolerance ratio over all bounded attributes."""
+    print('\n%s\n' % heading)
+    names = {'pos': 'centre', 'logscale': 'log scale', 'fdc': 'f_dc', 'alpha': 'alpha', 'rot_deg': 'rotation (deg)',
+             'sh': 'higher SH'}
+    print('| model | comparison | ' + ' | '.join(names[a] + ' max / mean' for a in ATTRS) + ' | max err/tol | |')
+    print('|' + '---|' * (len(ATTRS) + 4))
+    for model, title, stats, passed in ROWS:
+        cells = []
+        for a in ATTRS:
+            mx, total, cnt, _ = stats[a] if stats else (0, 0, 0, 0)
+            cells.append('%.3g / %.3g' % (mx, total / cnt) if cnt else '-')
+        ratio = max(stats[a][3] for a in ATTRS) if stats else math.inf
+        print('| %s | %s | %s | %.4f | %s |' % (model, title, ' | '.join(cells), ratio, 'ok' if passed else 'FAIL'))
     sys.stdout.flush()
 
 
@@ -505,16 +538,27 @@ def spz_version_problems(fmt, path):
     return [] if got == want else ['%s is .spz version %d, %d asked for' % (os.path.basename(path), got, want)]
 
 
-def check(title, ref, dec_path, tol, problems=(), reorder=None):
-    """Compares the PLY at dec_path with ref, prints the table; True when within tolerance."""
-    stats, p = compare(ref, Model(dec_path), tol, reorder)
+def check(model, title, ref, dec, tol, problems=(), reorder=None):
+    """Compares the decoded model dec (a Model or a PLY path) with ref and reports it; True when
+    within tolerance."""
+    stats, p = compare(ref, dec if isinstance(dec, Model) else Model(dec), tol, reorder)
     p = list(problems) + p
-    print_table('%s, %s' % (title, tol.name), stats, p)
+    report(model, title, tol.name, stats, p)
     return not p
 
 
-def run_format(fmt, run, models):
+def run_format(fmt, run, models, peer_version):
     ext, our_flags, their_flags, tolerance, ours_to_theirs = FORMATS[fmt]
+    # .spz axes: splatwarp stores a PLY's coordinates as they are (spz UNSPECIFIED, docs/formats.md), as
+    # splat-transform 3.x does ("Decode is RAW (CoordinateSystem UNSPECIFIED)", its readSpz). 2.x
+    # instead treats the file as RUB and PLY as RDF ("splat-transform treats SPZ as RDF on both sides
+    # ... wasm flips RDF->RUB", its makeSpzPackOptions): its side of a .spz is ours turned 180 degrees
+    # about x, an exact sign change, undone here on every decode of a file the other program wrote.
+    flip = fmt.startswith('Spz') and int(peer_version.split('.')[0]) < 3
+    conv = flip_yz if flip else (lambda m: m)
+    if flip:
+        print('%s: splat-transform %s stores .spz as RUB, splatwarp as the PLY (RDF): decodes across the two are '
+              'compared turned back 180 degrees about x' % (fmt, peer_version))
     ok = True
     for label, model in models:
         src = Model(model)
@@ -526,13 +570,15 @@ def run_format(fmt, run, models):
             try:
                 run.ours('convert', model, x, *our_flags)
                 run.theirs(x, y)
-                ok &= check('ours -> theirs', src, y, tolerance(x), spz_version_problems(fmt, x))
+                ok &= check(label, 'ours -> theirs', src, conv(Model(y)), tolerance(x),
+                            spz_version_problems(fmt, x))
                 # the same file read by us: the two decoders must agree (file order, by index)
                 run.ours('convert', x, yo)
-                ok &= check('ours -> theirs, their decode vs ours of the same file', Model(y), yo, Agree(),
-                            reorder=False)
+                ok &= check(label, 'ours -> theirs, their decode vs ours of the same file', conv(Model(y)), yo,
+                            Agree(), reorder=False)
             except RuntimeError as e:
                 print('  ours -> theirs: FAIL: %s' % e)
+                ROWS.append((label, 'ours -> theirs (did not run through)', None, False))
                 ok = False
         z, w, zt = (run.path(label + s) for s in ('.theirs' + ext, '.theirs.ours.ply', '.theirs.theirs.ply'))
         try:
@@ -541,28 +587,32 @@ def run_format(fmt, run, models):
             if fmt == 'Sog':
                 # their own decode first: it documents their SOG (count, errors) before ours reads it
                 run.theirs(z, zt)
-                check('theirs -> theirs (splat-transform decodes its own file)', src, zt, tol)
+                check(label, 'theirs -> theirs (splat-transform decodes its own file)', src, zt, tol)
             run.ours('convert', z, w)
-            ok &= check('theirs -> ours', src, w, tol, spz_version_problems(fmt, z))
+            ok &= check(label, 'theirs -> ours', src, conv(Model(w)), tol, spz_version_problems(fmt, z))
             if fmt == 'Sog':
-                ok &= check('theirs -> ours, their decode vs ours of the same file', Model(zt), w, Agree(),
+                ok &= check(label, 'theirs -> ours, their decode vs ours of the same file', Model(zt), w, Agree(),
                             reorder=False)
         except RuntimeError as e:
             print('  theirs -> ours: FAIL: %s' % e)
+            ROWS.append((label, 'theirs -> ours (did not run through)', None, False))
             ok = False
     return ok
 
 
-def run_biker(path, run):
-    """The engine's .spz decoded by both: same count, decodes agree (file order)."""
+def run_biker(path, run, peer_version):
+    """The engine's .spz decoded by both: same count, decodes agree (file order; turned back about x
+    for splat-transform 2.x, see run_format)."""
     a, b = run.path('biker.theirs.ply'), run.path('biker.ours.ply')
     try:
         run.theirs(path, a)
         run.ours('convert', path, b)
         ta, tb = Model(a), Model(b)
+        if int(peer_version.split('.')[0]) < 3:
+            flip_yz(ta)
         print('%s: splat-transform decodes %d Gaussians (SH degree %d), splatwarp %d (SH degree %d)' % (
             os.path.basename(path), ta.n, ta.degree, tb.n, tb.degree))
-        return check('their decode vs ours', ta, b, Agree(), reorder=False)
+        return check(os.path.basename(path), 'their decode vs ours', ta, b, Agree(), reorder=False)
     except RuntimeError as e:
         print('FAIL: %s' % e)
         return False
@@ -596,14 +646,16 @@ def main():
     try:
         run = Runner(os.path.abspath(a.cli), tmp)
         if a.biker:
-            ok = run_biker(a.biker, run)
+            ok = run_biker(a.biker, run, version)
         else:
             stripes, sh3 = run.path('stripes.ply'), run.path('random-sh3.ply')
             run.ours('sample', 'stripes', '--count', '3000', '-o', stripes)
             subprocess.run([sys.executable, os.path.join(HERE, 'make-sh3-model.py'), sh3, '--count', '1000',
                             '--seed', '30'], check=True)
-            ok = run_format(a.format, run, [('stripes', stripes), ('random-sh3', sh3)])
-        print('time: splatwarp %.1f s, splat-transform %.1f s' % (run.seconds['splatwarp'], run.seconds['splat-transform']))
+            ok = run_format(a.format, run, [('stripes', stripes), ('random-sh3', sh3)], version)
+        print_rows('%s through splat-transform %s (node %s)' % (a.format or 'biker', version, node_version))
+        print('time: splatwarp %.1f s, splat-transform %.1f s' % (run.seconds['splatwarp'],
+                                                                 run.seconds['splat-transform']))
         print('PASS' if ok else 'FAIL')
         return 0 if ok else 1
     finally:
