@@ -415,9 +415,11 @@ def match_by_position(src, dec, tol, problems):
                                 'tolerance: matching abandoned')
                 return None
             cands = [min(range(src.n), key=lambda i: sum((p[a] - src.pos[a][i]) ** 2 for a in range(3)))]
-        # within tolerance first, then not yet taken, then the smallest worst ratio
-        ratio = {i: worst_ratio(pair_errors(src, dec, i, j, tol)) for i in cands}
-        best = min(cands, key=lambda i: (ratio[i] > 1, i in used, ratio[i]))
+        if len(cands) == 1:
+            best = cands[0]
+        else:  # within tolerance first, then not yet taken, then the smallest worst ratio
+            ratio = {i: worst_ratio(pair_errors(src, dec, i, j, tol)) for i in cands}
+            best = min(cands, key=lambda i: (ratio[i] > 1, i in used, ratio[i]))
         order.append(best)
         used.add(best)
     if misses:
@@ -451,7 +453,7 @@ def compare(src, dec, tol, reorder=None):
             s[1] += e
             s[2] += 1
             if t is not None:
-                r = worst_ratio([(attr, e, t)])
+                r = (math.inf if e > t else 0.0) if t <= 0 else e / t
                 if r > s[3]:
                     s[3] = r
                     worst[attr] = (order[j], j, e, t)
