@@ -15,13 +15,10 @@ missing=()
 for p in "${PACKAGES[@]}"; do
   dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
 done
-# node and npm for the interop tests (tests/interop): by command, not by package, since a NodeSource
-# nodejs bundles npm and conflicts with Debian's npm package. Debian 12 gives node 18 and npm 9.
-command -v node >/dev/null && command -v npm >/dev/null || missing+=(nodejs npm)
-SUDO=""
 if [ ${#missing[@]} -eq 0 ]; then
   echo "setup: all ${#PACKAGES[@]} packages present"
 else
+  SUDO=""
   if [ "$(id -u)" -ne 0 ]; then
     command -v sudo >/dev/null || { echo "setup: need root or sudo to install: ${missing[*]}" >&2; exit 1; }
     SUDO="sudo"
@@ -29,6 +26,16 @@ else
   echo "setup: installing ${missing[*]}"
   $SUDO apt-get update -qq
   DEBIAN_FRONTEND=noninteractive $SUDO apt-get install -y -qq --no-install-recommends "${missing[@]}"
+fi
+
+# node and npm for the interop tests (tests/interop): by command, not by package, since a NodeSource
+# nodejs bundles npm and conflicts with Debian's npm package. Debian 12 gives node 18 and npm 9.
+if ! command -v node >/dev/null || ! command -v npm >/dev/null; then
+  SUDO=""
+  [ "$(id -u)" -eq 0 ] || SUDO="sudo"
+  echo "setup: installing nodejs npm"
+  $SUDO apt-get update -qq
+  DEBIAN_FRONTEND=noninteractive $SUDO apt-get install -y -qq --no-install-recommends nodejs npm
 fi
 # The interop tests' peer, PlayCanvas splat-transform, at the version tests/interop/package-lock.json
 # pins (no install scripts: the only one, webgpu's, is for macOS). Skipped when that lock file is
