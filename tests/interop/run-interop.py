@@ -14,7 +14,7 @@ position tolerance box, the one whose worst error/tolerance ratio over all attri
 matching must be one to one. The other formats keep the order and are matched by index.
 Where both decoders read the same file (ours -> theirs always; theirs -> ours for SOG, whose SH
 palette error is the encoder's choice, not a bound of the format) the two decodes must also agree to
-float32 arithmetic (AGREE below).
+float32 arithmetic (REL and ANGLE_SLACK below).
 --biker FILE instead decodes that .spz with both and requires the decodes to agree.
 Exit 0 all within tolerance, 1 any failure, 77 skipped (no node, npm or installed splat-transform)."""
 import argparse
