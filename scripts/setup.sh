@@ -10,6 +10,9 @@ PACKAGES=(
   libzstd-dev  # .spz version 4
   libassimp-dev libjpeg-dev  # meshes (OBJ/PLY/glTF/OFF) and their JPEG textures: image ground truth
   clang libclang-rt-14-dev  # scripts/fuzz.sh: libFuzzer targets (clang 14 on Debian 12)
+  # `splatwarp edit`'s server: small, a thread pool, enough for loopback JSON + binary (progress is
+  # polled: no WebSocket library needed); Debian's build is a header plus a shared library.
+  libcpp-httplib-dev
 )
 missing=()
 for p in "${PACKAGES[@]}"; do
@@ -17,13 +20,23 @@ for p in "${PACKAGES[@]}"; do
 done
 if [ ${#missing[@]} -eq 0 ]; then
   echo "setup: all ${#PACKAGES[@]} packages present"
-  exit 0
+else
+  SUDO=""
+  if [ "$(id -u)" -ne 0 ]; then
+    command -v sudo >/dev/null || { echo "setup: need root or sudo to install: ${missing[*]}" >&2; exit 1; }
+    SUDO="sudo"
+  fi
+  echo "setup: installing ${missing[*]}"
+  $SUDO apt-get update -qq
+  DEBIAN_FRONTEND=noninteractive $SUDO apt-get install -y -qq --no-install-recommends "${missing[@]}"
 fi
-SUDO=""
-if [ "$(id -u)" -ne 0 ]; then
-  command -v sudo >/dev/null || { echo "setup: need root or sudo to install: ${missing[*]}" >&2; exit 1; }
-  SUDO="sudo"
+
+# The editor's page renderer (playcanvas) and its browser test's driver (puppeteer-core), pinned by
+# package-lock.json; node_modules/ is git-ignored. Re-run when the lock file changed.
+ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
+if ! command -v npm >/dev/null; then
+  echo "setup: npm not found: the editor page (splatwarp edit) will not load and its browser test skips" >&2
+elif [ ! -f "$ROOT/node_modules/.package-lock.json" ] || ! cmp -s "$ROOT/package-lock.json" "$ROOT/node_modules/.splatwarp-lock"; then
+  echo "setup: npm ci (playcanvas, puppeteer-core)"
+  (cd "$ROOT" && npm ci --no-audit --no-fund --loglevel=error && cp package-lock.json node_modules/.splatwarp-lock)
 fi
-echo "setup: installing ${missing[*]}"
-$SUDO apt-get update -qq
-DEBIAN_FRONTEND=noninteractive $SUDO apt-get install -y -qq --no-install-recommends "${missing[@]}"
