@@ -3,6 +3,7 @@
 #include <httplib.h>
 
 #include <atomic>
+#include <cstdlib>
 #include <filesystem>
 #include <fstream>
 #include <map>
@@ -10,11 +11,13 @@
 #include <sstream>
 #include <thread>
 
+#include "core/AtomicFile.h"
 #include "core/Error.h"
 #include "core/Progress.h"
 #include "core/RunControl.h"
 #include "edit/EditRequest.h"
 #include "edit/GaussianLayout.h"
+#include "deform/AnimSpec.h"
 #include "job/DeformSession.h"
 
 namespace splatwarp::edit {
@@ -63,6 +66,17 @@ std::string readWhole(const fs::path& path)
     return out.str();
 }
 
+nlohmann::json graphBlock(const GraphOptions& graph) { return {{"nodes", graph.nodes}, {"k", graph.k}, {"seed", graph.seed}}; }
+
+/// ?frame=F: a whole number, else 400.
+int frameParam(const std::string& text)
+{
+    char* end = nullptr;
+    const long f = std::strtol(text.c_str(), &end, 10);
+    if (text.empty() || *end != '\0' || f < 0 || f > 1000000) throw HttpError{400, msg("frame: not a frame number: '", printable(text, 40), "'")};
+    return int(f);
+}
+
 /// A web file served at a fixed URL: the server never opens a path a client names.
 struct WebFile {
     std::string body;
@@ -107,6 +121,8 @@ struct EditServer::Impl {
     nlohmann::json progressJson();
     void save(const httplib::Request& req, httplib::Response& res);
     void refuseWhileRefining();
+    fs::path saveDir(const std::string& name) const;
+    void saveAnimation(const httplib::Request& req, httplib::Response& res);
 };
 
 void EditServer::Impl::loadWeb()
@@ -166,9 +182,12 @@ void EditServer::Impl::refuseWhileRefining()
 
 void EditServer::Impl::pose(const httplib::Request& req, httplib::Response& res)
 {
-    nlohmann::json specJson;
-    DeformSpec spec = parseDeformSpec(req.body, "pose"); // InputError: 400 with the parser's message
-    specJson = nlohmann::json::parse(req.body);
+    // ?frame=F: the body is an animation spec (`animate --spec`); its frame F is posed, as animate would.
+    const std::string text = req.has_param("frame")
+                                 ? frameSpecJson(parseAnimSpec(req.body, "pose"), frameParam(req.get_param_value("frame"))).dump()
+                                 : req.body;
+    DeformSpec spec = parseDeformSpec(text, "pose"); // InputError: 400 with the parser's message
+    nlohmann::json specJson = nlohmann::json::parse(text);
     refuseWhileRefining();
     const std::lock_guard<std::mutex> lock(sessionMutex);
     refuseWhileRefining(); // a refine may have started while this request waited
@@ -178,8 +197,7 @@ void EditServer::Impl::pose(const httplib::Request& req, httplib::Response& res)
     const Stopwatch clock;
     const StageOneResult& stage1 = session->pose(spec);
     const double poseMs = clock.ms();
-    const GraphOptions graph = graphOptionsOf(spec, options.job);
-    specJson["graph"] = {{"nodes", graph.nodes}, {"k", graph.k}, {"seed", graph.seed}};
+    specJson["graph"] = graphBlock(graphOptionsOf(spec, options.job));
     posedSpec = specJson.dump(2) + "\n";
     posed = true;
     res.set_content(encodeGaussians(stage1.deformed), kBinary);
@@ -255,22 +273,44 @@ void EditServer::Impl::save(const httplib::Request& req, httplib::Response& res)
     if (!body.is_object() || !body.contains("name") || !body["name"].is_string() || body.size() != 1)
         throw HttpError{400, "the body must be {\"name\": \"...\"}"};
     const std::string name = body["name"].get<std::string>();
-    if (const std::string problem = saveNameProblem(name); !problem.empty()) throw HttpError{400, problem};
+    const fs::path dir = saveDir(name);
     refuseWhileRefining();
     const std::lock_guard<std::mutex> lock(sessionMutex);
     refuseWhileRefining();
     if (!posed) throw HttpError{400, "save needs a pose first (POST /api/pose)"};
+    const nlohmann::json report = session->write(dir.string(), {{"spec.json", posedSpec}});
+    nlohmann::json reply = {{"dir", dir.string()}, {"outputs", report.value("outputs", nlohmann::json::object())}};
+    reply["replay"] = msg("splatwarp deform ", options.job.input, " --spec ", (dir / "spec.json").string(), " -o OUT",
+                          options.replayFlags.empty() ? "" : " ", options.replayFlags);
+    sendJson(res, reply);
+}
+
+fs::path EditServer::Impl::saveDir(const std::string& name) const
+{
+    if (const std::string problem = saveNameProblem(name); !problem.empty()) throw HttpError{400, problem};
     if (options.job.outDir.empty()) throw HttpError{400, "this server has no output folder"};
     const fs::path dir = fs::path(options.job.outDir) / name;
     std::error_code ec;
     const fs::file_status status = fs::symlink_status(dir, ec);
     if (fs::exists(status) && !fs::is_directory(status)) // a symlink is never followed
         throw HttpError{400, msg(name, ": exists in the output folder and is not a plain folder")};
-    const nlohmann::json report = session->write(dir.string(), {{"spec.json", posedSpec}});
-    nlohmann::json reply = {{"dir", dir.string()}, {"outputs", report.value("outputs", nlohmann::json::object())}};
-    reply["replay"] = msg("splatwarp deform ", options.job.input, " --spec ", (dir / "spec.json").string(), " -o OUT",
-                          options.replayFlags.empty() ? "" : " ", options.replayFlags);
-    sendJson(res, reply);
+    return dir;
+}
+
+void EditServer::Impl::saveAnimation(const httplib::Request& req, httplib::Response& res)
+{
+    const fs::path dir = saveDir(req.get_param_value("name"));
+    const AnimSpec anim = parseAnimSpec(req.body, "animation"); // 400 with the parser's message
+    nlohmann::json spec = nlohmann::json::parse(req.body);
+    spec["graph"] = graphBlock(graphOptionsOf(parseDeformSpec(frameSpecJson(anim, 0).dump(), "animation"), options.job));
+    const std::lock_guard<std::mutex> lock(sessionMutex); // one OutputSet at a time
+    OutputSet outputs({options.job.input});
+    outputs.createDirectory(dir.string());
+    writeFileAtomic((dir / "animation.json").string(), spec.dump(2) + "\n");
+    outputs.commit();
+    sendJson(res, {{"file", (dir / "animation.json").string()},
+                   {"replay", msg("splatwarp animate ", options.job.input, " --spec ", (dir / "animation.json").string(),
+                                  " -o OUT", options.replayFlags.empty() ? "" : " ", options.replayFlags)}});
 }
 
 void EditServer::Impl::routes()
@@ -280,7 +320,9 @@ void EditServer::Impl::routes()
     });
     for (const auto& [path, file] : web) {
         const WebFile* f = &file;
-        server.Get(path, [f](const httplib::Request&, httplib::Response& res) { res.set_content(f->body, f->type.c_str()); });
+        server.Get(path, [f](const httplib::Request&, httplib::Response& res) {
+            res.set_content(f->body, f->type.c_str());
+        });
     }
     server.Get("/api/model", [this](const httplib::Request&, httplib::Response& res) { res.set_content(modelBytes, kBinary); });
     server.Get("/api/graph", [this](const httplib::Request&, httplib::Response& res) { sendJson(res, graphJson); });
@@ -298,6 +340,9 @@ void EditServer::Impl::routes()
             if (refinedBytes.empty()) throw HttpError{404, "no refined model for the current pose (POST /api/refine)"};
             res.set_content(refinedBytes, kBinary);
         });
+    });
+    server.Post("/api/save-animation", [this](const httplib::Request& req, httplib::Response& res) {
+        guarded(res, [&] { saveAnimation(req, res); });
     });
     server.Post("/api/save", [this](const httplib::Request& req, httplib::Response& res) { guarded(res, [&] { save(req, res); }); });
     server.set_exception_handler([](const httplib::Request&, httplib::Response& res, std::exception_ptr) {
@@ -320,7 +365,7 @@ nlohmann::json makeGraphJson(const DeformRest& rest, const GraphOptions& graph)
     Vec3f lo, hi;
     centreBounds(rest.model, lo, hi);
     return {{"nodes", nodes},
-            {"graph", {{"nodes", graph.nodes}, {"k", graph.k}, {"seed", graph.seed}}},
+            {"graph", graphBlock(graph)},
             {"gaussians", rest.model.size()},
             {"shDegree", rest.model.shDegree},
             {"bboxMin", {lo.x, lo.y, lo.z}},

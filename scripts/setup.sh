@@ -13,6 +13,7 @@ PACKAGES=(
   # `splatwarp edit`'s server: small, a thread pool, enough for loopback JSON + binary (progress is
   # polled: no WebSocket library needed); Debian's build is a header plus a shared library.
   libcpp-httplib-dev
+  chromium  # Edit.BrowserEndToEnd: the editor page in headless Chromium (software GL), about a minute
 )
 missing=()
 for p in "${PACKAGES[@]}"; do

@@ -6,6 +6,7 @@
 #include <nlohmann/json.hpp>
 
 #include "Command.h"
+#include "ReadArgs.h"
 #include "SharedArgs.h"
 #include "core/Error.h"
 #include "core/Progress.h"
@@ -17,6 +18,7 @@ namespace {
 
 struct BenchEditArgs {
     std::string input;
+    bool dropInvalid = false;
     int poses = 100;
     int nodes = 0;
     bool json = false;
@@ -37,6 +39,7 @@ void runBench(const BenchEditArgs& a)
 {
     edit::EditServerOptions options;
     options.job.input = a.input;
+    options.job.dropInvalid = a.dropInvalid;
     options.job.stage1Only = true; // the pose round trip needs no sample grid
     options.job.evaluate = false;
     options.job.device = a.device;
@@ -85,6 +88,7 @@ const CommandRegistrar reg(1060, [](CLI::App& app) {
     CLI::App* sub = benchCommand(app)->add_subcommand(
         "edit", "Time the editor's POST /api/pose round trip over loopback (a gizmo drag of poses): p50, p95");
     sub->add_option("input", args->input, "Model to edit")->required()->check(CLI::ExistingFile);
+    addDropInvalidFlag(sub, args->dropInvalid);
     sub->add_option("--poses", args->poses, "Poses in the drag")->check(inRange(1, 100000))->capture_default_str();
     sub->add_option("--nodes", args->nodes, "Graph node count (default: the spec default, 256)")->check(positive());
     sub->add_flag("--json", args->json, "Print JSON instead of a line");

@@ -149,6 +149,8 @@ class Editor {
         this.posePending = false;
         this.progress = { state: 'idle' };
         this.lastSave = null;
+        this.lastAnimation = null;
+        this.keys = new Map();     // frame -> [per handle: {translate, quat} or null (fixed)]
         this.ready = false;
     }
 
@@ -317,22 +319,21 @@ class Editor {
             version: 1, units: 'world',
             handles: this.handles.map((h) => {
                 if (h.fixed) return { nodes: h.nodes, fixed: true };
-                const out = { nodes: h.nodes, pivot: h.pivot, translate: h.translate };
-                const [x, y, z, w] = h.quat, s = Math.hypot(x, y, z);
-                if (s > 1e-9) out.rotate = { axis: [x / s, y / s, z / s], degrees: (2 * Math.atan2(s, w) * 180) / Math.PI };
-                return out;
+                return { nodes: h.nodes, pivot: h.pivot, ...motionJson(h.translate, h.quat) };
             })
         };
     }
 
     /** POST the spec; while one is in flight only the newest change waits (a drag sends what it can). */
-    async requestPose() {
+    async requestPose(request = { path: '/api/pose', spec: () => this.spec() }) {
         if (!this.handles.length) { this.stage1 = null; this.render(); return; }
+        this.nextPose = request;
         if (this.posing) { this.posePending = true; return; }
         this.posing = true;
         try {
             const t0 = performance.now();
-            const res = await api('/api/pose', { method: 'POST', headers: { 'Content-Type': 'application/json' }, body: JSON.stringify(this.spec()) });
+            const body = JSON.stringify(this.nextPose.spec());
+            const res = await api(this.nextPose.path, { method: 'POST', headers: { 'Content-Type': 'application/json' }, body });
             this.stage1 = decodeModel(await res.arrayBuffer());
             this.refined = null;
             $('viewRefined').disabled = true;
@@ -347,7 +348,7 @@ class Editor {
             this.setStatus(String(e.message || e));
         } finally {
             this.posing = false;
-            if (this.posePending) { this.posePending = false; this.requestPose(); }
+            if (this.posePending) { this.posePending = false; this.requestPose(this.nextPose); }
         }
         this.updateButtons();
     }
@@ -467,6 +468,11 @@ class Editor {
         $('refine').onclick = () => this.refine();
         $('cancel').onclick = () => api('/api/cancel', { method: 'POST' }).catch((e) => this.setStatus(e.message));
         $('save').onclick = () => this.save($('saveName').value);
+        $('addKey').onclick = () => this.addKey();
+        $('play').onclick = () => this.play();
+        $('saveAnim').onclick = () => this.saveAnimation($('saveName').value);
+        $('frames').onchange = () => { $('scrub').max = this.frameCount() - 1; };
+        $('scrub').oninput = () => this.scrub(+$('scrub').value);
     }
 
     updateButtons() {
@@ -476,6 +482,60 @@ class Editor {
         $('refine').disabled = running || !this.stage1;
         $('cancel').disabled = !running;
         $('save').disabled = running || !this.stage1;
+        $('addKey').disabled = running || !this.handles.some((h) => !h.fixed);
+        $('play').disabled = $('scrub').disabled = $('saveAnim').disabled = running || !this.keys.size;
+    }
+
+    // ---- keyframes: keys hold every moving handle's motion at a frame; animate runs the saved spec ----
+
+    addKey() {
+        const frame = Math.max(0, Math.min(+$('keyFrame').value | 0, this.frameCount() - 1));
+        this.keys.set(frame, this.handles.map((h) => (h.fixed ? null : { translate: [...h.translate], quat: [...h.quat] })));
+        $('keys').textContent = `keys at ${[...this.keys.keys()].sort((a, b) => a - b).join(', ')}`;
+        this.updateButtons();
+    }
+
+    frameCount() { return Math.max(1, +$('frames').value | 0); }
+
+    /** The keyed spec `splatwarp animate` reads (samples/specs/README.md): each moving handle's keys. */
+    animationSpec() {
+        const frames = [...this.keys.keys()].sort((a, b) => a - b);
+        const plain = this.spec();
+        plain.handles = this.handles.map((h, i) => {
+            if (h.fixed) return { nodes: h.nodes, fixed: true };
+            const keys = frames.map((f) => {
+                const m = this.keys.get(f)[i];
+                return { frame: f, ...motionJson(m ? m.translate : [0, 0, 0], m ? m.quat : [0, 0, 0, 1]) };
+            });
+            return { nodes: h.nodes, pivot: h.pivot, keys };
+        });
+        return { ...plain, frames: this.frameCount() };
+    }
+
+    /** Pose frame f of the keyed spec (the server interpolates as animate does). */
+    scrub(f) {
+        $('scrub').value = f;
+        this.requestPose({ path: `/api/pose?frame=${f}`, spec: () => this.animationSpec() });
+    }
+
+    async play() {
+        for (let f = 0; f < this.frameCount(); ++f) {
+            const poses = this.poses;
+            this.scrub(f);
+            while (this.poses === poses && (this.posing || this.posePending)) await new Promise((r) => setTimeout(r, 15));
+        }
+    }
+
+    async saveAnimation(name) {
+        try {
+            const res = await api(`/api/save-animation?name=${encodeURIComponent(name)}`, {
+                method: 'POST', headers: { 'Content-Type': 'application/json' }, body: JSON.stringify(this.animationSpec()) });
+            this.lastAnimation = await res.json();
+            this.setStatus(`saved ${this.lastAnimation.file}\nreplay: ${this.lastAnimation.replay}`);
+        } catch (e) {
+            this.lastAnimation = { error: e.message };
+            this.setStatus(e.message);
+        }
     }
 
     // ---- refine, save ----
@@ -530,6 +590,14 @@ class Editor {
     setStatus(text) { $('status').textContent = text; }
 }
 
+/** A handle's motion as spec keys: translate, and rotate (axis, degrees) unless the identity. */
+function motionJson(translate, quat) {
+    const out = { translate };
+    const [x, y, z, w] = quat, s = Math.hypot(x, y, z);
+    if (s > 1e-9) out.rotate = { axis: [x / s, y / s, z / s], degrees: (2 * Math.atan2(s, w) * 180) / Math.PI };
+    return out;
+}
+
 /** p moved by a handle's motion: pivot + R (p - pivot) + translate. */
 function applyMotion(h, p) {
     const q = new pc.Quat(h.quat[0], h.quat[1], h.quat[2], h.quat[3]);
@@ -544,6 +612,7 @@ window.splatwarpEditor = {
     get poses() { return editor.poses; },
     get progress() { return editor.progress; },
     get lastSave() { return editor.lastSave; },
+    get lastAnimation() { return editor.lastAnimation; },
     get handles() { return editor.handles.length; },
     get busy() { return editor.posing || editor.posePending; },
     /** Pixels of the canvas that differ from the clear colour (the test's "something is drawn"). */

@@ -14,6 +14,7 @@
 #include <thread>
 #include <unistd.h>
 
+#include "deform/AnimSpec.h"
 #include "demo/DemoModels.h"
 #include "edit/DragSpec.h"
 #include "edit/EditRequest.h"
@@ -226,6 +227,28 @@ TEST(EditServer, RefineReportsProgressAndCancelStopsIt)
     EXPECT_LT(after["done"].get<int>(), 2000);
     EXPECT_EQ(status(fx.client->Get("/api/refined")), 404);
     EXPECT_EQ(status(fx.post("/api/pose", bendDragSpec(10))), 200); // posing works again
+}
+
+TEST(EditServer, AnimationFramesAndSaves)
+{
+    Fixture fx;
+    fx.start();
+    const std::string anim = fileBytes(std::string(SPLATWARP_SOURCE_DIR) + "/samples/specs/bend-24.json");
+    DeformSession session(fx.options.job, DeformSpec{});
+    const AnimSpec parsed = parseAnimSpec(anim, "bend-24");
+    const httplib::Result r = fx.post("/api/pose?frame=12", anim);
+    ASSERT_EQ(status(r), 200) << (r ? r->body : "");
+    EXPECT_TRUE(r->body == edit::encodeGaussians(session.pose(frameSpec(parsed, 12)).deformed));
+    EXPECT_EQ(status(fx.post("/api/pose?frame=24", anim)), 400);
+    EXPECT_EQ(status(fx.post("/api/pose?frame=x", anim)), 400);
+    EXPECT_EQ(status(fx.post("/api/save-animation?name=../up", anim)), 400);
+    EXPECT_EQ(status(fx.post("/api/save-animation?name=bad", R"({"version": 1, "handles": []})")), 400); // no frames
+    const httplib::Result saved = fx.post("/api/save-animation?name=bend24", anim);
+    ASSERT_EQ(status(saved), 200) << (saved ? saved->body : "");
+    const AnimSpec back = parseAnimSpec(fileBytes(fx.dir.file("out/bend24/animation.json")), "saved");
+    EXPECT_EQ(back.frames, 24);
+    EXPECT_EQ(frameSpecJson(back, 12)["handles"], frameSpecJson(parsed, 12)["handles"]);
+    EXPECT_EQ(frameSpecJson(back, 0)["graph"]["nodes"], 64); // the session's graph, written out
 }
 
 TEST(EditServer, TwoClientsAtOnce)

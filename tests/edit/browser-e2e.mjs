@@ -73,12 +73,28 @@ async function drive(page, url, shot) {
     await page.click('#addMoving');
     await waitIdle(page, 1);
     check(await page.evaluate(() => window.splatwarpEditor.handles) === 2, 'two handles from two box selections');
+    await page.$eval('#keyFrame', (el) => { el.value = '0'; });
+    await page.click('#addKey'); // frame 0: the rest pose
     const before = await page.evaluate(() => window.splatwarpEditor.poses);
     for (let i = 0; i < 6; ++i) await page.keyboard.press(']');      // turn the +x end 30 degrees about z
     for (let i = 0; i < 5; ++i) await page.keyboard.press('ArrowUp'); // and lift it by 10% of the diagonal
     await waitIdle(page, before);
     const spec = await page.evaluate(() => window.splatwarpEditor.spec());
     check(spec.handles[1].rotate && Math.abs(spec.handles[1].rotate.degrees - 30) < 1e-6, 'the keys turned the moving handle 30 degrees');
+    await page.$eval('#keyFrame', (el) => { el.value = '23'; });
+    await page.click('#addKey'); // frame 23: this pose
+    const beforeScrub = await page.evaluate(() => window.splatwarpEditor.poses);
+    await page.$eval('#scrub', (el) => { el.value = '12'; el.dispatchEvent(new Event('input')); });
+    await waitIdle(page, beforeScrub);
+    await page.$eval('#saveName', (el) => { el.value = 'e2e-anim'; });
+    await page.click('#saveAnim');
+    await page.waitForFunction(() => window.splatwarpEditor.lastAnimation, { timeout: 60000 });
+    check(!(await page.evaluate(() => window.splatwarpEditor.lastAnimation)).error, 'keys at 0 and 23, scrubbed to 12, animation saved');
+    // The scrub posed frame 12; refine and save the spec's own pose again.
+    const beforeRepose = await page.evaluate(() => window.splatwarpEditor.poses);
+    await page.keyboard.press('ArrowUp');
+    await page.keyboard.press('ArrowDown');
+    await waitIdle(page, beforeRepose);
     await page.click('#refine');
     await page.waitForFunction(() => window.splatwarpEditor.progress.state !== 'running' && window.splatwarpEditor.progress.state !== 'idle', { timeout: 120000 });
     check(await page.evaluate(() => window.splatwarpEditor.progress.state) === 'done', 'refine finished');
@@ -87,6 +103,8 @@ async function drive(page, url, shot) {
     await page.waitForFunction(() => window.splatwarpEditor.lastSave, { timeout: 60000 });
     const saved = await page.evaluate(() => window.splatwarpEditor.lastSave);
     check(!saved.error, `saved (${JSON.stringify(saved)})`);
+    await page.click('#viewStage1'); // the handles' colours and the pose (the README's picture)
+    await new Promise((r) => setTimeout(r, 500));
     await page.screenshot({ path: shot });
     const lit = await page.evaluate(() => window.splatwarpEditor.litPixels());
     check(lit > 2000, `the canvas shows the splats (${lit} pixels differ from the background)`);
@@ -121,6 +139,10 @@ async function main() {
         check(replay.status === 0, `deform replays the saved spec ${replay.stderr || ''}`);
         for (const f of ['baseline.ply', 'deformed.ply'])
             check(readFileSync(`${dir}/edits/e2e/${f}`).equals(readFileSync(`${dir}/cli/${f}`)), `${f}: the editor's bytes equal deform's`);
+        const anim = run(['-q', 'animate', `${dir}/in.ply`, '--spec', `${dir}/edits/e2e-anim/animation.json`, '-o', `${dir}/anim`, '--specs-only', ...FLAGS]);
+        check(anim.status === 0, `animate reads the saved animation ${anim.stderr || ''}`);
+        const frame23 = JSON.parse(readFileSync(`${dir}/anim/specs/spec.0023.json`, 'utf8'));
+        check(Math.abs(frame23.handles[1].rotate.degrees - 30) < 1e-9, 'its frame 23 is the keyed pose (30 degrees)');
         console.log('1 passed, 0 failed');
     } finally {
         if (browser) await browser.close().catch(() => {});
