@@ -189,6 +189,7 @@ class Editor {
         this.splats = new SplatView(app, this.splatEntity);
         this.pivot = new pc.Entity('pivot');
         app.root.addChild(this.pivot);
+        app.on('update', () => this.drawNodes());
         app.start();
         this.app = app;
     }
@@ -585,6 +586,24 @@ class Editor {
             if (this.selection) for (const i of this.selection.gaussians) tint[i] = 3;
         }
         this.splats.show(model, tint);
+    }
+
+    /** The graph nodes a selection or handle catches, as small crosses drawn over the splats. */
+    drawNodes() {
+        if (!this.graph) return;
+        const positions = [], colors = [], r = 0.01 * this.extent;
+        const cross = (p, color) => {
+            for (let a = 0; a < 3; ++a) {
+                const d = [0, 0, 0];
+                d[a] = r;
+                positions.push(new pc.Vec3(p[0] - d[0], p[1] - d[1], p[2] - d[2]), new pc.Vec3(p[0] + d[0], p[1] + d[1], p[2] + d[2]));
+                colors.push(color, color);
+            }
+        };
+        const colorOf = (rgb) => new pc.Color(rgb[0], rgb[1], rgb[2]);
+        this.handles.forEach((h) => { for (const j of h.nodes) cross(this.nodePosition(j, this.graph.nodes[j]), colorOf(HANDLE_COLORS[h.fixed ? 1 : 0])); });
+        if (this.selection) for (const j of this.selection.nodes) cross(this.nodePosition(j, this.graph.nodes[j]), colorOf([1, 1, 0.2]));
+        if (positions.length) this.app.drawLines(positions, colors, false);
     }
 
     setStatus(text) { $('status').textContent = text; }
