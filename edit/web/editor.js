@@ -213,7 +213,8 @@ class Editor {
     followPivot() {
         const h = this.handles[this.active];
         if (!h || h.fixed) return;
-        const p = this.pivot.getPosition(), q = this.pivot.getRotation();
+        // Local = world here (a child of the root); the local values are not rounded through a float32 matrix.
+        const p = this.pivot.getLocalPosition(), q = this.pivot.getLocalRotation();
         h.translate = [p.x - h.pivot[0], p.y - h.pivot[1], p.z - h.pivot[2]];
         h.quat = [q.x, q.y, q.z, q.w];
         this.requestPose();
@@ -223,8 +224,8 @@ class Editor {
         for (const gizmo of Object.values(this.gizmos)) gizmo.detach();
         const h = this.handles[this.active];
         if (!h || h.fixed) return;
-        this.pivot.setPosition(h.pivot[0] + h.translate[0], h.pivot[1] + h.translate[1], h.pivot[2] + h.translate[2]);
-        this.pivot.setRotation(new pc.Quat(h.quat[0], h.quat[1], h.quat[2], h.quat[3]));
+        this.pivot.setLocalPosition(h.pivot[0] + h.translate[0], h.pivot[1] + h.translate[1], h.pivot[2] + h.translate[2]);
+        this.pivot.setLocalRotation(new pc.Quat(h.quat[0], h.quat[1], h.quat[2], h.quat[3]));
         this.gizmos[this.mode].attach([this.pivot]);
     }
 

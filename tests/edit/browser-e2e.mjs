@@ -1,7 +1,8 @@
 // Edit.BrowserEndToEnd: `splatwarp edit` on 127.0.0.1 (port 0) driven in Debian's headless
 // Chromium (software GL) by puppeteer-core, through the page's own UI: box-select the stripes'
-// ends (shift-drag), make them a fixed and a moving handle, move the moving one with the keys,
-// wait for the live Stage I update, refine, save; then `splatwarp deform` with the saved spec must
+// ends (shift-drag), make them a fixed and a moving handle, turn the moving one with the keys and
+// drag it with the gizmo, undo and redo, wait for the live Stage I update, key frames 0 and 23,
+// scrub, save the animation, refine, save; then `splatwarp deform` with the saved spec must
 // give byte-identical baseline.ply and deformed.ply. Exit 77 (skip) without chromium or node_modules.
 // Usage: node browser-e2e.mjs SPLATWARP_BINARY [SCREENSHOT.png]
 import { spawn, spawnSync } from 'node:child_process';
@@ -53,6 +54,19 @@ async function boxSelect(page, lo, hi) {
     await page.keyboard.up('Shift');
 }
 
+/** Drag the translate gizmo's x arrow (it sits at the handle's pivot + translate) 40 pixels right. */
+async function gizmoDrag(page, handle) {
+    const at = handle.pivot.map((v, a) => v + handle.translate[a]);
+    const s = await page.evaluate((p) => window.splatwarpEditor.worldToScreen(p), at);
+    const canvas = await page.evaluate(() => { const r = document.getElementById('canvas').getBoundingClientRect(); return [r.left, r.top]; });
+    const before = await page.evaluate(() => window.splatwarpEditor.poses);
+    await page.mouse.move(canvas[0] + s[0] + 55, canvas[1] + s[1]);
+    await page.mouse.down();
+    await page.mouse.move(canvas[0] + s[0] + 95, canvas[1] + s[1], { steps: 8 });
+    await page.mouse.up();
+    await waitIdle(page, before);
+}
+
 async function waitIdle(page, posesBefore) {
     await page.waitForFunction((n) => window.splatwarpEditor.poses > n && !window.splatwarpEditor.busy, { timeout: 60000 }, posesBefore);
 }
@@ -81,6 +95,19 @@ async function drive(page, url, shot) {
     await waitIdle(page, before);
     const spec = await page.evaluate(() => window.splatwarpEditor.spec());
     check(spec.handles[1].rotate && Math.abs(spec.handles[1].rotate.degrees - 30) < 1e-6, 'the keys turned the moving handle 30 degrees');
+    await gizmoDrag(page, spec.handles[1]);
+    const dragged = await page.evaluate(() => window.splatwarpEditor.spec());
+    check(dragged.handles[1].translate[0] > spec.handles[1].translate[0] + 0.01, `the gizmo's x arrow moved the handle (x ${dragged.handles[1].translate[0]})`);
+    await page.keyboard.down('Control');
+    await page.keyboard.press('z');
+    await page.keyboard.up('Control');
+    await page.waitForFunction(() => !window.splatwarpEditor.busy);
+    check(JSON.stringify(await page.evaluate(() => window.splatwarpEditor.spec())) === JSON.stringify(spec), 'ctrl-Z undid the drag');
+    await page.keyboard.down('Control');
+    await page.keyboard.press('y');
+    await page.keyboard.up('Control');
+    await page.waitForFunction(() => !window.splatwarpEditor.busy);
+    check(JSON.stringify(await page.evaluate(() => window.splatwarpEditor.spec())) === JSON.stringify(dragged), 'ctrl-Y redid it');
     await page.$eval('#keyFrame', (el) => { el.value = '23'; });
     await page.click('#addKey'); // frame 23: this pose
     const beforeScrub = await page.evaluate(() => window.splatwarpEditor.poses);
@@ -142,7 +169,8 @@ async function main() {
         const anim = run(['-q', 'animate', `${dir}/in.ply`, '--spec', `${dir}/edits/e2e-anim/animation.json`, '-o', `${dir}/anim`, '--specs-only', ...FLAGS]);
         check(anim.status === 0, `animate reads the saved animation ${anim.stderr || ''}`);
         const frame23 = JSON.parse(readFileSync(`${dir}/anim/specs/spec.0023.json`, 'utf8'));
-        check(Math.abs(frame23.handles[1].rotate.degrees - 30) < 1e-9, 'its frame 23 is the keyed pose (30 degrees)');
+        const turned = frame23.handles[1].rotate.degrees;
+        check(Math.abs(turned - 30) < 1e-9, `its frame 23 is the keyed pose (30 degrees: ${turned})`);
         console.log('1 passed, 0 failed');
     } finally {
         if (browser) await browser.close().catch(() => {});
