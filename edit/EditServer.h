@@ -22,7 +22,10 @@ struct EditServerOptions {
     std::string token;              ///< required on every request (randomToken() when empty)
     std::string webDir;             ///< index.html, editor.js, playcanvas.mjs (read once at start); empty: API only
     std::size_t maxBodyBytes = std::size_t(1) << 20; ///< larger request bodies get 413
-    int threads = 4;                ///< HTTP worker threads (two clients at once and a progress poll)
+    /// HTTP worker threads. A thread serves one connection for its keep-alive life, and a browser
+    /// opens several (some speculatively, sending nothing): too few threads and a page's requests
+    /// queue behind idle sockets for seconds (seen with 4).
+    int threads = 32;
     /// Flags to repeat after `deform MODEL --spec spec.json -o OUT` to replay a save (the save's reply says it).
     std::string replayFlags;
 };

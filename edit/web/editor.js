@@ -198,8 +198,10 @@ class Editor {
         const layer = pc.Gizmo.createLayer(this.app);
         this.gizmos = {
             translate: new pc.TranslateGizmo(this.cameraEntity.camera, layer),
-            rotate: new pc.RotateGizmo(this.cameraEntity.camera, layer)
+            rotate: new pc.RotateGizmo(this.cameraEntity.camera, layer),
+            scale: new pc.ScaleGizmo(this.cameraEntity.camera, layer)
         };
+        this.gizmos.scale.uniform = true; // the spec's scale is uniform (the axes' mean is taken)
         this.mode = 'translate';
         for (const gizmo of Object.values(this.gizmos)) {
             gizmo.size = 1.2;
@@ -214,9 +216,10 @@ class Editor {
         const h = this.handles[this.active];
         if (!h || h.fixed) return;
         // Local = world here (a child of the root); the local values are not rounded through a float32 matrix.
-        const p = this.pivot.getLocalPosition(), q = this.pivot.getLocalRotation();
+        const p = this.pivot.getLocalPosition(), q = this.pivot.getLocalRotation(), k = this.pivot.getLocalScale();
         h.translate = [p.x - h.pivot[0], p.y - h.pivot[1], p.z - h.pivot[2]];
         h.quat = [q.x, q.y, q.z, q.w];
+        if (this.mode === 'scale') h.scale = Math.cbrt(Math.abs(k.x * k.y * k.z)) || 1;
         this.requestPose();
     }
 
@@ -226,6 +229,8 @@ class Editor {
         if (!h || h.fixed) return;
         this.pivot.setLocalPosition(h.pivot[0] + h.translate[0], h.pivot[1] + h.translate[1], h.pivot[2] + h.translate[2]);
         this.pivot.setLocalRotation(new pc.Quat(h.quat[0], h.quat[1], h.quat[2], h.quat[3]));
+        const k = h.scale ?? 1;
+        this.pivot.setLocalScale(k, k, k);
         this.gizmos[this.mode].attach([this.pivot]);
     }
 
@@ -308,7 +313,7 @@ class Editor {
         if (!this.selection) return;
         const s = this.selection, c = [0, 0, 0];
         for (const j of s.nodes) for (let a = 0; a < 3; ++a) c[a] += this.graph.nodes[j][a] / s.nodes.length;
-        this.handles.push({ nodes: s.nodes, gaussians: s.gaussians, fixed, pivot: c, translate: [0, 0, 0], quat: [0, 0, 0, 1] });
+        this.handles.push({ nodes: s.nodes, gaussians: s.gaussians, fixed, pivot: c, translate: [0, 0, 0], quat: [0, 0, 0, 1], scale: 1 });
         this.selection = null;
         $('selection').textContent = 'nothing selected';
         $('addFixed').disabled = $('addMoving').disabled = true;
@@ -321,7 +326,7 @@ class Editor {
             version: 1, units: 'world',
             handles: this.handles.map((h) => {
                 if (h.fixed) return { nodes: h.nodes, fixed: true };
-                return { nodes: h.nodes, pivot: h.pivot, ...motionJson(h.translate, h.quat) };
+                return { nodes: h.nodes, pivot: h.pivot, ...motionJson(h.translate, h.quat, h.scale) };
             })
         };
     }
@@ -403,7 +408,7 @@ class Editor {
             row.append(`${i + 1}: ${h.fixed ? 'fixed' : 'moving'}, ${h.nodes.length} nodes `);
             const toggle = document.createElement('button');
             toggle.textContent = h.fixed ? 'make moving' : 'make fixed';
-            toggle.onclick = (e) => { e.stopPropagation(); h.fixed = !h.fixed; h.translate = [0, 0, 0]; h.quat = [0, 0, 0, 1]; this.commit(); };
+            toggle.onclick = (e) => { e.stopPropagation(); h.fixed = !h.fixed; h.translate = [0, 0, 0]; h.quat = [0, 0, 0, 1]; h.scale = 1; this.commit(); };
             const remove = document.createElement('button');
             remove.textContent = '×';
             remove.onclick = (e) => { e.stopPropagation(); this.handles.splice(i, 1); this.active = -1; this.commit(); };
@@ -441,6 +446,7 @@ class Editor {
             else if (e.key === '[' || e.key === ']') this.nudge([0, 0, 0], e.key === ']' ? 5 : -5);
             else if (e.key === 'w' || e.key === 'W') this.setMode('translate');
             else if (e.key === 'e' || e.key === 'E') this.setMode('rotate');
+            else if (e.key === 'r' || e.key === 'R') this.setMode('scale');
         });
     }
 
@@ -448,6 +454,7 @@ class Editor {
         this.mode = mode;
         $('modeTranslate').classList.toggle('on', mode === 'translate');
         $('modeRotate').classList.toggle('on', mode === 'rotate');
+        $('modeScale').classList.toggle('on', mode === 'scale');
         this.attachGizmo();
     }
 
@@ -462,6 +469,7 @@ class Editor {
         $('addMoving').onclick = () => this.addHandle(false);
         $('modeTranslate').onclick = () => this.setMode('translate');
         $('modeRotate').onclick = () => this.setMode('rotate');
+        $('modeScale').onclick = () => this.setMode('scale');
         $('undo').onclick = () => this.undo();
         $('redo').onclick = () => this.redo();
         $('viewRest').onclick = () => this.setView('rest');
@@ -492,7 +500,7 @@ class Editor {
 
     addKey() {
         const frame = Math.max(0, Math.min(+$('keyFrame').value | 0, this.frameCount() - 1));
-        this.keys.set(frame, this.handles.map((h) => (h.fixed ? null : { translate: [...h.translate], quat: [...h.quat] })));
+        this.keys.set(frame, this.handles.map((h) => (h.fixed ? null : { translate: [...h.translate], quat: [...h.quat], scale: h.scale ?? 1 })));
         $('keys').textContent = `keys at ${[...this.keys.keys()].sort((a, b) => a - b).join(', ')}`;
         this.updateButtons();
     }
@@ -507,7 +515,7 @@ class Editor {
             if (h.fixed) return { nodes: h.nodes, fixed: true };
             const keys = frames.map((f) => {
                 const m = this.keys.get(f)[i];
-                return { frame: f, ...motionJson(m ? m.translate : [0, 0, 0], m ? m.quat : [0, 0, 0, 1]) };
+                return { frame: f, ...(m ? motionJson(m.translate, m.quat, m.scale) : motionJson([0, 0, 0], [0, 0, 0, 1], 1)) };
             });
             return { nodes: h.nodes, pivot: h.pivot, keys };
         });
@@ -610,18 +618,20 @@ class Editor {
     setStatus(text) { $('status').textContent = text; }
 }
 
-/** A handle's motion as spec keys: translate, and rotate (axis, degrees) unless the identity. */
-function motionJson(translate, quat) {
+/** A handle's motion as spec keys: translate, scale and rotate (axis, degrees) unless the identity. */
+function motionJson(translate, quat, scale = 1) {
     const out = { translate };
+    if (scale !== 1) out.scale = scale;
     const [x, y, z, w] = quat, s = Math.hypot(x, y, z);
     if (s > 1e-9) out.rotate = { axis: [x / s, y / s, z / s], degrees: (2 * Math.atan2(s, w) * 180) / Math.PI };
     return out;
 }
 
-/** p moved by a handle's motion: pivot + R (p - pivot) + translate. */
+/** p moved by a handle's motion: pivot + R (scale (p - pivot)) + translate. */
 function applyMotion(h, p) {
     const q = new pc.Quat(h.quat[0], h.quat[1], h.quat[2], h.quat[3]);
-    const v = q.transformVector(new pc.Vec3(p[0] - h.pivot[0], p[1] - h.pivot[1], p[2] - h.pivot[2]));
+    const k = h.scale ?? 1;
+    const v = q.transformVector(new pc.Vec3(k * (p[0] - h.pivot[0]), k * (p[1] - h.pivot[1]), k * (p[2] - h.pivot[2])));
     return [v.x + h.pivot[0] + h.translate[0], v.y + h.pivot[1] + h.translate[1], v.z + h.pivot[2] + h.translate[2]];
 }
 

@@ -1,7 +1,7 @@
 // Edit.BrowserEndToEnd: `splatwarp edit` on 127.0.0.1 (port 0) driven in Debian's headless
 // Chromium (software GL) by puppeteer-core, through the page's own UI: box-select the stripes'
 // ends (shift-drag), make them a fixed and a moving handle, turn the moving one with the keys and
-// drag it with the gizmo, undo and redo, wait for the live Stage I update, key frames 0 and 23,
+// drag it with the gizmo, undo and redo, scale it, wait for the live Stage I update, key frames 0 and 23,
 // scrub, save the animation, refine, save; then `splatwarp deform` with the saved spec must
 // give byte-identical baseline.ply and deformed.ply. Exit 77 (skip) without chromium or node_modules.
 // Usage: node browser-e2e.mjs SPLATWARP_BINARY [SCREENSHOT.png]
@@ -54,7 +54,7 @@ async function boxSelect(page, lo, hi) {
     await page.keyboard.up('Shift');
 }
 
-/** Drag the translate gizmo's x arrow (it sits at the handle's pivot + translate) 40 pixels right. */
+/** Drag the gizmo's x handle (the gizmo sits at the handle's pivot + translate) 40 pixels right. */
 async function gizmoDrag(page, handle) {
     const at = handle.pivot.map((v, a) => v + handle.translate[a]);
     const s = await page.evaluate((p) => window.splatwarpEditor.worldToScreen(p), at);
@@ -89,6 +89,11 @@ async function drive(page, url, shot) {
     check(await page.evaluate(() => window.splatwarpEditor.handles) === 2, 'two handles from two box selections');
     await page.$eval('#keyFrame', (el) => { el.value = '0'; });
     await page.click('#addKey'); // frame 0: the rest pose
+    await page.keyboard.press('r'); // the scale gizmo (local axes: turn the handle after): its x box, dragged out
+    await gizmoDrag(page, (await page.evaluate(() => window.splatwarpEditor.spec())).handles[1]);
+    await page.keyboard.press('w');
+    const scaled = (await page.evaluate(() => window.splatwarpEditor.spec())).handles[1].scale;
+    check(scaled > 1.01, `the scale gizmo scaled the handle (${scaled})`);
     const before = await page.evaluate(() => window.splatwarpEditor.poses);
     for (let i = 0; i < 6; ++i) await page.keyboard.press(']');      // turn the +x end 30 degrees about z
     for (let i = 0; i < 5; ++i) await page.keyboard.press('ArrowUp'); // and lift it by 10% of the diagonal
@@ -108,6 +113,7 @@ async function drive(page, url, shot) {
     await page.keyboard.up('Control');
     await page.waitForFunction(() => !window.splatwarpEditor.busy);
     check(JSON.stringify(await page.evaluate(() => window.splatwarpEditor.spec())) === JSON.stringify(dragged), 'ctrl-Y redid it');
+
     await page.$eval('#keyFrame', (el) => { el.value = '23'; });
     await page.click('#addKey'); // frame 23: this pose
     const beforeScrub = await page.evaluate(() => window.splatwarpEditor.poses);
