@@ -47,7 +47,7 @@ const GaussianCloud& DeformSession::refine(const RunControl& control)
     return *mFrame->fitted;
 }
 
-FrameReport DeformSession::write(const std::string& dir)
+FrameReport DeformSession::write(const std::string& dir, const std::vector<std::pair<std::string, std::string>>& extraFiles)
 {
     if (!mFrame) throw UsageError("write needs a pose first");
     OutputSet outputs({mOptions.input, mOptions.specPath});
@@ -67,6 +67,7 @@ FrameReport DeformSession::write(const std::string& dir)
     FrameReport report = writeFrame(*mRest, mOptions, *mFrame, out);
     report.timingsMs["total"] += mRestMs; // the rest side included
     writeFileAtomic(inDir(dir, "report.json"), report.toJson().dump(2) + "\n");
+    for (const auto& [name, contents] : extraFiles) writeFileAtomic(inDir(dir, name.c_str()), contents);
     outputs.commit();
     return report;
 }

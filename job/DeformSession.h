@@ -7,6 +7,8 @@
 #include <memory>
 #include <optional>
 #include <string>
+#include <utility>
+#include <vector>
 
 #include <nlohmann/json.hpp>
 
@@ -42,8 +44,9 @@ public:
     /// @brief Write what `deform -o dir` writes for the last pose (and refine): baseline.ply,
     ///        deformed.ply, report.json and the extras the options ask for, all together or none;
     ///        a stale deformed.ply of an earlier refine is removed. Returns the report
-    ///        (report.json is its toJson()).
-    FrameReport write(const std::string& dir);
+    ///        (report.json is its toJson()). `extraFiles` (name, contents) are written into dir with
+    ///        them (the editor's spec.json).
+    FrameReport write(const std::string& dir, const std::vector<std::pair<std::string, std::string>>& extraFiles = {});
 
     bool refined() const { return mFrame && mFrame->fitted.has_value(); }
 

@@ -10,6 +10,10 @@ PACKAGES=(
   libzstd-dev  # .spz version 4
   libassimp-dev libjpeg-dev  # meshes (OBJ/PLY/glTF/OFF) and their JPEG textures: image ground truth
   clang libclang-rt-14-dev  # scripts/fuzz.sh: libFuzzer targets (clang 14 on Debian 12)
+  # `splatwarp edit`'s server: small, a thread pool, enough for loopback JSON + binary (progress is
+  # polled: no WebSocket library needed); Debian's build is a header plus a shared library.
+  libcpp-httplib-dev
+  chromium  # Edit.BrowserEndToEnd: the editor page in headless Chromium (software GL), about a minute
 )
 missing=()
 for p in "${PACKAGES[@]}"; do
@@ -45,4 +49,14 @@ if ! cmp -s "$interop/package-lock.json" "$interop/node_modules/.splatwarp-insta
   echo "setup: npm ci in tests/interop (@playcanvas/splat-transform)"
   (cd "$interop" && npm ci --ignore-scripts --no-audit --no-fund --loglevel=error &&
    cp package-lock.json node_modules/.splatwarp-installed-lock.json)
+fi
+
+# The editor's page renderer (playcanvas) and its browser test's driver (puppeteer-core), pinned by
+# package-lock.json; node_modules/ is git-ignored. Re-run when the lock file changed.
+ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
+if ! command -v npm >/dev/null; then
+  echo "setup: npm not found: the editor page (splatwarp edit) will not load and its browser test skips" >&2
+elif [ ! -f "$ROOT/node_modules/.package-lock.json" ] || ! cmp -s "$ROOT/package-lock.json" "$ROOT/node_modules/.splatwarp-lock"; then
+  echo "setup: npm ci (playcanvas, puppeteer-core)"
+  (cd "$ROOT" && npm ci --no-audit --no-fund --loglevel=error && cp package-lock.json node_modules/.splatwarp-lock)
 fi
