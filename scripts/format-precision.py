@@ -5,7 +5,7 @@ centre distance (also relative to the bounding-box diagonal; compressed PLY and 
 in the Morton order their writers store), DC colour
 0.5 + C0 f_dc in 8-bit levels (as stored, and clamped to [0, 1] as a
 viewer shows it), alpha, log scale, rotation angle (degrees), higher SH coefficients.
-Usage: format-precision.py SPLATWARP_CLI MODEL.ply [MODEL.ply ...]"""
+Usage: format-precision.py [--only FORMAT] SPLATWARP_CLI MODEL.ply [MODEL.ply ...]"""
 import math, os, struct, subprocess, sys, tempfile
 
 FORMATS = [('spz v3', '.spz', []), ('spz v4', '.spz', ['--spz-version', '4']), ('glb', '.glb', []),
@@ -81,7 +81,11 @@ def compare(a, b, n):
 
 
 def main():
-    cli, models = sys.argv[1], sys.argv[2:]
+    args = sys.argv[1:]
+    only = None
+    if args[:1] == ['--only']:
+        only, args = args[1], args[2:]
+    cli, models = args[0], args[1:]
     with tempfile.TemporaryDirectory() as tmp:
         for model in models:
             src, n = read_ply(model)
@@ -90,6 +94,8 @@ def main():
                 'format', 'bytes', 'pos max', 'pos rms', 'max/diag', 'mean/diag', 'rgb max', 'rgb rms', 'rgb01 max',
                 'alpha max', 'logscale max', 'rot max', 'sh max'))
             for name, ext, flags in FORMATS:
+                if only and name != only:
+                    continue
                 out = os.path.join(tmp, 'm' + ext)
                 subprocess.run([cli, '-q', 'convert', model, out] + flags, check=True)
                 subprocess.run([cli, '-q', 'convert', out, os.path.join(tmp, 'back.ply')], check=True)

@@ -5,6 +5,7 @@
 #include "core/Error.h"
 #include "core/Progress.h"
 #include "io/GaussianIO.h"
+#include "io/SogIO.h"
 #include "ReadArgs.h"
 
 namespace splatwarp::cli {
@@ -30,8 +31,10 @@ void convert(const ConvertArgs& args)
     const GaussianCloud g = readModel(args.input, args.dropInvalid, &report);
     WriteOptions options;
     options.spzVersion = args.spzVersion;
-    options.sog = args.sog;
-    writeGaussians(args.output, g, options);
+    if (format == "sog")
+        writeSog(args.output, g, args.sog);
+    else
+        writeGaussians(args.output, g, options);
     outputs.commit();
     progress(msg("converted ", g.size(), " Gaussians (", report.format, ", SH degree ", g.shDegree, ") to ",
                  args.output, " (", format == "spz" ? msg("spz-v", args.spzVersion) : format, ")"));

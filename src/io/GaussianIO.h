@@ -2,12 +2,9 @@
 /// @file GaussianIO.h
 /// @brief Reading and writing Gaussian models: graphdeco PLY (read any layout, write exactly
 ///        graphdeco), `.splat`, SuperSplat compressed PLY, Niantic `.spz` (read 2-4, write 3, 4),
-///        glTF `.glb` with KHR_gaussian_splatting, PlayCanvas SOG (`.sog` bundle or meta.json folder),
-///        and formats registered from above src/io
+///        glTF `.glb` with KHR_gaussian_splatting, and formats registered from above src/io
 ///        (OpenVDB point grids: vdb/VdbPoints.h). See docs/formats.md.
-#include <cstdint>
 #include <string>
-#include <utility>
 #include <vector>
 
 #include "core/GaussianCloud.h"
@@ -27,7 +24,7 @@ struct ReadOptions {
 
 /// @brief What a read found besides the Gaussians.
 struct ReadReport {
-    std::string format;               ///< "ply-binary-le", "ply-binary-be", "ply-ascii", "splat", "ply-compressed", "spz-v2".."spz-v4", "glb", "sog", "vdb-points"
+    std::string format;               ///< "ply-binary-le", "ply-binary-be", "ply-ascii", "splat", "ply-compressed", "spz-v2".."spz-v4", "glb", "vdb-points"
     std::size_t dropped = 0;          ///< Gaussians dropped by dropInvalid
     std::size_t invalidValues = 0;    ///< NaN/Inf or unusable values found (before any drop)
     std::size_t invalidGaussians = 0; ///< Gaussians holding at least one of them
@@ -36,9 +33,8 @@ struct ReadReport {
 
 /// @brief Read any supported file, detected from its content (not its extension): PLY (graphdeco
 ///        layout by property name, or SuperSplat compressed) when it starts with "ply", `.spz`
-///        when it starts with the gzip magic, a SOG bundle when it is a zip, else `.splat` when its
-///        size is a multiple of 32 bytes and its records look like Gaussians. A path named meta.json,
-///        or a folder holding one, is read as a SOG folder.
+///        when it starts with the gzip magic, else `.splat` when its size is a multiple of 32
+///        bytes and its records look like Gaussians.
 /// @throws InputError naming the file and what is wrong (a Gaussian with NaN/Inf is named with
 ///         its index and property unless options say to drop or keep it); IoError when it
 ///         cannot be read.
@@ -71,22 +67,6 @@ std::string encodeGlb(const std::string& path, const GaussianCloud& cloud);
 /// @brief encodeGlb() written atomically.
 void writeGlb(const std::string& path, const GaussianCloud& cloud);
 
-/// @brief How SOG is written: the higher-SH palette is k-means over the Gaussians' SH vectors.
-struct SogOptions {
-    int iterations = 10;        ///< k-means rounds (splat-transform's default)
-    std::uint64_t seed = 1;     ///< picks the starting centroids: the same seed gives the same bytes
-    std::size_t maxPalette = 4096; ///< cap on splat-transform's palette size (64K for 64K+ Gaussians): time grows with it
-};
-/// @brief The files of a SOG for a cloud, meta.json last: what the bundle holds and the folder form writes.
-/// @throws InputError for an empty cloud, NaN/Inf, or more Gaussians than 16383x16383 WebP texels.
-std::vector<std::pair<std::string, std::string>> encodeSogFiles(const std::string& path, const GaussianCloud& cloud,
-                                                                 const SogOptions& options = {});
-/// @brief The `.sog` bundle (a stored zip of encodeSogFiles()).
-std::string encodeSog(const std::string& path, const GaussianCloud& cloud, const SogOptions& options = {});
-/// @brief Write SOG: a path named meta.json gets the folder form (meta.json and the WebP images beside
-///        it; the folder is created with the active OutputSet), any other path the `.sog` bundle.
-void writeSog(const std::string& path, const GaussianCloud& cloud, const SogOptions& options = {});
-
 /// @brief A model format whose code lives above src/io (src/io must not include OpenVDB): the
 ///        OpenVDB point grids of vdb/VdbPoints.h register themselves with registerModelFormat().
 struct ModelFormatHooks {
@@ -102,10 +82,9 @@ void registerModelFormat(const ModelFormatHooks& hooks);
 /// @brief Options for writeGaussians().
 struct WriteOptions {
     int spzVersion = 3; ///< 3 (gzip, read by every spz reader) or 4 (zstd)
-    SogOptions sog;     ///< `.sog` and meta.json outputs
 };
 /// @brief The format writeGaussians() picks for a path: "compressed-ply" (".compressed.ply"), "ply",
-///        "splat", "spz", "glb", "sog" (".sog", or a file named meta.json) or a registered one; "" when the extension is not one we write.
+///        "splat", "spz", "glb" or a registered one; "" when the extension is not one we write.
 std::string outputFormatOf(const std::string& path);
 /// @brief Write a model in the format its extension names (outputFormatOf()).
 /// @throws UsageError for an extension we do not write (the message lists those we do).

@@ -8,6 +8,7 @@
 #include "core/AtomicFile.h"
 #include "core/Error.h"
 #include "io/FormatReaders.h"
+#include "io/SogIO.h"
 #include "sh/SphericalHarmonics.h"
 
 namespace splatwarp {
@@ -67,7 +68,7 @@ void writeGaussians(const std::string& path, const GaussianCloud& g, const Write
     if (format == "splat") return writeSplat(path, g);
     if (format == "spz") return writeSpz(path, g, options.spzVersion);
     if (format == "glb") return writeGlb(path, g);
-    if (format == "sog") return writeSog(path, g, options.sog);
+    if (format == "sog") return writeSog(path, g); // default SogOptions: CmdConvert passes its own
     std::string known = ".ply, .compressed.ply, .splat, .spz, .glb, .sog, meta.json (SOG folder)";
     for (const ModelFormatHooks& f : registeredModelFormats()) {
         if (f.name == format) return f.write(path, g);

@@ -158,13 +158,27 @@ std::string ZipIndex::extract(const std::string& name, std::size_t maxBytes) con
     return out;
 }
 
+// The advanced API for `exact`: the simple lossless call may rewrite the RGB of texels whose alpha
+// is 0 (sh0 of a fully transparent Gaussian), losing its colour.
 std::string encodeWebp(const Image& image)
 {
-    std::uint8_t* out = nullptr;
-    const std::size_t n = WebPEncodeLosslessRGBA(image.rgba.data(), image.width, image.height, image.width * 4, &out);
-    if (n == 0 || !out) throw IoError(msg("WebP encoding of a ", image.width, "x", image.height, " image failed"));
-    std::string bytes(reinterpret_cast<const char*>(out), n);
-    WebPFree(out);
+    WebPConfig config;
+    WebPPicture picture;
+    if (!WebPConfigInit(&config) || !WebPPictureInit(&picture)) throw IoError("WebP: library version mismatch");
+    config.lossless = 1; // the simple API's settings otherwise (quality 75, method 4)
+    config.exact = 1;
+    picture.use_argb = 1;
+    picture.width = image.width;
+    picture.height = image.height;
+    WebPMemoryWriter writer;
+    WebPMemoryWriterInit(&writer);
+    picture.writer = WebPMemoryWrite;
+    picture.custom_ptr = &writer;
+    const bool ok = WebPPictureImportRGBA(&picture, image.rgba.data(), image.width * 4) && WebPEncode(&config, &picture);
+    std::string bytes = ok ? std::string(reinterpret_cast<const char*>(writer.mem), writer.size) : std::string();
+    WebPPictureFree(&picture);
+    WebPMemoryWriterClear(&writer);
+    if (!ok) throw IoError(msg("WebP encoding of a ", image.width, "x", image.height, " image failed"));
     return bytes;
 }
 

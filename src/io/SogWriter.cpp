@@ -14,6 +14,7 @@
 #include "core/Error.h"
 #include "io/FormatReaders.h"
 #include "io/SogFormat.h"
+#include "io/SogIO.h"
 
 namespace splatwarp {
 

@@ -9,6 +9,7 @@
 
 #include "FuzzBytes.h"
 #include "io/SogFormat.h"
+#include "io/SogIO.h"
 
 namespace {
 

@@ -9,6 +9,7 @@
 #include <filesystem>
 #include <fstream>
 #include <functional>
+#include <set>
 
 #include "PlyTestFiles.h"
 #include "core/AtomicFile.h"
@@ -16,6 +17,7 @@
 #include "io/FormatReaders.h"
 #include "io/GaussianIO.h"
 #include "io/SogFormat.h"
+#include "io/SogIO.h"
 #include "support/TestSupport.h"
 
 using namespace splatwarp;
@@ -134,13 +136,16 @@ TEST(SogTest, BundleRoundTripWithinQuantisationForEveryShDegree)
 }
 
 // With at most 256 distinct values a codebook is exact, and with fewer distinct SH vectors than
-// palette entries k-means finds each one: f_dc and f_rest come back bit for bit.
+// palette entries k-means finds each one: f_dc and f_rest come back bit for bit, also under alpha
+// 0 (a lossless WebP encoder may drop the RGB of transparent texels unless told to keep it).
 TEST(SogTest, FewDistinctColoursComeBackExactly)
 {
     GaussianCloud src = randomCloud(500, 3, 7);
     const GaussianCloud palette = randomCloud(5, 3, 8); // 5 SH vectors of 48 values: 240 distinct
-    for (std::size_t i = 0; i < src.size(); ++i)
+    for (std::size_t i = 0; i < src.size(); ++i) {
         std::copy_n(palette.shOf(i % 5), src.shStride(), src.shOf(i));
+        if (i % 7 == 0) src.opacities[i] = -30; // alpha 0 in sh0.webp
+    }
     const GaussianCloud dec = readGaussiansFromBytes("m.sog", encodeSog("m.sog", src));
     const std::vector<std::size_t> order = compressedPlyOrder(src);
     for (std::size_t t = 0; t < dec.size(); ++t)
@@ -270,4 +275,80 @@ TEST(SogTest, FolderReadStaysInsideItsFolder)
     std::filesystem::create_symlink(dir.file("quats.webp"), dir.file("a/quats.webp"));
     const std::string m = inputErrorMessage([&] { readGaussians(dir.file("a/meta.json")); });
     EXPECT_NE(m.find("quats.webp: not a regular file"), std::string::npos) << m;
+}
+
+namespace {
+
+std::string fixture(const std::string& name) { return std::string(SPLATWARP_SOURCE_DIR) + "/tests/io/data/" + name; }
+
+// The source Gaussian of each decoded one: splat-transform's Morton order refines crowded cells, so
+// it differs from ours; centres are unique enough in random200 to pair them up (nearest centre).
+std::vector<std::size_t> nearestSource(const GaussianCloud& src, const GaussianCloud& dec)
+{
+    std::vector<std::size_t> match(dec.size());
+    for (std::size_t t = 0; t < dec.size(); ++t) {
+        double best = 1e300;
+        for (std::size_t i = 0; i < src.size(); ++i) {
+            double d = 0;
+            for (int a = 0; a < 3; ++a) d += std::pow(double(dec.means[3 * t + a]) - src.means[3 * i + a], 2);
+            if (d < best) best = d, match[t] = i;
+        }
+    }
+    return match;
+}
+
+// The codebook entry nearest to v: what both writers store for a codebook value.
+float nearestEntry(const std::vector<float>& book, float v)
+{
+    float best = book[0];
+    for (float e : book)
+        if (std::fabs(e - v) < std::fabs(best - v)) best = e;
+    return best;
+}
+
+} // namespace
+
+// splat-transform 3.10.2's own bundle (tests/io/data/README.md): it truncates where we round, so a
+// centre is off by up to one 16-bit step (bound (|x| + 1)(e^D - 1)), alpha by one 8-bit level, each
+// stored quaternion component by 2 / (255 sqrt2); log scales and f_dc are the entry of its codebook
+// nearest to the source value, except f_dc under alpha 0: its WebP encoder drops the RGB of
+// transparent texels (6 of the 200), which decode as entry 0. Also read unpacked as a folder.
+TEST(SogTest, ReadsSplatTransformBundleAndFolder)
+{
+    const GaussianCloud src = readGaussians(fixture("random200-sh3.ply"));
+    ReadReport report;
+    const GaussianCloud dec = readGaussians(fixture("random200-sh3.sog"), {}, &report);
+    EXPECT_EQ(report.format, "sog");
+    ASSERT_EQ(dec.size(), 200u);
+    ASSERT_EQ(dec.shDegree, 3);
+    const std::string bytes = fileBytes(fixture("random200-sh3.sog"));
+    const sog::ZipIndex zip("random200-sh3.sog", bytes);
+    const nlohmann::json meta = nlohmann::json::parse(zip.extract("meta.json", 1 << 20));
+    const std::vector<float> scales = meta["scales"]["codebook"], colours = meta["sh0"]["codebook"];
+    const std::vector<std::size_t> match = nearestSource(src, dec);
+    EXPECT_EQ(std::set<std::size_t>(match.begin(), match.end()).size(), 200u);
+    const double d = 2 / (255 * std::sqrt(2.0)), derived = std::sqrt(2 * std::sqrt(3.0) * d + 3 * d * d);
+    for (std::size_t t = 0; t < dec.size(); ++t) {
+        const std::size_t i = match[t];
+        for (int a = 0; a < 3; ++a) {
+            const double step = (double(meta["means"]["maxs"][a]) - double(meta["means"]["mins"][a])) / 65535;
+            const double x = src.means[3 * i + a];
+            ASSERT_NEAR(dec.means[3 * t + a], x, (std::fabs(x) + 1) * std::expm1(step) + 1e-6) << i;
+            ASSERT_EQ(dec.logScales[3 * t + a], nearestEntry(scales, src.logScales[3 * i + a])) << i;
+            const bool transparent = sigmoidD(src.opacities[i]) * 255 < 1; // truncated to alpha 0
+            ASSERT_EQ(dec.shOf(t)[a], transparent ? colours[0] : nearestEntry(colours, src.shOf(i)[a])) << i;
+        }
+        double q[4], n = 0, dot = 0;
+        for (int a = 0; a < 4; ++a) n += double(src.rotations[4 * i + a]) * src.rotations[4 * i + a];
+        for (int a = 0; a < 4; ++a) dot += (q[a] = src.rotations[4 * i + a] / std::sqrt(n)) * dec.rotations[4 * t + a];
+        for (int a = 0; a < 4; ++a) ASSERT_NEAR((dot < 0 ? -1 : 1) * q[a], dec.rotations[4 * t + a], derived + 1e-6) << i;
+        ASSERT_NEAR(sigmoidD(src.opacities[i]), sigmoidD(dec.opacities[t]), 1.0 / 255 + 2e-6) << i;
+    }
+    TempDir dir; // the same entries as a folder: the same Gaussians
+    for (const char* f : {"meta.json", "means_l.webp", "means_u.webp", "quats.webp", "scales.webp", "sh0.webp",
+                          "shN_centroids.webp", "shN_labels.webp"})
+        writeBytes(dir.file(f), zip.extract(f, 1 << 20));
+    const GaussianCloud folder = readGaussians(dir.path().string());
+    ASSERT_EQ(folder.size(), dec.size());
+    for (std::size_t i = 0; i < dec.size(); ++i) ASSERT_TRUE(folder.sameGaussian(i, dec, i)) << i;
 }
