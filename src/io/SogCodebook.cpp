@@ -78,8 +78,14 @@ Codebook quantize256(const std::vector<float>& values)
     if (distinct.size() <= std::size_t(kCodebookSize)) {
         c.assign(distinct.begin(), distinct.end()); // every value exact
     } else {
-        for (int k = 0; k < kCodebookSize; ++k) // quantiles: the centres of equal-count groups
-            c.push_back(sorted[std::min(sorted.size() - 1, (2 * std::size_t(k) + 1) * sorted.size() / (2 * kCodebookSize))]);
+        // Half the start at quantiles (the dense middle), half spread over the range: sparse tails
+        // (an f_dc far outside the rest) keep entries of their own instead of joining the bulk.
+        const double lo = sorted.front(), hi = sorted.back();
+        for (int k = 0; k < kCodebookSize / 2; ++k) {
+            c.push_back(sorted[std::min(sorted.size() - 1, (2 * std::size_t(k) + 1) * sorted.size() / kCodebookSize)]);
+            c.push_back(lo + (hi - lo) * (k + 0.5) / (kCodebookSize / 2));
+        }
+        std::sort(c.begin(), c.end());
         c.erase(std::unique(c.begin(), c.end()), c.end());
         lloydSorted(sorted, c);
     }
