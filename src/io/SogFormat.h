@@ -26,6 +26,7 @@ std::string storedZip(const std::vector<std::pair<std::string, std::string>>& fi
 /// @brief The central directory of a zip in memory: entry name -> where its data lies.
 class ZipIndex {
 public:
+    /// @brief Index `data` (kept by reference: it must outlive the index).
     /// @throws InputError naming `path` when the archive is truncated or malformed, encrypted,
     ///         ZIP64, or holds an entry compressed other than stored/deflate.
     ZipIndex(const std::string& path, const std::string& data);
@@ -41,8 +42,8 @@ private:
         std::uint32_t crc = 0;
         std::uint64_t packed = 0, size = 0, offset = 0;
     };
-    const std::string& mPath;
-    const std::string& mData;
+    std::string mPath;        ///< for messages
+    const std::string& mData; ///< the caller's bytes, which must outlive the index
     std::map<std::string, Entry> mEntries;
 };
 
