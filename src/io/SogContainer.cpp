@@ -27,7 +27,7 @@ std::uint64_t le(const std::string& d, std::size_t at, int n)
     return v;
 }
 
-void put(std::string& s, std::uint64_t v, int n)
+void put(std::string& s, std::uint64_t v, int n) // n <= 8
 {
     for (int i = 0; i < n; ++i) s.push_back(char((v >> (8 * i)) & 0xff));
 }
@@ -83,7 +83,8 @@ std::string storedZip(const std::vector<std::pair<std::string, std::string>>& fi
         put(central, kCentralSig, 4);
         put(central, 20, 2); // made by
         commonFields(central, name, data);
-        put(central, 0, 2 + 2 + 2 + 4); // comment, disk, internal and external attributes
+        put(central, 0, 6); // comment length, disk, internal attributes
+        put(central, 0, 4); // external attributes
         put(central, out.size(), 4);
         central += name;
         put(out, kLocalSig, 4);
