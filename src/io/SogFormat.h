@@ -66,8 +66,8 @@ struct Codebook {
     std::vector<float> entries;
     std::vector<std::uint8_t> labels;
 };
-/// @brief 1-D k-means (Lloyd over the sorted values, quantile start) into 256 entries; values
-///        in their given order get labels in that order. Deterministic; needs no seed.
+/// @brief 1-D k-means into 256 entries (Lloyd over the sorted values, started half at quantiles, half
+///        spread over the range); labels follow the values' order. Deterministic; needs no seed.
 Codebook quantize256(const std::vector<float>& values);
 
 /// @brief The SH palette: k centroids of `dims` floats and each point's centroid.
