@@ -7,6 +7,8 @@ find_package(PNG REQUIRED)
 find_package(ZLIB REQUIRED)  # .spz (gzip)
 find_package(zstd REQUIRED CONFIG)  # .spz version 4 (one zstd stream per attribute; Debian libzstd-dev)
 find_package(OpenEXR REQUIRED)
+find_package(PkgConfig REQUIRED)
+pkg_check_modules(WEBP REQUIRED IMPORTED_TARGET libwebp)  # SOG: lossless WebP images (Debian libwebp-dev)
 find_package(assimp REQUIRED)  # meshes for image ground truth (OBJ, PLY, glTF, OFF ...)
 find_package(JPEG REQUIRED)    # JPEG textures of those meshes
 find_path(CLI11_INCLUDE_DIR CLI/CLI.hpp REQUIRED)

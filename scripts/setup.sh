@@ -8,6 +8,7 @@ PACKAGES=(
   libtbb-dev libeigen3-dev libopenexr-dev libpng-dev
   libgtest-dev libcli11-dev nlohmann-json3-dev libnanoflann-dev libboost-iostreams-dev zlib1g-dev
   libzstd-dev  # .spz version 4
+  libwebp-dev  # SOG: lossless WebP images (meta.json + images, folder or .sog zip)
   libassimp-dev libjpeg-dev  # meshes (OBJ/PLY/glTF/OFF) and their JPEG textures: image ground truth
   clang libclang-rt-14-dev  # scripts/fuzz.sh: libFuzzer targets (clang 14 on Debian 12)
   # `splatwarp edit`'s server: small, a thread pool, enough for loopback JSON + binary (progress is

@@ -1,10 +1,11 @@
-/// `splatwarp convert IN OUT [--points] [--spz-version 3|4] [--drop-invalid]`: any model read by
+/// `splatwarp convert IN OUT [--points] [--spz-version 3|4] [--sog-*] [--drop-invalid]`: any model read by
 /// content to the format OUT's extension names (docs/formats.md).
 #include "Command.h"
 #include "core/AtomicFile.h"
 #include "core/Error.h"
 #include "core/Progress.h"
 #include "io/GaussianIO.h"
+#include "io/SogIO.h"
 #include "ReadArgs.h"
 
 namespace splatwarp::cli {
@@ -14,6 +15,7 @@ struct ConvertArgs {
     std::string input, output;
     bool dropInvalid = false, points = false;
     int spzVersion = 3;
+    SogOptions sog;
 };
 
 void convert(const ConvertArgs& args)
@@ -29,7 +31,10 @@ void convert(const ConvertArgs& args)
     const GaussianCloud g = readModel(args.input, args.dropInvalid, &report);
     WriteOptions options;
     options.spzVersion = args.spzVersion;
-    writeGaussians(args.output, g, options);
+    if (format == "sog")
+        writeSog(args.output, g, args.sog);
+    else
+        writeGaussians(args.output, g, options);
     outputs.commit();
     progress(msg("converted ", g.size(), " Gaussians (", report.format, ", SH degree ", g.shDegree, ") to ",
                  args.output, " (", format == "spz" ? msg("spz-v", args.spzVersion) : format, ")"));
@@ -39,14 +44,20 @@ const CommandRegistrar reg(21, [](CLI::App& app) {
     auto args = std::make_shared<ConvertArgs>();
     CLI::App* sub = app.add_subcommand(
         "convert", "Convert a Gaussian model between formats: reads PLY (any layout), compressed PLY, .splat, .spz, "
-                   ".glb, .vdb points; writes .ply, .compressed.ply, .splat, .spz, .glb, .vdb (--points) by the "
-                   "output's extension");
+                   ".glb, .vdb points, SOG (.sog, meta.json folder); writes .ply, .compressed.ply, .splat, .spz, .glb, "
+                   ".vdb (--points), .sog (bundle) or meta.json (SOG folder) by the output's name");
     sub->add_option("input", args->input, "Input Gaussian file (format detected from the content)")->required();
     sub->add_option("output", args->output, "Output path; its extension picks the format (written atomically)")
         ->required();
     sub->add_flag("--points", args->points, "Write a .vdb output as an OpenVDB point grid (Houdini GSplat attributes)");
     sub->add_option("--spz-version", args->spzVersion, "Version of a .spz output: 3 (gzip, default) or 4 (zstd)")
         ->check(CLI::IsMember({3, 4}));
+    sub->add_option("--sog-seed", args->sog.seed, "SOG output: seed of the SH palette's k-means (same seed, same bytes)");
+    sub->add_option("--sog-iterations", args->sog.iterations, "SOG output: k-means iterations of the SH palette")
+        ->check(CLI::Range(1, 1000));
+    sub->add_option("--sog-palette", args->sog.maxPalette,
+                    "SOG output: most SH palette entries (splat-transform: up to 65536; time grows with it)")
+        ->check(CLI::Range(1, 65536));
     addDropInvalidFlag(sub, args->dropInvalid);
     sub->callback([args] { convert(*args); });
 });

@@ -60,6 +60,16 @@ GaussianCloud readGlb(const std::string& path, const std::string& data, ReadRepo
 ///        x right, y down, z forward) <-> glTF (x left, y up, z forward); its own inverse.
 void turnAboutZ(GaussianCloud& g);
 
+/// @brief True when a path names a SOG folder: a file named meta.json, or a folder holding one.
+bool isSogFolderPath(const std::string& path);
+/// @brief PlayCanvas SOG (meta.json version 2 + lossless WebP images) in a `.sog` zip bundle. Sizes are
+///        checked before anything is inflated or decoded: the count against the image bytes, each
+///        image's declared size against the count, zip entries against what the count can need.
+GaussianCloud readSog(const std::string& path, const std::string& data, ReadReport& report);
+/// @brief SOG as a folder: `path` is its meta.json (or the folder); only the images meta.json names,
+///        plain file names beside it, regular files (no symlinks), are read.
+GaussianCloud readSogFolder(const std::string& path, ReadReport& report);
+
 /// @brief The formats registered with registerModelFormat(), in registration order.
 std::vector<ModelFormatHooks> registeredModelFormats();
 

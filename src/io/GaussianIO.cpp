@@ -9,6 +9,7 @@
 
 #include "core/Error.h"
 #include "io/FormatReaders.h"
+#include "io/SogFormat.h"
 
 namespace splatwarp {
 
@@ -121,6 +122,8 @@ GaussianCloud readGaussiansFromBytes(const std::string& name, const std::string&
         const PlyBody body(name, data, header);
         g = isCompressedPly(header) ? readCompressedPly(name, header, body, local)
                                     : readGraphdecoPly(name, header, body, local);
+    } else if (sog::hasZipMagic(data) && notSplat()) {
+        g = readSog(name, data, local);
     } else if (hasGlbMagic(data) && notSplat()) {
         g = readGlb(name, data, local);
     } else if (other && notSplat()) {
@@ -140,6 +143,13 @@ GaussianCloud readGaussiansFromBytes(const std::string& name, const std::string&
 
 GaussianCloud readGaussians(const std::string& path, const ReadOptions& options, ReadReport* report)
 {
+    if (isSogFolderPath(path)) { // its images lie beside it: read by path, not as bytes
+        ReadReport local;
+        GaussianCloud g = readSogFolder(path, local);
+        applyInvalidPolicy(path, g, options, local);
+        if (report) *report = std::move(local);
+        return g;
+    }
     return readGaussiansFromBytes(path, readWholeFile(path), options, report);
 }
 

@@ -8,6 +8,7 @@
 #include "core/AtomicFile.h"
 #include "core/Error.h"
 #include "io/FormatReaders.h"
+#include "io/SogIO.h"
 #include "sh/SphericalHarmonics.h"
 
 namespace splatwarp {
@@ -51,7 +52,8 @@ std::vector<ModelFormatHooks> registeredModelFormats()
 std::string outputFormatOf(const std::string& path)
 {
     if (endsWith(path, ".compressed.ply")) return "compressed-ply"; // SuperSplat's name for it
-    for (const char* ext : {"ply", "splat", "spz", "glb"})
+    if (endsWith(path, "/meta.json") || path == "meta.json") return "sog"; // the folder form
+    for (const char* ext : {"ply", "splat", "spz", "glb", "sog"})
         if (endsWith(path, std::string(".") + ext)) return ext;
     for (const ModelFormatHooks& f : registeredModelFormats())
         if (endsWith(path, f.extension)) return f.name;
@@ -66,7 +68,8 @@ void writeGaussians(const std::string& path, const GaussianCloud& g, const Write
     if (format == "splat") return writeSplat(path, g);
     if (format == "spz") return writeSpz(path, g, options.spzVersion);
     if (format == "glb") return writeGlb(path, g);
-    std::string known = ".ply, .compressed.ply, .splat, .spz, .glb";
+    if (format == "sog") return writeSog(path, g); // default SogOptions: CmdConvert passes its own
+    std::string known = ".ply, .compressed.ply, .splat, .spz, .glb, .sog, meta.json (SOG folder)";
     for (const ModelFormatHooks& f : registeredModelFormats()) {
         if (f.name == format) return f.write(path, g);
         known += ", " + f.extension;
