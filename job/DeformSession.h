@@ -22,6 +22,8 @@ public:
     ///        With options.stage1Only, no sample grid is made and refine() is refused.
     /// @throws InputError / IoError naming the file, as deform does.
     DeformSession(DeformJobOptions options, const DeformSpec& graphSpec);
+    /// @brief The same for a model already in memory (options.input only names it).
+    DeformSession(DeformJobOptions options, const DeformSpec& graphSpec, GaussianCloud model);
     ~DeformSession();
     DeformSession(const DeformSession&) = delete;
     DeformSession& operator=(const DeformSession&) = delete;
@@ -45,6 +47,9 @@ public:
     nlohmann::json write(const std::string& dir);
 
     bool refined() const { return mFrame && mFrame->fitted.has_value(); }
+    /// @brief The last pose's report so far: what write() writes less "outputs" and the write timings.
+    /// @throws UsageError without a pose.
+    const nlohmann::json& report() const;
 
 private:
     DeformJobOptions mOptions;
