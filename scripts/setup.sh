@@ -10,6 +10,7 @@ PACKAGES=(
   libzstd-dev  # .spz version 4
   libassimp-dev libjpeg-dev  # meshes (OBJ/PLY/glTF/OFF) and their JPEG textures: image ground truth
   clang libclang-rt-14-dev  # scripts/fuzz.sh: libFuzzer targets (clang 14 on Debian 12)
+  pybind11-dev python3-numpy python3-pytest  # python/: the `import splatwarp` module and its pytest tests
 )
 missing=()
 for p in "${PACKAGES[@]}"; do
