@@ -132,28 +132,26 @@ void checkInputsOutsideOutputs(const DeformJobOptions& o)
 
 /// A frame's manifest entry from its deform report: files, timings, field errors and, with
 /// --warm-start, which start it used and why.
-json manifestEntry(const json& report, const json& files)
+json manifestEntry(const FrameReport& report, const json& files)
 {
-    json entry = {{"files", files}, {"timingsMs", report["timingsMs"]}};
-    if (report.contains("stage1") && report["stage1"].contains("field_error"))
-        entry["field_error"]["stage1"] = report["stage1"]["field_error"];
-    if (report.contains("stage2") && report["stage2"].contains("field_error"))
-        entry["field_error"]["stage2"] = report["stage2"]["field_error"];
-    if (report.contains("stage2") && report["stage2"].contains("start")) {
-        const json& s2 = report["stage2"];
-        entry["start"] = s2["start"];
-        if (s2.contains("warmLimit"))
-            entry["warmStart"] = {{"energy", s2.value("warmEnergy", s2["energies"][0]["total"].get<double>())},
-                                  {"limit", s2["warmLimit"]}};
+    json entry = {{"files", files}, {"timingsMs", report.toJson()["timingsMs"]}};
+    if (report.stage1Errors) entry["fieldError"]["stage1"] = judgeJson(report.stage1Errors->judge);
+    const std::optional<StageTwoRecord>& s2 = report.stage2;
+    if (s2 && s2->errors) entry["fieldError"]["stage2"] = judgeJson(s2->errors->judge);
+    if (s2 && s2->start) {
+        entry["start"] = *s2->start;
+        if (s2->warmLimit)
+            entry["warmStart"] = {{"energy", s2->warmEnergy ? *s2->warmEnergy : s2->fit.energies.at(0).total},
+                                  {"limit", *s2->warmLimit}};
     }
     return entry;
 }
 
 std::string frameSummary(const json& entry)
 {
-    if (!entry.contains("field_error") || !entry["field_error"].contains("stage2")) return "written";
-    const json& e1 = entry["field_error"]["stage1"];
-    const json& e2 = entry["field_error"]["stage2"];
+    if (!entry.contains("fieldError") || !entry["fieldError"].contains("stage2")) return "written";
+    const json& e1 = entry["fieldError"]["stage1"];
+    const json& e2 = entry["fieldError"]["stage2"];
     char s[160];
     std::snprintf(s, sizeof s, "field error opacity %.4g -> %.4g, color %.4g -> %.4g", e1["opacity"].get<double>(),
                   e2["opacity"].get<double>(), e1["color"].get<double>(), e2["color"].get<double>());
@@ -177,7 +175,7 @@ public:
     {
     }
     /// Frame f's report; `written` receives the model written.
-    json run(int f, const FrameOutputs& out, GaussianCloud& written)
+    FrameReport run(int f, const FrameOutputs& out, GaussianCloud& written)
     {
         if (!mWarm) return runDeformFrame(mRest, frameSpec(mAnim, f), mOptions, out, &written);
         const std::optional<Carried> previous = startsWarm(f) ? carriedBefore(f) : std::nullopt;
@@ -192,18 +190,18 @@ public:
                 return !fit.energies.empty() && rejectsWarmStart(fit.energies.front().total, previous->fitEnergy);
             };
         mLast.reset();
-        json report = runDeformFrame(mRest, frameSpec(mAnim, f), mOptions, out, &written, start);
+        FrameReport report = runDeformFrame(mRest, frameSpec(mAnim, f), mOptions, out, &written, start);
         if (stage1.empty()) { // a rigid frame skips Stage II (start is not called): nothing to carry
             mLast = Carried{f, std::nullopt, 0.0};
             return report;
         }
-        json& s2 = report["stage2"];
-        if (!(previous && previous->correction)) s2["start"] = "cold";
-        else s2["warmLimit"] = kWarmEnergyLimit * previous->fitEnergy;
+        StageTwoRecord& s2 = *report.stage2;
+        if (!(previous && previous->correction)) s2.start = "cold";
+        else s2.warmLimit = kWarmEnergyLimit * previous->fitEnergy;
         // A fit that kept its Stage I model (iteration 0) carries nothing but rounding: its odd frame starts cold.
         // So does one whose split or prune changed the count (a correction is per Gaussian).
-        if (s2.value("bestIteration", 0) == 0 || written.size() != stage1.size()) mLast = Carried{f, std::nullopt, 0.0};
-        else mLast = Carried{f, stageTwoCorrection(stage1, written), s2.value("bestEnergy", 0.0)};
+        if (s2.fit.bestIteration == 0 || written.size() != stage1.size()) mLast = Carried{f, std::nullopt, 0.0};
+        else mLast = Carried{f, stageTwoCorrection(stage1, written), s2.fit.bestEnergy};
         return report;
     }
 
@@ -315,7 +313,7 @@ SequenceResult runAnimateJob(const AnimateJobOptions& options)
         else add(out.deformed, "deformed");
         if (o.writeVdb && !o.stage1Only) add(out.vdb, "vdb");
         GaussianCloud frame;
-        const json report = frames.run(f, out, frame);
+        const FrameReport report = frames.run(f, out, frame);
         if (o.render) {
             std::string png;
             add(png, "preview");

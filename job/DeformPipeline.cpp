@@ -31,59 +31,6 @@ namespace splatwarp {
 
 namespace {
 
-/// Forget the evaluations after iteration `after` (their run fell back to the CPU and repeats them).
-void dropCurveAfter(nlohmann::json& curve, int after)
-{
-    nlohmann::json kept = nlohmann::json::array();
-    for (const nlohmann::json& e : curve)
-        if (e["iteration"].get<int>() <= after) kept.push_back(e);
-    curve = std::move(kept);
-}
-
-nlohmann::json stageTwoJson(const StageTwoReport& r, const SampleGrid& grid, const StageTwoOptions& o)
-{
-    nlohmann::json energies = nlohmann::json::array();
-    for (const StageTwoEnergy& e : r.energies)
-        energies.push_back({{"iteration", e.iteration}, {"total", e.total}, {"color", e.color}, {"opacity", e.opacity},
-                            {"boundary", e.boundary}, {"rejected", e.rejected}});
-    std::uint64_t pairs = 0;
-    for (std::uint64_t p : r.pairsPerIteration) pairs += p;
-    const double pairsPerIteration = r.pairsPerIteration.empty() ? 0.0 : double(pairs) / r.pairsPerIteration.size();
-    nlohmann::json roundDevices = nlohmann::json::array();
-    for (const Device d : r.roundDevices) roundDevices.push_back(deviceName(d));
-    return {{"energies", energies},
-            {"roundDevices", roundDevices},
-            {"movingGaussians", r.movingGaussians},
-            {"activeCells", grid.stats().cells},
-            {"samplesPerCell", grid.options().samplesPerAxis},
-            {"skippedCells", grid.stats().skippedCells},
-            {"samples", grid.stats().samples},
-            {"fineCells", grid.stats().fineCells},
-            {"fineSamplesAdded", grid.stats().fineSamplesAdded},
-            {"samplesUsed", r.samplesUsed},
-            {"pairsPerIteration", pairsPerIteration},
-            {"pairsPerSecond", r.msForward + r.msBackward > 0 ? pairs / ((r.msForward + r.msBackward) / 1000.0) : 0.0},
-            {"coverageRebuilds", r.coverageRebuilds},
-            {"bestIteration", r.bestIteration},
-            {"bestEnergy", r.bestEnergy},
-            {"rejectedSteps", r.rejectedSteps},
-            {"stoppedAt", r.stoppedAt},
-            {"stopReason", r.stoppedAt >= 0 ? r.stopReason : std::string("ran every iteration")},
-            {"device", devicesName(r)},
-            {"gpuPeakBytes", r.gpuPeakBytes},
-            {"sceneExtent", r.sceneExtent},
-            {"parameters",
-             {{"iterations", o.iterations}, {"lambdaOpacity", o.lambdaOpacity}, {"boundaryWeight", o.boundaryWeight},
-              {"lowPassFilter", o.lowPassFilter}, {"lambdaLpf", o.lambdaLpf}, {"coverageSteps", o.coverageSteps}, {"rebuildEvery", o.rebuildEvery},
-              {"cutoff", o.cutoff}, {"rejectSteps", o.rejectSteps}, {"stallStop", o.stallStop},
-              {"keepBest", o.keepBest}, {"fineBelow", grid.options().fineBelow},
-              {"fineNeighbours", grid.options().fineNeighbours}}},
-            {"timingsMs",
-             {{"setup", r.msSetup}, {"coverage", r.msCoverage}, {"forward", r.msForward}, {"backward", r.msBackward},
-              {"update", r.msUpdate}, {"total", r.msTotal}}}};
-}
-
-
 /// Cameras that frame both the rest and the deformed shape.
 std::vector<Camera> comparisonCameras(const GaussianCloud& rest, const GaussianCloud& deformed, const DeformJobOptions& o)
 {
@@ -95,11 +42,11 @@ std::vector<Camera> comparisonCameras(const GaussianCloud& rest, const GaussianC
     return orbitCameras(both, orbit);
 }
 
-/// stretched.png: a close-up of the most stretched region (StretchedView.h); report["stretched"]
-/// says where it is. The rest samples are warped again: only this output needs their gradients here.
+/// stretched.png: a close-up of the most stretched region (StretchedView.h); the report's
+/// "stretched" says where it is. The rest samples are warped again: only this output needs their gradients here.
 void writeStretchedView(const DeformRest& rest, const Deformation& deformation, const GaussianCloud& stage1,
                         const GaussianCloud& fitted, const DeformJobOptions& o, const std::string& path,
-                        nlohmann::json& report)
+                        FrameReport& report)
 {
     SampleSet samples = rest.grid->samples();
     warpSamplesOn(samples, deformation, {rest.device, o.grid.threaded});
@@ -111,15 +58,13 @@ void writeStretchedView(const DeformRest& rest, const Deformation& deformation, 
     RenderOptions render;
     render.device = rest.device;
     writePng(path, renderStretchedCloseUp(rest.model, stage1, fitted, *region, o.renderSize, render));
-    const Vec3d& c = region->warpedCentre;
-    report["stretched"] = {{"cell", region->cell}, {"stretch", region->stretch}, {"centre", {c.x, c.y, c.z}},
-                           {"radius", region->radius}};
-    report["outputs"]["stretched"] = path;
+    report.stretched = StretchedRecord{region->cell, region->stretch, region->radius, region->warpedCentre};
+    report.outputs["stretched"] = path;
 }
 
 /// The optional outputs of Stage II's result: field.vdb, compare.png and stretched.png.
 void writeExtras(const DeformRest& rest, const Deformation& deformation, const GaussianCloud& stage1,
-                 const GaussianCloud& fitted, const DeformJobOptions& o, const FrameOutputs& out, nlohmann::json& report)
+                 const GaussianCloud& fitted, const DeformJobOptions& o, const FrameOutputs& out, FrameReport& report)
 {
     Stopwatch clock;
     if (!out.vdb.empty()) {
@@ -131,8 +76,8 @@ void writeExtras(const DeformRest& rest, const Deformation& deformation, const G
         vo.source = out.deformed;
         vo.threaded = o.grid.threaded;
         writeSampleGridVdb(out.vdb, fieldGrid, vo);
-        report["outputs"]["field"] = out.vdb;
-        report["timingsMs"]["vdb"] = clock.ms();
+        report.outputs["field"] = out.vdb;
+        report.timingsMs["vdb"] = clock.ms();
     }
     if (!out.compare.empty()) {
         clock.reset();
@@ -141,9 +86,9 @@ void writeExtras(const DeformRest& rest, const Deformation& deformation, const G
         const Image sheet = renderComparisonSheet({&rest.model, &stage1, &fitted}, {"rest", "stage I", "stage II"},
                                                   comparisonCameras(rest.model, fitted, o), sheetOptions);
         writePng(out.compare, sheet);
-        report["outputs"]["compare"] = out.compare;
+        report.outputs["compare"] = out.compare;
         if (!out.stretched.empty()) writeStretchedView(rest, deformation, stage1, fitted, o, out.stretched, report);
-        report["timingsMs"]["render"] = clock.ms();
+        report.timingsMs["render"] = clock.ms();
     }
 }
 
@@ -163,18 +108,17 @@ struct FrameErrors {
         latticeTarget = rotatedTarget(*rest.latticeRest, *lattice);
     }
 
-    /// stage["field_error"] (the judge) and stage["lattice_error"] of a model, with progress lines.
-    void record(const GaussianCloud& model, const std::string& label, nlohmann::json& stage) const
+    /// The judge's errors and the training lattice's of a model, with progress lines; none
+    /// when the run does not evaluate.
+    std::optional<ModelErrors> record(const GaussianCloud& model, const std::string& label) const
     {
-        const JudgeReport j = judge->judge(model);
-        stage["field_error"] = judgeJson(j);
+        if (!judge) return std::nullopt;
+        ModelErrors e{judge->judge(model), evaluateHeldOut(*latticeTarget, model, *lattice), lattice->features.filterVariance};
         progress(label + ", judged as `splatwarp eval` prints it:");
-        std::istringstream lines(judgeText(j));
+        std::istringstream lines(judgeText(e.judge));
         for (std::string line; std::getline(lines, line);) progress(line);
-        const FieldErrorReport l = evaluateHeldOut(*latticeTarget, model, *lattice);
-        stage["lattice_error"] = fieldErrorJson(l);
-        stage["lattice_error"]["filterVariance"] = lattice->features.filterVariance;
-        progress(msg(label, " error at the training lattice: opacity ", l.opacity, ", color ", l.color));
+        progress(msg(label, " error at the training lattice: opacity ", e.lattice.opacity, ", color ", e.lattice.color));
+        return e;
     }
 };
 
@@ -183,24 +127,24 @@ struct FrameErrors {
 /// the Stage I model's and Stage II has nothing to fit (run anyway, it only adds noise: at best
 /// its first steps are all rejected). Returns the Stage I model with both stages judged.
 GaussianCloud skipStageTwo(DeformRest& rest, const Deformation& deformation, const StageOneResult& stage1,
-                           const DeformJobOptions& o, nlohmann::json& report)
+                           const DeformJobOptions& o, FrameReport& report)
 {
     progress("Stage II: skipped (a rigid spec: the Stage I model is the fitted one)");
-    report["stage2"] = {{"skipped", "rigid spec"}, {"movingGaussians", 0}, {"device", "none"},
-                        {"gaussiansAdded", 0}, {"gaussiansRemoved", 0}, {"gaussians", stage1.deformed.size()}};
-    report["timingsMs"]["stage2"] = 0.0;
+    StageTwoRecord& s2 = report.stage2.emplace();
+    s2.skipped = true;
+    s2.gaussians = stage1.deformed.size();
+    report.timingsMs["stage2"] = 0.0;
     Stopwatch clock;
     const FrameErrors errors(rest, deformation, o);
     if (errors.judge) { // one model, judged once for both stages
-        errors.record(stage1.deformed, "Stage I", report["stage1"]);
-        for (const char* key : {"field_error", "lattice_error"}) report["stage2"][key] = report["stage1"][key];
-        report["timingsMs"]["evaluate"] = rest.heldOutMs + clock.ms();
+        report.stage1Errors = s2.errors = errors.record(stage1.deformed, "Stage I");
+        report.timingsMs["evaluate"] = rest.heldOutMs + clock.ms();
     }
     return stage1.deformed;
 }
 
 /// Stage II's cold start: Stage I's model with its moving flags and rest cells, and with the bent
-/// Gaussians split and moved again (--curve-split; report "curveSplit", judged when evaluating).
+/// Gaussians split and moved again (--curve-split; the report's "curveSplit", judged when evaluating).
 struct ColdStart {
     GaussianCloud model;
     GaussianCloud shifted; ///< the curve shift of model (empty when off): a candidate of the keep
@@ -213,7 +157,7 @@ struct ColdStart {
 /// judge better (fans win where a few Gaussians are bent far beyond three halvings, playbot-31k;
 /// they lose where many thin ones are, guitar: docs/lab/fidelity-study.md).
 CurveSplitResult curveSplitOf(const DeformRest& rest, const Deformation& deformation, const StageOneResult& stage1,
-                              const DeformJobOptions& o, const Judge* validation, nlohmann::json& report)
+                              const DeformJobOptions& o, const Judge* validation, CurveSplitRecord& record)
 {
     CurveSplitOptions co = o.curve;
     co.threaded = o.grid.threaded;
@@ -223,16 +167,14 @@ CurveSplitResult curveSplitOf(const DeformRest& rest, const Deformation& deforma
                           o.stage1, co);
     };
     CurveSplitResult cs = split(o.curve.fanAbove);
-    report["curveSplit"]["fans"] = "on";
     if (validation && o.curve.fanAbove > 0) {
         CurveSplitResult three = split(0.0);
-        const double withFans = validation->score(cs.deformed), without = validation->score(three.deformed);
-        report["curveSplit"]["validationWithFans"] = withFans;
-        report["curveSplit"]["validationWithoutFans"] = without;
+        record.validationWithFans = validation->score(cs.deformed);
+        record.validationWithoutFans = validation->score(three.deformed);
         const double ms = cs.ms + three.ms; // both splits ran
-        if (without < withFans) {
+        if (*record.validationWithoutFans < *record.validationWithFans) {
             cs = std::move(three);
-            report["curveSplit"]["fans"] = "off (validated)";
+            record.fans = false;
         }
         cs.ms = ms;
     }
@@ -240,28 +182,27 @@ CurveSplitResult curveSplitOf(const DeformRest& rest, const Deformation& deforma
 }
 
 /// The cold start's curve shift, a candidate of the validated keep (empty without validation
-/// points or with --curve-shift 0; report "curveShift", judged when evaluating).
+/// points or with --curve-shift 0; the report's "curveShift", judged when evaluating).
 GaussianCloud curveShiftOf(const GaussianCloud& start, const std::vector<float>& curve, const DeformJobOptions& o,
-                           const FrameErrors& errors, const Judge* validation, nlohmann::json& report)
+                           const FrameErrors& errors, const Judge* validation, FrameReport& report)
 {
     if (!validation || o.curveShift == 0.0) return {};
     const std::vector<double> shares =
         o.curveShift ? std::vector<double>{*o.curveShift} : std::vector<double>(std::begin(kCurveShares), std::end(kCurveShares));
     CurveShiftChoice c = chooseCurveShift(*validation, start, curve, shares);
-    report["curveShift"] = {{"share", c.share}, {"auto", !o.curveShift}, {"ms", c.ms}};
-    for (std::size_t i = 0; i < shares.size(); ++i)
-        report["curveShift"]["validation"][msg(shares[i])] = c.scores[i];
-    report["timingsMs"]["curveShift"] = c.ms;
+    CurveShiftRecord& r = report.curveShift.emplace();
+    r = {c.share, !o.curveShift, shares, c.scores, c.ms, std::nullopt};
+    report.timingsMs["curveShift"] = c.ms;
     progress(msg("curve shift: share ", c.share, " of the second-order offset (", int(c.ms), " ms)"));
-    if (errors.judge) errors.record(c.model, "Curve shift", report["curveShift"]);
+    r.errors = errors.record(c.model, "Curve shift");
     return std::move(c.model);
 }
 
 /// --validated-split: the splits the validation points measure to pay, within what is left of the
-/// curve split's budget (report "validatedSplit").
+/// curve split's budget (the report's "validatedSplit").
 void splitByValidation(const DeformRest& rest, const Deformation& deformation, const StageOneResult& stage1,
                        const DeformJobOptions& o, const Judge& validation, std::vector<float>& curve, ColdStart& c,
-                       nlohmann::json& report)
+                       FrameReport& report)
 {
     const std::size_t allowed = std::size_t(double(o.curve.maxAdded) * double(rest.model.size()));
     const std::size_t budget = allowed > c.added ? allowed - c.added : 0;
@@ -270,34 +211,46 @@ void splitByValidation(const DeformRest& rest, const Deformation& deformation, c
     const ValidatedSplitReport r =
         validatedSplit(validation, rest.model, deformation, s1, stage1.deformed, budget, {c.model, c.moving, c.cells, curve});
     c.added += r.added;
-    report["validatedSplit"] = {{"tried", r.tried}, {"split", r.split}, {"added", r.added}, {"budget", budget},
-                                {"validationBefore", r.before}, {"validationAfter", r.after}, {"ms", r.ms}};
-    report["timingsMs"]["validatedSplit"] = r.ms;
+    report.validatedSplit = ValidatedSplitRecord{r, budget};
+    report.timingsMs["validatedSplit"] = r.ms;
+}
+
+/// --curve-split on the cold start (the report's "curveSplit"); returns phi's second-order offsets
+/// of the start's Gaussians.
+std::vector<float> splitBent(const DeformRest& rest, const Deformation& deformation, const StageOneResult& stage1,
+                             const DeformJobOptions& o, const FrameErrors& errors, const Judge* validation,
+                             ColdStart& c, FrameReport& report)
+{
+    CurveSplitRecord& record = report.curveSplit.emplace();
+    CurveSplitResult cs = curveSplitOf(rest, deformation, stage1, o, validation, record);
+    record.options = o.curve;
+    record.roundsUsed = cs.rounds;
+    record.split = cs.split;
+    record.added = cs.added;
+    record.gaussians = cs.deformed.size();
+    record.ms = cs.ms;
+    report.timingsMs["curveSplit"] = cs.ms;
+    progress(msg("curve split: ", cs.split, " bent Gaussians split, ", cs.added, " added: ", cs.deformed.size(),
+                 " Gaussians (", int(cs.ms), " ms)"));
+    if (cs.added > 0) {
+        c.model = std::move(cs.deformed);
+        c.moving = std::move(cs.moving);
+        c.added = cs.added;
+        std::vector<std::int32_t> cells(cs.parent.size()); // children filter as their parent's rest cell
+        for (std::size_t i = 0; i < cs.parent.size(); ++i) cells[i] = c.cells[std::size_t(cs.parent[i])];
+        c.cells = std::move(cells);
+        record.errors = errors.record(c.model, "Curve split");
+    }
+    return std::move(cs.curve);
 }
 
 ColdStart coldStart(const DeformRest& rest, const Deformation& deformation, const StageOneResult& stage1,
-                    const DeformJobOptions& o, const FrameErrors& errors, const Judge* validation, nlohmann::json& report)
+                    const DeformJobOptions& o, const FrameErrors& errors, const Judge* validation, FrameReport& report)
 {
     ColdStart c{stage1.deformed, {}, stage1.moving, rest.grid->gaussianCell(), 0};
     std::vector<float> curve; // phi's second-order offsets of c.model's Gaussians
     if (o.curveSplit) {
-        CurveSplitResult cs = curveSplitOf(rest, deformation, stage1, o, validation, report);
-        report["curveSplit"].update({{"maxAdded", o.curve.maxAdded}, {"rounds", o.curve.rounds},
-                                     {"fanAbove", o.curve.fanAbove}, {"roundsUsed", cs.rounds}, {"split", cs.split},
-                                     {"added", cs.added}, {"gaussians", cs.deformed.size()}, {"ms", cs.ms}});
-        report["timingsMs"]["curveSplit"] = cs.ms;
-        progress(msg("curve split: ", cs.split, " bent Gaussians split, ", cs.added, " added: ", cs.deformed.size(),
-                     " Gaussians (", int(cs.ms), " ms)"));
-        if (cs.added > 0) {
-            c.model = std::move(cs.deformed);
-            c.moving = std::move(cs.moving);
-            c.added = cs.added;
-            std::vector<std::int32_t> cells(cs.parent.size()); // children filter as their parent's rest cell
-            for (std::size_t i = 0; i < cs.parent.size(); ++i) cells[i] = c.cells[std::size_t(cs.parent[i])];
-            c.cells = std::move(cells);
-            if (errors.judge) errors.record(c.model, "Curve split", report["curveSplit"]);
-        }
-        curve = std::move(cs.curve);
+        curve = splitBent(rest, deformation, stage1, o, errors, validation, c, report);
     } else if (validation && o.curveShift != 0.0) {
         curve = stageOneBendingOf(rest.model, rest.rig, rest.graph, deformation.transforms, stage1.deformed,
                                   stage1.moving, o.stage1).curve;
@@ -311,71 +264,61 @@ ColdStart coldStart(const DeformRest& rest, const Deformation& deformation, cons
 }
 
 /// --keep validated: Stage II's start, its curve shift (when made), the fit or a region mix of them,
-/// whichever the validation points judge best (job/StageTwoChoice.h; report stage2 "keep").
+/// whichever the validation points judge best (job/StageTwoChoice.h; the report's stage2 "keep").
 GaussianCloud keepValidated(const Judge& validation, const GaussianCloud& startModel, const GaussianCloud* shifted,
-                            GaussianCloud fitted, bool sameGaussians, bool perGaussian, std::string& keptName,
-                            nlohmann::json& report)
+                            GaussianCloud fitted, bool sameGaussians, bool perGaussian, KeepRecord& record)
 {
-    StageTwoChoice c;
     std::vector<StageTwoCandidate> candidates{{"start", &startModel}};
     if (shifted && !shifted->empty()) candidates.push_back({"shifted", shifted});
     candidates.push_back({"fit", &fitted});
-    GaussianCloud kept = chooseStageTwoModel(validation, candidates, sameGaussians, c);
-    keptName = c.kept;
-    nlohmann::json& k = report["stage2"]["keep"];
-    k = {{"kept", c.kept}, {"regions", c.regions}, {"ms", c.ms}};
-    if (std::isfinite(c.mix)) k.update({{"validationMix", c.mix}, {"mixOf", c.mixOf}});
-    for (std::size_t i = 0; i < candidates.size(); ++i) {
-        std::string name = candidates[i].name;
-        name[0] = char(std::toupper(name[0]));
-        k["validation" + name] = c.scores[i];
-        k["regions" + name] = c.regionsWon[i];
-    }
-    report["timingsMs"]["keep"] = c.ms;
+    for (const StageTwoCandidate& c : candidates) record.candidates.push_back(c.name);
+    GaussianCloud kept = chooseStageTwoModel(validation, candidates, sameGaussians, record.choice);
     if (!perGaussian || !sameGaussians || kept.size() != startModel.size()) return kept;
-    GaussianChoiceReport g;
-    kept = chooseEachGaussian(validation, candidates, std::move(kept), g);
-    k["perGaussian"] = {{"swapped", g.swapped}, {"tried", g.tried}, {"validationBefore", g.before},
-                        {"validationAfter", g.after}, {"ms", g.ms}};
-    report["timingsMs"]["keep"] = c.ms + g.ms;
-    return kept;
+    return chooseEachGaussian(validation, candidates, std::move(kept), record.perGaussian.emplace());
 }
 
-/// stage2 "densify" and the Gaussians the kept model gained and lost: the curve split's and, unless
-/// --keep validated went back to a start (`keptName`: the keep's choice, "" without a keep), those
-/// of the split and prune inside Stage II.
+/// The Gaussians the kept model gained and lost: the curve split's and, unless --keep validated went
+/// back to a start (`keptName`: the keep's choice, "" without a keep), those of the split and prune
+/// inside Stage II.
 void recordGaussianCounts(const ColdStart& cold, const DensifyCounts& counts, const DeformJobOptions& o,
-                          const GaussianCloud& kept, const std::string& keptName, nlohmann::json& stage2)
+                          const GaussianCloud& kept, const std::string& keptName, StageTwoRecord& stage2)
 {
     const bool fitKept = keptName.empty() || keptName == "fit" || keptName == "mix";
-    stage2["densify"] = {{"split", o.densify.split ? "auto" : "off"}, {"splitStretch", o.densify.splitStretch},
-                         {"splitAfter", o.densify.splitAfter},       {"splitOffset", o.densify.splitOffset},
-                         {"pruneBelow", o.densify.pruneBelow},       {"ms", counts.ms}};
-    stage2["gaussiansAdded"] = cold.added + (fitKept ? counts.split : 0);
-    stage2["gaussiansRemoved"] = fitKept ? counts.pruned : 0;
-    stage2["gaussians"] = kept.size();
+    stage2.densify = o.densify;
+    stage2.densifyMs = counts.ms;
+    stage2.gaussiansAdded = cold.added + (fitKept ? counts.split : 0);
+    stage2.gaussiansRemoved = fitKept ? counts.pruned : 0;
+    stage2.gaussians = kept.size();
     if (o.densify.split || o.densify.pruneBelow > 0)
         progress(msg("Stage II: ", counts.split, " Gaussians added by splits, ", counts.pruned, " pruned", fitKept ? "" : " (not kept)",
                      ": ", kept.size(), " Gaussians"));
 }
 
+/// Warp a copy of the rest samples (the rest samples stay untouched for the next frame).
+SampleSet warpedSamples(const DeformRest& rest, const Deformation& deformation, const DeformJobOptions& o,
+                        FrameReport& report)
+{
+    Stopwatch clock;
+    SampleSet samples = rest.grid->samples();
+    const char* warpDevice = deviceName(warpSamplesOn(samples, deformation, {rest.device, o.grid.threaded}));
+    report.timingsMs["warpSamples"] = clock.ms();
+    report.warpDevice = warpDevice;
+    progress(msg("warped ", rest.grid->stats().samples, " samples in ", int(clock.ms()), " ms on ", warpDevice));
+    return samples;
+}
+
 /// Stage II on a warped copy of the rest samples, with the held-out errors; returns the fitted model.
 GaussianCloud stageTwo(DeformRest& rest, const Deformation& deformation, const StageOneResult& stage1,
-                       const DeformJobOptions& o, const StageTwoStart& start, nlohmann::json& report)
+                       const DeformJobOptions& o, const StageTwoStart& start, FrameReport& report)
 {
     if (rigidMotionOf(deformation)) return skipStageTwo(rest, deformation, stage1, o, report);
-    Stopwatch clock;
-    SampleSet samples = rest.grid->samples(); // the rest samples stay untouched for the next frame
-    const char* warpDevice = deviceName(warpSamplesOn(samples, deformation, {rest.device, o.grid.threaded}));
-    report["timingsMs"]["warpSamples"] = clock.ms();
-    report["warpDevice"] = warpDevice;
-    progress(msg("warped ", rest.grid->stats().samples, " samples in ", int(clock.ms()), " ms on ", warpDevice));
+    const SampleSet samples = warpedSamples(rest, deformation, o, report);
 
-    clock.reset();
+    Stopwatch clock;
     const FrameErrors errors(rest, deformation, o);
     if (errors.judge) {
-        errors.record(stage1.deformed, "Stage I", report["stage1"]);
-        report["timingsMs"]["evaluate"] = rest.heldOutMs + clock.ms();
+        report.stage1Errors = errors.record(stage1.deformed, "Stage I");
+        report.timingsMs["evaluate"] = rest.heldOutMs + clock.ms();
     }
 
     std::optional<Judge> validation; // --keep validated: the judge's rule with another seed
@@ -389,25 +332,26 @@ GaussianCloud stageTwo(DeformRest& rest, const Deformation& deformation, const S
     }
     const bool warm = start.change && cold.added == 0;
     const GaussianCloud startModel = o.keepValidated ? fitted : GaussianCloud();
-    nlohmann::json curve = nlohmann::json::array();
+    std::vector<CurvePoint> curve;
     auto onEval = [&](int iteration, const GaussianCloud& current) {
-        const FieldErrorReport e = errors.judge->fieldError(current);
-        nlohmann::json j = fieldErrorJson(e);
-        j["iteration"] = iteration;
-        curve.push_back(j);
-        progress(msg("Stage II iteration ", iteration, ": judged opacity error ", e.opacity));
+        curve.push_back({iteration, errors.judge->fieldError(current)});
+        progress(msg("Stage II iteration ", iteration, ": judged opacity error ", curve.back().error.opacity));
+    };
+    auto dropCurveAfter = [&](int after) { // their run fell back to the CPU and repeats them
+        curve.erase(std::remove_if(curve.begin(), curve.end(), [&](const CurvePoint& p) { return p.iteration > after; }),
+                    curve.end());
     };
     StageTwoOptions s2 = o.stage2;
     s2.device = rest.device;
     DensifyCounts counts;
     auto fit = [&] {
         progress(msg("Stage II: ", o.stage2.iterations, " iterations on ", stage1.movingCount + cold.added, " moving Gaussians"));
-        curve = nlohmann::json::array();
+        curve.clear();
         counts = DensifyCounts();
         return fitInRounds(fitted, samples, cold.moving, cold.cells, s2, o.densify,
                            o.evalEvery > 0 ? std::function<void(int, const GaussianCloud&)>(onEval)
                                            : std::function<void(int, const GaussianCloud&)>(),
-                           o.evalEvery, counts, [&](int after) { dropCurveAfter(curve, after); });
+                           o.evalEvery, counts, dropCurveAfter);
     };
     StageTwoReport r2 = fit();
     std::optional<double> rejectedStart; // the warm start's energy when the frame went back to the cold start
@@ -419,18 +363,26 @@ GaussianCloud stageTwo(DeformRest& rest, const Deformation& deformation, const S
         fitted = cold.model;
         r2 = fit();
     }
-    report["stage2"] = stageTwoJson(r2, *rest.grid, o.stage2);
+    StageTwoRecord& record = report.stage2.emplace();
+    record.fit = std::move(r2);
+    record.grid = rest.grid->stats();
+    record.gridOptions = rest.grid->options();
+    record.options = o.stage2;
     checkCancelled();
-    std::string keptName; // the keep's choice, passed on as a value (not read back from the report)
-    if (o.keepValidated)
+    std::string keptName; // the keep's choice, passed on as a value
+    if (o.keepValidated) {
+        KeepRecord& keep = record.keep.emplace();
         fitted = keepValidated(*validation, rejectedStart ? cold.model : startModel, &cold.shifted, std::move(fitted),
-                               counts.split == 0 && counts.pruned == 0, o.keepPerGaussian, keptName, report);
-    recordGaussianCounts(cold, counts, o, fitted, keptName, report["stage2"]);
-    report["timingsMs"]["stage2"] = r2.msTotal + rejectedMs + counts.ms;
-    if (start.change) report["stage2"]["start"] = warm && !rejectedStart ? "warm" : "cold";
-    if (rejectedStart) report["stage2"]["warmEnergy"] = *rejectedStart;
-    if (o.evalEvery > 0) report["stage2"]["eval_curve"] = curve;
-    if (errors.judge) errors.record(fitted, "Stage II", report["stage2"]);
+                               counts.split == 0 && counts.pruned == 0, o.keepPerGaussian, keep);
+        keptName = keep.choice.kept;
+        report.timingsMs["keep"] = keep.ms();
+    }
+    recordGaussianCounts(cold, counts, o, fitted, keptName, record);
+    report.timingsMs["stage2"] = record.fit.msTotal + rejectedMs + counts.ms;
+    if (start.change) record.start = warm && !rejectedStart ? "warm" : "cold";
+    record.warmEnergy = rejectedStart;
+    if (o.evalEvery > 0) record.evalCurve = std::move(curve);
+    record.errors = errors.record(fitted, "Stage II");
     return fitted;
 }
 
@@ -536,13 +488,16 @@ FrameResult poseFrame(DeformRest& rest, const DeformSpec& spec, const DeformJobO
     f.stage1.timings.rigMs = rest.rigMs;
     progress(msg("Stage I: ", f.stage1.movingCount, " of ", rest.model.size(), " Gaussians moved (", int(rest.rigMs),
                  " ms weights, ", int(f.stage1.timings.updateMs), " ms update on ", deviceName(f.stage1.device), ")"));
-    f.report = stageOneReportJson(f.deformation, f.stage1, graphOptionsOf(spec, o), o.ed);
-    f.report["stage1"]["shape"] = o.stage1.shape == StageOneShape::Affine ? "affine" : "polar";
-    f.report["input"] = {{"path", o.input}, {"format", rest.read.format}, {"gaussians", rest.model.size()},
-                         {"shDegree", rest.model.shDegree}};
-    f.report["spec"] = o.specPath;
-    if (!o.recipe.is_null()) f.report["recipe"] = o.recipe;
-    f.report["timingsMs"]["read"] = rest.readMs;
+    FrameReport& r = f.report;
+    r.stageOne = stageOneReportJson(f.deformation, f.stage1, graphOptionsOf(spec, o), o.ed);
+    r.stage1Shape = o.stage1.shape == StageOneShape::Affine ? "affine" : "polar";
+    r.inputPath = o.input;
+    r.inputFormat = rest.read.format;
+    r.inputGaussians = rest.model.size();
+    r.inputShDegree = rest.model.shDegree;
+    r.specPath = o.specPath;
+    r.recipe = o.recipe;
+    r.timingsMs["read"] = rest.readMs;
     f.ms = clock.ms();
     return f;
 }
@@ -551,55 +506,55 @@ void refineFrame(DeformRest& rest, const DeformJobOptions& o, FrameResult& f, co
 {
     if (!rest.grid) throw UsageError("Stage II needs the rest side prepared without --stage1-only");
     Stopwatch clock;
-    f.report["timingsMs"]["sampleGrid"] = rest.sampleGridMs;
+    f.report.timingsMs["sampleGrid"] = rest.sampleGridMs;
     f.fitted = runStage("Stage II", [&] { return stageTwo(rest, f.deformation, f.stage1, o, start, f.report); });
     f.ms += clock.ms();
 }
 
-nlohmann::json writeFrame(const DeformRest& rest, const DeformJobOptions& o, const FrameResult& f, const FrameOutputs& out)
+FrameReport writeFrame(const DeformRest& rest, const DeformJobOptions& o, const FrameResult& f, const FrameOutputs& out)
 {
     Stopwatch clock;
-    nlohmann::json report = f.report;
+    FrameReport report = f.report;
     double writeMs = 0;
     if (!out.baseline.empty()) {
         writePly(out.baseline, f.stage1.deformed);
         writeMs = clock.ms();
-        report["outputs"]["baseline"] = out.baseline;
+        report.outputs["baseline"] = out.baseline;
     }
     if (f.fitted) {
         if (!out.deformed.empty()) {
             clock.reset();
             writePly(out.deformed, *f.fitted);
             writeMs += clock.ms();
-            report["outputs"]["deformed"] = out.deformed;
+            report.outputs["deformed"] = out.deformed;
         }
         writeExtras(rest, f.deformation, f.stage1.deformed, *f.fitted, o, out, report);
     }
-    report["timingsMs"]["write"] = writeMs;
-    report["timingsMs"]["total"] = f.ms + clock.ms();
-    if (!out.report.empty()) writeFileAtomic(out.report, report.dump(2) + "\n");
+    report.timingsMs["write"] = writeMs;
+    report.timingsMs["total"] = f.ms + clock.ms();
+    if (!out.report.empty()) writeFileAtomic(out.report, report.toJson().dump(2) + "\n");
     return report;
 }
 
-nlohmann::json runDeformFrame(DeformRest& rest, const DeformSpec& spec, const DeformJobOptions& o, const FrameOutputs& out,
-                              GaussianCloud* written, const StageTwoStart& start)
+FrameReport runDeformFrame(DeformRest& rest, const DeformSpec& spec, const DeformJobOptions& o, const FrameOutputs& out,
+                           GaussianCloud* written, const StageTwoStart& start)
 {
     Stopwatch total;
     FrameResult f = poseFrame(rest, spec, o);
     if (!o.stage1Only) refineFrame(rest, o, f, start);
-    nlohmann::json report = writeFrame(rest, o, f, out);
-    report["timingsMs"]["total"] = total.ms();
+    FrameReport report = writeFrame(rest, o, f, out);
+    report.timingsMs["total"] = total.ms();
     if (written) *written = f.fitted ? std::move(*f.fitted) : std::move(f.stage1.deformed);
     return report;
 }
 
-nlohmann::json runDeformJob(const DeformJobOptions& o)
+FrameReport runDeformJob(const DeformJobOptions& o)
 {
     const DeformSpec spec = loadDeformSpec(o.specPath);
     DeformSession session(o, spec);
     session.pose(spec);
     if (!o.stage1Only) session.refine();
-    const nlohmann::json report = session.write(o.outDir);
+    FrameReport report = session.write(o.outDir);
     progress(msg("wrote ", o.outDir, "/{", o.stage1Only ? "baseline.ply" : "baseline.ply, deformed.ply", ", report.json}"));
     return report;
 }

@@ -12,6 +12,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include "job/FrameReport.h"
 #include "job/Judge.h"
 #include "vdb/SampleGrid.h"
 #include "core/Device.h"
@@ -119,7 +120,7 @@ struct FrameResult {
     Deformation deformation;
     StageOneResult stage1;
     std::optional<GaussianCloud> fitted; ///< none before refineFrame() (or with stage1Only)
-    nlohmann::json report;
+    FrameReport report;                  ///< what each step did so far
     double ms = 0;                       ///< time spent on the frame so far
 };
 
@@ -134,7 +135,7 @@ void refineFrame(DeformRest& rest, const DeformJobOptions& options, FrameResult&
 
 /// @brief Write a frame's outputs (the paths set in `out`; Stage II's only when refined) and
 ///        return its report (written to out.report when set).
-nlohmann::json writeFrame(const DeformRest& rest, const DeformJobOptions& options, const FrameResult& frame,
+FrameReport writeFrame(const DeformRest& rest, const DeformJobOptions& options, const FrameResult& frame,
                           const FrameOutputs& out);
 
 /// @brief Solve the spec from the rest pose, run Stage I, warp a copy of the rest samples, run
@@ -144,12 +145,12 @@ nlohmann::json writeFrame(const DeformRest& rest, const DeformJobOptions& option
 ///        `start` (optional) changes Stage II's starting model, a copy of Stage I's (animate's warm
 ///        start; report "stage2" "start": "warm" or "cold"); the bytes then depend on it too. Not
 ///        called when Stage II is skipped (a rigid spec).
-nlohmann::json runDeformFrame(DeformRest& rest, const DeformSpec& spec, const DeformJobOptions& options,
-                              const FrameOutputs& out, GaussianCloud* written = nullptr, const StageTwoStart& start = {});
+FrameReport runDeformFrame(DeformRest& rest, const DeformSpec& spec, const DeformJobOptions& options,
+                           const FrameOutputs& out, GaussianCloud* written = nullptr, const StageTwoStart& start = {});
 
 /// @brief Run the job and write its outputs (a DeformSession: pose, refine, write); returns the
 ///        report that was written to report.json.
 /// @throws InputError / IoError with a message naming the file and the problem.
-nlohmann::json runDeformJob(const DeformJobOptions& options);
+FrameReport runDeformJob(const DeformJobOptions& options);
 
 } // namespace splatwarp

@@ -34,7 +34,7 @@ DeformSession::DeformSession(DeformJobOptions options, const DeformSpec& graphSp
 
 DeformSession::~DeformSession() = default;
 
-const nlohmann::json& DeformSession::report() const
+const FrameReport& DeformSession::report() const
 {
     if (!mFrame) throw UsageError("report needs a pose first");
     return mFrame->report;
@@ -61,7 +61,7 @@ const GaussianCloud& DeformSession::refine(const RunControl& control)
     return *mFrame->fitted;
 }
 
-nlohmann::json DeformSession::write(const std::string& dir)
+FrameReport DeformSession::write(const std::string& dir)
 {
     if (!mFrame) throw UsageError("write needs a pose first");
     OutputSet outputs({mOptions.input, mOptions.specPath});
@@ -78,9 +78,9 @@ nlohmann::json DeformSession::write(const std::string& dir)
     } else {
         for (const char* stale : {"deformed.ply", "field.vdb", "compare.png", "stretched.png"}) outputs.removeOnCommit(inDir(dir, stale));
     }
-    nlohmann::json report = writeFrame(*mRest, mOptions, *mFrame, out);
-    report["timingsMs"]["total"] = mRestMs + report["timingsMs"]["total"].get<double>(); // the rest side included
-    writeFileAtomic(inDir(dir, "report.json"), report.dump(2) + "\n");
+    FrameReport report = writeFrame(*mRest, mOptions, *mFrame, out);
+    report.timingsMs["total"] += mRestMs; // the rest side included
+    writeFileAtomic(inDir(dir, "report.json"), report.toJson().dump(2) + "\n");
     outputs.commit();
     return report;
 }

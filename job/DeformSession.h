@@ -43,13 +43,14 @@ public:
 
     /// @brief Write what `deform -o dir` writes for the last pose (and refine): baseline.ply,
     ///        deformed.ply, report.json and the extras the options ask for, all together or none;
-    ///        a stale deformed.ply of an earlier refine is removed. Returns the report.
-    nlohmann::json write(const std::string& dir);
+    ///        a stale deformed.ply of an earlier refine is removed. Returns the report
+    ///        (report.json is its toJson()).
+    FrameReport write(const std::string& dir);
 
     bool refined() const { return mFrame && mFrame->fitted.has_value(); }
-    /// @brief The last pose's report so far: what write() writes less "outputs" and the write timings.
+    /// @brief The last pose's report so far: what write() returns less the outputs and the write timings.
     /// @throws UsageError without a pose.
-    const nlohmann::json& report() const;
+    const FrameReport& report() const;
 
 private:
     DeformJobOptions mOptions;

@@ -42,10 +42,10 @@ void setFitFilter(const Volume& volume, int perAxis, StageTwoOptions& s2)
 
 nlohmann::json inputJson(const VolumeInfo& i)
 {
-    return {{"path", i.path},       {"grid", i.grid},         {"color_grid", i.colorGrid},
-            {"sh_degree", i.shDegree}, {"voxel_size", i.voxelSize}, {"active_voxels", i.activeVoxels},
-            {"min", i.minValue},    {"max", i.maxValue},      {"own_file", i.ownFile},
-            {"level_set", i.levelSet}, {"lambda_lpf", i.lambdaLpf}, {"notes", i.notes}};
+    return {{"path", i.path},       {"grid", i.grid},         {"colorGrid", i.colorGrid},
+            {"shDegree", i.shDegree}, {"voxelSize", i.voxelSize}, {"activeVoxels", i.activeVoxels},
+            {"min", i.minValue},    {"max", i.maxValue},      {"ownFile", i.ownFile},
+            {"levelSet", i.levelSet}, {"lambdaLpf", i.lambdaLpf}, {"notes", i.notes}};
 }
 
 nlohmann::json fitJson(const VolumeFitReport& r)
@@ -54,21 +54,21 @@ nlohmann::json fitJson(const VolumeFitReport& r)
     for (const StageTwoReport& s : r.rounds) {
         rounds.push_back({{"device", deviceName(s.device)},
                           {"iterations", s.pairsPerIteration.size()},
-                          {"best_iteration", s.bestIteration},
-                          {"rejected_steps", s.rejectedSteps},
-                          {"stopped_at", s.stoppedAt},
-                          {"energy_first", s.energies.empty() ? 0.0 : s.energies.front().total},
-                          {"energy_best", s.bestEnergy},
-                          {"samples_used", s.samplesUsed},
-                          {"pairs_per_iteration", s.pairsPerIteration.empty() ? 0 : s.pairsPerIteration.back()},
-                          {"coverage_pairs", s.coveragePairs},
-                          {"coverage_rebuilds", s.coverageRebuilds},
+                          {"bestIteration", s.bestIteration},
+                          {"rejectedSteps", s.rejectedSteps},
+                          {"stoppedAt", s.stoppedAt},
+                          {"energyFirst", s.energies.empty() ? 0.0 : s.energies.front().total},
+                          {"energyBest", s.bestEnergy},
+                          {"samplesUsed", s.samplesUsed},
+                          {"pairsPerIteration", s.pairsPerIteration.empty() ? 0 : s.pairsPerIteration.back()},
+                          {"coveragePairs", s.coveragePairs},
+                          {"coverageRebuilds", s.coverageRebuilds},
                           {"ms", s.msTotal},
-                          {"ms_coverage", s.msCoverage},
-                          {"ms_forward", s.msForward},
-                          {"ms_backward", s.msBackward}});
+                          {"coverageMs", s.msCoverage},
+                          {"forwardMs", s.msForward},
+                          {"backwardMs", s.msBackward}});
     }
-    return {{"rounds", rounds}, {"pruned", r.pruned}, {"split", r.split}, {"ms_split", r.msSplit}};
+    return {{"rounds", rounds}, {"pruned", r.pruned}, {"split", r.split}, {"splitMs", r.msSplit}};
 }
 
 } // namespace
@@ -170,7 +170,7 @@ FromVdbResult fromVdb(const Volume& volume, const FromVdbOptions& o)
     voxels = VoxelSamples();
     phase.reset();
     const VolumeJudge judge = makeVolumeJudge(volume, scale, o.judge);
-    nlohmann::json held = {{"no_fit", fieldErrorJson(judgeModel(judge, r.splats))}};
+    nlohmann::json held = {{"noFit", fieldErrorJson(judgeModel(judge, r.splats))}};
     double msEval = phase.ms(), msFit = 0;
     nlohmann::json fit;
     if (o.fit) {
@@ -192,17 +192,17 @@ FromVdbResult fromVdb(const Volume& volume, const FromVdbOptions& o)
     if (meaning == VolumeMeaning::Extinction) capped = extinctionToOpacity(r.splats, scale);
     r.report = {{"input", inputJson(volume.info())},
                 {"as", meaning == VolumeMeaning::Field ? "field" : "extinction"},
-                {"density_scale", scale},
+                {"densityScale", scale},
                 {"gaussians", {{"budget", budget}, {"initial", init.gaussians}, {"final", r.splats.size()}}},
                 {"fitted", o.fit},
                 {"iterations", o.fit ? o.fitting.iterations : 0},
                 {"band", o.band},
                 {"spread", init.spread},
-                {"samples_per_axis", o.samplesPerAxis},
-                {"held_out", held},
-                {"opacity_capped", capped},
-                {"time_ms", {{"init", msInit}, {"fit", msFit}, {"eval", msEval}, {"total", total.ms()}}},
-                {"cpu_s", cpuSeconds() - cpu0}};
+                {"samplesPerAxis", o.samplesPerAxis},
+                {"heldOut", held},
+                {"opacityCapped", capped},
+                {"timingsMs", {{"init", msInit}, {"fit", msFit}, {"eval", msEval}, {"total", total.ms()}}},
+                {"cpuSeconds", cpuSeconds() - cpu0}};
     if (o.fit) r.report["fit"] = fit;
     return r;
 }

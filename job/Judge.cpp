@@ -54,7 +54,7 @@ nlohmann::json judgeJson(const JudgeReport& r)
 {
     nlohmann::json j = fieldErrorJson(r.field);
     if (r.psnr)
-        j["image_psnr"] = {{"db", std::isfinite(r.psnr->db) ? nlohmann::json(r.psnr->db) : nlohmann::json(nullptr)},
+        j["imagePsnr"] = {{"db", std::isfinite(r.psnr->db) ? nlohmann::json(r.psnr->db) : nlohmann::json(nullptr)},
                            {"views", r.psnr->views},
                            {"size", r.psnr->size}};
     return j;

@@ -44,7 +44,7 @@ struct JudgeReport {
     std::optional<ImagePsnr> psnr; ///< rigid specs only
 };
 
-/// @brief fieldErrorJson() keys, plus "image_psnr" {db (null when infinite), views, size} for a rigid spec.
+/// @brief fieldErrorJson() keys, plus "imagePsnr" {db (null when infinite), views, size} for a rigid spec.
 nlohmann::json judgeJson(const JudgeReport& report);
 
 /// @brief The lines `eval` prints for a report (and `deform` for each stage), '\n'-terminated.

@@ -88,7 +88,7 @@ DeformResult deform(const py::object& model, const py::object& spec, const py::o
     const std::string out = output.is_none() ? std::string() : pathOf(output);
     GaussianCloud stage1;
     std::optional<GaussianCloud> fitted;
-    nlohmann::json report;
+    FrameReport report;
     Interrupts interrupts;
     try {
         py::gil_scoped_release release;
@@ -101,7 +101,7 @@ DeformResult deform(const py::object& model, const py::object& spec, const py::o
         if (PyErr_Occurred()) throw py::error_already_set();
         throw;
     }
-    return {py::cast(std::move(stage1)), fitted ? py::cast(std::move(*fitted)) : py::none(), toPython(report)};
+    return {py::cast(std::move(stage1)), fitted ? py::cast(std::move(*fitted)) : py::none(), toPython(report.toJson())};
 }
 
 void toVdb(const py::object& model, const py::object& path, const py::object& spec, bool shGrids, bool half,

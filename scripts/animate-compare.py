@@ -31,7 +31,7 @@ def main():
         previous = None
         for f in range(first, last + 1):
             e = entries.get(f, {})
-            err = e.get("field_error", {})
+            err = e.get("fieldError", {})
             s1, s2 = err.get("stage1", {}), err.get("stage2", {})
             cur = floats(os.path.join(out, run, "frames", "deformed.%04d.ply" % f))
             d = change(cur, previous) if previous is not None else float("nan")

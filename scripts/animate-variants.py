@@ -1,6 +1,6 @@
 #!/usr/bin/env python3
 """Warm-start variants of an animate run against a cold reference, frame by frame: judged opacity
-and colour field errors (the manifest's `field_error.stage2`), their change relative to the cold
+and colour field errors (the manifest's `fieldError.stage2`), their change relative to the cold
 run, the frame-to-frame change (mean absolute change of every PLY float from the frame before),
 Stage II's stop and kept iterations per frame (the manifest's `study` entry, when the run wrote one) and CPU time
 (from RUN.time, `/usr/bin/time -f "%U %S %e"`).
@@ -23,7 +23,7 @@ def rel(a, b):
 def load(run):
     manifest = json.load(open(os.path.join(run, "manifest.json")))
     frames = sorted(e["frame"] for e in manifest["entries"])
-    errors = {e["frame"]: e["field_error"]["stage2"] for e in manifest["entries"]}
+    errors = {e["frame"]: e["fieldError"]["stage2"] for e in manifest["entries"]}
     cpu = float("nan")
     if os.path.exists(run + ".time"):
         t = open(run + ".time").read().split()

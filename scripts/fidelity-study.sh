@@ -31,7 +31,7 @@ d, model, spec = sys.argv[1:4]
 user, system, rss_kb = open(f"{d}.time").read().split()[-3:]
 r = json.load(open(f"{d}/report.json"))
 e1, e2 = (json.load(open(f"{d}/eval-{s}.json")) for s in ("baseline", "deformed"))
-f1, f2 = r["stage1"]["field_error"], r["stage2"]["field_error"]
+f1, f2 = r["stage1"]["fieldError"], r["stage2"]["fieldError"]
 same = "yes" if (e1 == f1 and e2 == f2) else "NO"
 def cell(f):
     return (f"{f['opacity']:.4g} / {f['color']:.4g} ({f['inside']['opacity']:.4g}, "

@@ -9,7 +9,7 @@ bin=build/tools/splatwarp
 data=../shared/data
 mkdir -p "$out"
 
-# run NAME INPUT [flags...]: one fit, one line "NAME gaussians no-fit fit wall_s cpu_s ply_bytes".
+# run NAME INPUT [flags...]: one fit, one line "NAME gaussians no-fit fit wall_s cpuSeconds ply_bytes".
 run() {
     local name=$1 input=$2; shift 2
     /usr/bin/time -v "$bin" -q from-vdb "$input" -o "$out/$name.ply" "$@" >/dev/null 2>"$out/$name.time"
@@ -21,9 +21,9 @@ t = open(base + ".time").read()
 wall = re.search(r"Elapsed \(wall clock\) time.*: (.*)", t).group(1)
 user = float(re.search(r"User time \(seconds\): (.*)", t).group(1))
 sys_ = float(re.search(r"System time \(seconds\): (.*)", t).group(1))
-h = r["held_out"]
+h = r["heldOut"]
 fit = h.get("fit", {}).get("opacity", float("nan"))
-print(f"{os.path.basename(base)} gaussians={r['gaussians']['final']} no-fit={h['no_fit']['opacity']:.4f} "
+print(f"{os.path.basename(base)} gaussians={r['gaussians']['final']} no-fit={h['noFit']['opacity']:.4f} "
       f"fit={fit:.4f} wall={wall} cpu={user + sys_:.1f}s ply={os.path.getsize(base + '.ply')}")
 PY
 }

@@ -29,7 +29,7 @@ for run in no-fit fit; do
     [ "$run" = no-fit ] && flags+=(--no-fit)
     /usr/bin/time -f "%U %S" -o "$out/$name.$run.time" \
         "$bin" -q from-vdb "$out/$name.vdb" -o "$out/$name.$run.ply" "${flags[@]}" "$@" >/dev/null
-    volume=$(python3 -c "import json,sys; h=json.load(open(sys.argv[1]))['held_out']; print(h['fit' if 'fit' in h else 'no_fit']['opacity'])" \
+    volume=$(python3 -c "import json,sys; h=json.load(open(sys.argv[1]))['heldOut']; print(h['fit' if 'fit' in h else 'noFit']['opacity'])" \
         "$out/$name.$run.report.json")
     lattice=$("$bin" -q eval --rest "$model" --deformed "$out/$name.$run.ply" --spec "$spec" --lattice --cells "$cells" --json)
     judge=$("$bin" -q eval --rest "$model" --deformed "$out/$name.$run.ply" --spec "$spec" --json)
@@ -38,7 +38,7 @@ import json, sys
 name, run, volume, lattice, judge, cpu = sys.argv[1:]
 l, j = json.loads(lattice), json.loads(judge)
 print(f"{name} {run}: vs volume {float(volume):.4f} | lattice judge opacity {l['opacity']:.4f} colour {l['color']:.4f}"
-      f" | fixed judge opacity {j['opacity']:.4f} colour {j['color']:.4f} | PSNR {j['image_psnr']['db']:.1f} dB"
+      f" | fixed judge opacity {j['opacity']:.4f} colour {j['color']:.4f} | PSNR {j['imagePsnr']['db']:.1f} dB"
       f" | from-vdb {cpu} s CPU")
 PY
 done

@@ -25,17 +25,16 @@ const CommandRegistrar reg(30, [](CLI::App& app) {
     sub->callback([args, sub] {
         const DeformJobOptions job = deformJobOptions(*args, sub);
         if (job.render && job.stage1Only) throw UsageError("--render needs Stage II (drop --stage1-only)");
-        const nlohmann::json report = runDeformJob(job);
+        const FrameReport report = runDeformJob(job);
         // A short summary on stdout (progress lines go to stderr).
         std::printf("outputs:");
-        for (const auto& [name, path] : report["outputs"].items()) std::printf(" %s", path.get<std::string>().c_str());
+        for (const auto& [name, path] : report.outputs) std::printf(" %s", path.c_str());
         std::printf(" %s/report.json\n", job.outDir.c_str());
-        if (report.contains("stage2") && report["stage2"].contains("field_error")) {
-            const auto& e1 = report["stage1"]["field_error"];
-            const auto& e2 = report["stage2"]["field_error"];
-            std::printf("judged field error (opacity, color): Stage I %.6g, %.6g -> Stage II %.6g, %.6g\n",
-                        e1["opacity"].get<double>(), e1["color"].get<double>(), e2["opacity"].get<double>(),
-                        e2["color"].get<double>());
+        if (report.stage1Errors && report.stage2 && report.stage2->errors) {
+            const FieldErrorReport& e1 = report.stage1Errors->judge.field;
+            const FieldErrorReport& e2 = report.stage2->errors->judge.field;
+            std::printf("judged field error (opacity, color): Stage I %.6g, %.6g -> Stage II %.6g, %.6g\n", e1.opacity,
+                        e1.color, e2.opacity, e2.color);
         }
     });
 });

@@ -135,11 +135,11 @@ const CommandRegistrar reg(35, [](CLI::App& app) {
     a->grid.samplesPerAxis = kAutoSamplesPerAxis; // --lattice: deform's training lattice by default
     addGridOptions(sub, a->grid);
     addDropInvalidFlag(sub, a->dropInvalid);
-    sub->add_flag("--json", a->json, "Print JSON (keys opacity, color, points, inside, outside; image_psnr for rigid specs)");
+    sub->add_flag("--json", a->json, "Print JSON (keys opacity, color, points, inside, outside; imagePsnr for rigid specs)");
     addDeviceOption(sub, a->device, "the rest targets, the point warping and the feature evaluations run (the grid's topology stays on the CPU)");
     sub->add_flag("--lattice", a->lattice,
                   "Judge at a training lattice instead (--cells, --cell-size, --samples-per-cell, --cutoff: its active "
-                  "cells and rest filter; what deform's report calls lattice_error)");
+                  "cells and rest filter; what deform's report calls latticeError)");
     sub->callback([a, sub] {
         if (!a->volume.empty()) return evalVolume(*a);
         if (a->rest.empty() || a->deformed.empty() || a->spec.empty())

@@ -134,8 +134,8 @@ const CommandRegistrar reg(45, [](CLI::App& app) {
         writeFileAtomic(report, result.report.dump(2) + "\n");
         if (a->render) writePng(png, picture);
         outputs.commit();
-        const auto& held = result.report["held_out"];
-        std::printf("held-out density error: no-fit %.4f%s\n", held["no_fit"]["opacity"].get<double>(),
+        const auto& held = result.report["heldOut"];
+        std::printf("held-out density error: no-fit %.4f%s\n", held["noFit"]["opacity"].get<double>(),
                      held.contains("fit") ? msg(", fit ", held["fit"]["opacity"].get<double>()).c_str() : "");
     });
 });

@@ -20,17 +20,17 @@ nlohmann::json toJson(const CloudStats& s, const ReadReport& r)
 {
     const auto arr = [](const Vec3d& v) { return nlohmann::json::array({v.x, v.y, v.z}); };
     return {{"count", s.count},
-            {"sh_degree", s.shDegree},
+            {"shDegree", s.shDegree},
             {"format", r.format},
-            {"bbox_min", arr(s.bboxMin)},
-            {"bbox_max", arr(s.bboxMax)},
+            {"bboxMin", arr(s.bboxMin)},
+            {"bboxMax", arr(s.bboxMax)},
             {"opacity", {{"min", s.opacityMin}, {"mean", s.opacityMean}, {"max", s.opacityMax}}},
             {"scale", {{"min", s.scaleMin}, {"median", s.scaleMedian}, {"max", s.scaleMax}}},
-            {"quat_norm", {{"min", s.quatNormMin}, {"max", s.quatNormMax}}},
-            {"invalid_values", s.invalidValues},
+            {"quatNorm", {{"min", s.quatNormMin}, {"max", s.quatNormMax}}},
+            {"invalidValues", s.invalidValues},
             {"dropped", r.dropped},
             {"notes", r.notes},
-            {"unusable_gaussians", r.invalidGaussians}};
+            {"unusableGaussians", r.invalidGaussians}};
 }
 
 const CommandRegistrar reg(20, [](CLI::App& app) {

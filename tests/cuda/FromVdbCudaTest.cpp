@@ -61,18 +61,18 @@ TEST(FromVdbCuda, RoundTripMatchesCpu)
         const nlohmann::json &c = cpu.report["fit"]["rounds"][k], &g = gpu.report["fit"]["rounds"][k];
         EXPECT_EQ(c["device"], "cpu");
         EXPECT_EQ(g["device"], "cuda");
-        EXPECT_EQ(g["samples_used"], c["samples_used"]);
-        const double ec = c["energy_best"], eg = g["energy_best"];
+        EXPECT_EQ(g["samplesUsed"], c["samplesUsed"]);
+        const double ec = c["energyBest"], eg = g["energyBest"];
         EXPECT_NEAR(eg, ec, kEnergyRel * ec) << "round " << k;
     }
     EXPECT_EQ(gpu.splats.size(), cpu.splats.size());
     for (const char* what : {"opacity", "color"}) {
-        const double ec = cpu.report["held_out"]["fit"][what], eg = gpu.report["held_out"]["fit"][what];
+        const double ec = cpu.report["heldOut"]["fit"][what], eg = gpu.report["heldOut"]["fit"][what];
         EXPECT_NEAR(eg, ec, kFitErrorRel * ec) << what << ": cpu " << ec << " cuda " << eg;
         RecordProperty(std::string("fit_error_") + what + "_cuda", std::to_string(eg));
     }
     // The fit still does its job on the GPU.
-    const double before = gpu.report["held_out"]["no_fit"]["opacity"], after = gpu.report["held_out"]["fit"]["opacity"];
+    const double before = gpu.report["heldOut"]["noFit"]["opacity"], after = gpu.report["heldOut"]["fit"]["opacity"];
     EXPECT_LT(after, before);
     std::filesystem::remove(file);
 }

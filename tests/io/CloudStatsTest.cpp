@@ -116,23 +116,23 @@ TEST(CloudStats, InfoJsonReportsFileWithInvalidValues)
     ASSERT_EQ(runCli("-q info --json " + path, out), 0) << readBytes(out);
     const nlohmann::json j = nlohmann::json::parse(readBytes(out));
     EXPECT_EQ(j.at("count").get<std::size_t>(), g.size());
-    EXPECT_EQ(j.at("sh_degree").get<int>(), 2);
+    EXPECT_EQ(j.at("shDegree").get<int>(), 2);
     EXPECT_EQ(j.at("format").get<std::string>(), "ply-binary-be");
-    EXPECT_EQ(j.at("invalid_values").get<std::size_t>(), 5u);
+    EXPECT_EQ(j.at("invalidValues").get<std::size_t>(), 5u);
     for (int k = 0; k < 3; ++k) {
-        EXPECT_EQ(j.at("bbox_min").at(k).get<double>(), ref.bboxMin[k]);
-        EXPECT_EQ(j.at("bbox_max").at(k).get<double>(), ref.bboxMax[k]);
+        EXPECT_EQ(j.at("bboxMin").at(k).get<double>(), ref.bboxMin[k]);
+        EXPECT_EQ(j.at("bboxMax").at(k).get<double>(), ref.bboxMax[k]);
     }
     EXPECT_EQ(j.at("scale").at("median").get<double>(), ref.scaleMedian);
     EXPECT_NEAR(j.at("opacity").at("mean").get<double>(), ref.opacityMean, 1e-12);
-    EXPECT_EQ(j.at("quat_norm").at("max").get<double>(), ref.quatNormMax);
+    EXPECT_EQ(j.at("quatNorm").at("max").get<double>(), ref.quatNormMax);
 
     // --drop-invalid: the 5 broken Gaussians are gone before the statistics.
     ASSERT_EQ(runCli("-q info --json --drop-invalid " + path, out), 0);
     const nlohmann::json d = nlohmann::json::parse(readBytes(out));
     EXPECT_EQ(d.at("count").get<std::size_t>(), g.size() - 5);
     EXPECT_EQ(d.at("dropped").get<std::size_t>(), 5u);
-    EXPECT_EQ(d.at("invalid_values").get<std::size_t>(), 0u);
+    EXPECT_EQ(d.at("invalidValues").get<std::size_t>(), 0u);
 
     // Plain text output names the essentials.
     ASSERT_EQ(runCli("-q info " + path, out), 0);

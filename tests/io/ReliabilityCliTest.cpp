@@ -193,7 +193,7 @@ TEST(Reliability, ValuesThatOverflowInUseAreRefusedOrDropped)
     EXPECT_TRUE(f.has("scale_1")) << f.text();
     EXPECT_EQ(runCli("-q render " + path + " -o " + f.dir.file("r.png") + " --size 8x8 --drop-invalid", f.log), 0);
     EXPECT_EQ(runCli("info --json " + path, f.log), 0);
-    EXPECT_TRUE(f.has("\"unusable_gaussians\": 2")) << f.text();
+    EXPECT_TRUE(f.has("\"unusableGaussians\": 2")) << f.text();
     EXPECT_TRUE(f.has("\"extreme-scales\"")) << f.text();
 }
 

@@ -97,7 +97,7 @@ TEST(AnimateJob, FrameEqualsDeformWithItsSpecAndShardsEqualTheWholeRun)
     EXPECT_TRUE(m["missing"].empty());
     EXPECT_EQ(m["entries"][1]["files"][0]["path"], "frames/deformed.0001.ply");
     EXPECT_EQ(m["entries"][1]["files"][0]["bytes"].get<std::size_t>(), fx.frame("whole", 1).size());
-    EXPECT_TRUE(m["entries"][2]["field_error"]["stage2"].contains("opacity"));
+    EXPECT_TRUE(m["entries"][2]["fieldError"]["stage2"].contains("opacity"));
     EXPECT_EQ(m["specHash"], fnv1a64(kAnim));
     EXPECT_GT(fs::file_size(fx.dir.file("sharded/sequence.zip")),
               fx.frame("whole", 0).size() + fx.frame("whole", 1).size() + fx.frame("whole", 2).size());

@@ -22,6 +22,37 @@ TEST(CliEdges, WhatCannotReachStandardOutputIsAnError)
     EXPECT_NE(fileBytes(dir.file("e.log")).find("standard output: write failed"), std::string::npos) << fileBytes(dir.file("e.log"));
 }
 
+namespace {
+
+/// Run `command` (CLI arguments) under a 2 GB address-space limit; returns its exit code and output.
+std::pair<int, std::string> runUnderTwoGigabytes(const TempDir& dir, const std::string& command)
+{
+    const std::string cmd = "ulimit -v 2000000; " + std::string(SPLATWARP_CLI) + " -q --threads 1 " + command;
+    const int rc = std::system(("bash -c '" + cmd + "' >" + dir.file("e.log") + " 2>&1").c_str());
+    return {WEXITSTATUS(rc), fileBytes(dir.file("e.log"))};
+}
+
+/// The out-of-memory hint names exactly the memory flags the command has (its --help lists them).
+void expectHintNamesItsOwnFlags(const TempDir& dir, const std::string& command, const std::string& log)
+{
+    ASSERT_NE(log.find("out of memory (lower or check "), std::string::npos) << log;
+    ASSERT_EQ(runCli(command + " --help", dir.file("help.txt")), 0);
+    const std::string help = fileBytes(dir.file("help.txt"));
+    const std::string hint = log.substr(log.find("out of memory"));
+    for (const char* flag : {"--points", "--size", "--max-memory", "--samples-per-cell", "--cells"}) {
+        bool has = false; // an option line of the help starts with the flag
+        std::istringstream lines(help);
+        for (std::string line; std::getline(lines, line);) {
+            line.erase(0, line.find_first_not_of(' '));
+            has = has || line.rfind(std::string(flag) + " ", 0) == 0 || line.rfind(std::string(flag) + ",", 0) == 0;
+        }
+        const bool named = hint.find(std::string(flag) + ",") != std::string::npos || hint.find(std::string(flag) + ")") != std::string::npos;
+        EXPECT_EQ(named, has) << command << " " << flag << "\n" << hint;
+    }
+}
+
+} // namespace
+
 TEST(CliEdges, OutOfMemoryNamesTheFlagsOfTheCommandThatRan)
 {
 #ifdef __SANITIZE_ADDRESS__
@@ -29,16 +60,18 @@ TEST(CliEdges, OutOfMemoryNamesTheFlagsOfTheCommandThatRan)
 #endif
     TempDir dir;
     ASSERT_EQ(runCli("-q sample stripes --count 100 -o " + dir.file("s.ply")), 0);
-    // 4e9 held-out points under a 2 GB address-space limit: std::bad_alloc.
-    const std::string cmd = "ulimit -v 2000000; " + std::string(SPLATWARP_CLI) + " -q --threads 1 eval --rest " + dir.file("s.ply") +
-                            " --deformed " + dir.file("s.ply") + " --spec " + SPLATWARP_SOURCE_DIR +
-                            "/samples/specs/rigid.json --points 4000000000";
-    const int rc = std::system(("bash -c '" + cmd + "' >" + dir.file("e.log") + " 2>&1").c_str());
-    const std::string log = fileBytes(dir.file("e.log"));
-    EXPECT_EQ(WEXITSTATUS(rc), 1) << log;
-    EXPECT_NE(log.find("out of memory (lower or check "), std::string::npos) << log;
-    EXPECT_NE(log.find("--points"), std::string::npos) << log;
-    EXPECT_EQ(log.find("--size"), std::string::npos) << log; // a flag eval does not have
+    // 4e9 held-out points: std::bad_alloc. eval has all five memory flags.
+    const auto [evalRc, evalLog] = runUnderTwoGigabytes(dir, "eval --rest " + dir.file("s.ply") + " --deformed " + dir.file("s.ply") +
+                                                            " --spec " + SPLATWARP_SOURCE_DIR + "/samples/specs/rigid.json --points 4000000000");
+    EXPECT_EQ(evalRc, 1) << evalLog;
+    expectHintNamesItsOwnFlags(dir, "eval", evalLog);
+    EXPECT_NE(evalLog.find("--points"), std::string::npos) << evalLog;
+    // A 16000 x 16000 picture (4 GB of pixels): render has --size and none of the others.
+    const auto [renderRc, renderLog] = runUnderTwoGigabytes(dir, "render " + dir.file("s.ply") + " -o " + dir.file("r.png") + " --size 16000x16000");
+    EXPECT_EQ(renderRc, 1) << renderLog;
+    expectHintNamesItsOwnFlags(dir, "render", renderLog);
+    EXPECT_EQ(renderLog.find("--cells"), std::string::npos) << renderLog;
+    EXPECT_FALSE(std::filesystem::exists(dir.file("r.png")));
 }
 
 TEST(CliEdges, AZeroCameraAngleIsRefused)

@@ -44,7 +44,7 @@ void expectNoClimb(const nlohmann::json& stage2)
     }
 }
 
-double err(const nlohmann::json& r, const char* stage, const char* what) { return r[stage]["field_error"][what].get<double>(); }
+double err(const nlohmann::json& r, const char* stage, const char* what) { return r[stage]["fieldError"][what].get<double>(); }
 
 /// What `splatwarp ARGS` (with --json) prints, parsed.
 nlohmann::json evalJson(const TempDir& dir, const std::string& args)
@@ -65,7 +65,7 @@ TEST(DeformPipeline, StageTwoLowersTheFieldErrorOnTheStripesBend)
     o.stage1.shape = StageOneShape::Polar; // the paper's Stage I, whose shapes Stage II corrects
     o.curveSplit = false;                  // the paper's Stage II: its fit alone, kept whatever it gives
     o.keepValidated = false;
-    const nlohmann::json r = runDeformJob(o);
+    const nlohmann::json r = runDeformJob(o).toJson();
     for (const char* f : {"baseline.ply", "deformed.ply", "report.json"})
         EXPECT_TRUE(std::filesystem::exists(dir.file("out") + "/" + f)) << f;
     // The energy falls: measured 3115 -> 874 over 30 iterations.
@@ -76,7 +76,7 @@ TEST(DeformPipeline, StageTwoLowersTheFieldErrorOnTheStripesBend)
     // training lattice (what Stage II fits) 0.0393 -> 0.0237 (0.60), colour 0.0409 -> 0.0233 (0.57).
     EXPECT_LT(err(r, "stage2", "opacity"), 0.9 * err(r, "stage1", "opacity"));
     EXPECT_LT(err(r, "stage2", "color"), 0.9 * err(r, "stage1", "color"));
-    auto lattice = [&](const char* stage, const char* what) { return r[stage]["lattice_error"][what].get<double>(); };
+    auto lattice = [&](const char* stage, const char* what) { return r[stage]["latticeError"][what].get<double>(); };
     EXPECT_LT(lattice("stage2", "opacity"), 0.8 * lattice("stage1", "opacity"));
     EXPECT_LT(lattice("stage2", "color"), 0.8 * lattice("stage1", "color"));
     expectNoClimb(r["stage2"]);
@@ -92,8 +92,8 @@ TEST(DeformPipeline, AffineStageOneLowersTheJudgedErrorAndStageTwoStillLowersIt)
     TempDir polarDir, affineDir;
     DeformJobOptions polar = smallJob(polarDir, "bend.json", 30);
     polar.stage1.shape = StageOneShape::Polar;
-    const nlohmann::json p = runDeformJob(polar);
-    const nlohmann::json a = runDeformJob(smallJob(affineDir, "bend.json", 30)); // the default: affine
+    const nlohmann::json p = runDeformJob(polar).toJson();
+    const nlohmann::json a = runDeformJob(smallJob(affineDir, "bend.json", 30)).toJson(); // the default: affine
     EXPECT_EQ(a["stage1"]["shape"], "affine");
     EXPECT_EQ(p["stage1"]["shape"], "polar");
     // Measured: Stage I opacity 0.170 (polar) -> 0.141 (affine), colour 0.178 -> 0.139; Stage II from
@@ -111,7 +111,7 @@ TEST(DeformPipeline, CurveSplitAndTheValidatedKeepAtTheDefaults)
 {
     TempDir dir;
     const DeformJobOptions o = smallJob(dir, "bend.json", 30);
-    const nlohmann::json r = runDeformJob(o);
+    const nlohmann::json r = runDeformJob(o).toJson();
     const std::size_t input = readGaussians(o.input).size();
     const std::size_t curveAdded = r["curveSplit"]["added"].get<std::size_t>();
     EXPECT_GT(curveAdded, 0u);
@@ -148,14 +148,14 @@ TEST(DeformPipeline, CurveSplitAndTheValidatedKeepAtTheDefaults)
     EXPECT_NEAR(keep["validationShifted"].get<double>(), lowest, 1e-12);
     // Measured (judge, opacity): Stage I 0.141, curve split 0.086, kept (the mix, fit in 116 of 727
     // regions) 0.084; validation start 0.169, fit 0.218, mix 0.155.
-    EXPECT_LT(r["curveSplit"]["field_error"]["opacity"].get<double>(), 0.8 * err(r, "stage1", "opacity"));
+    EXPECT_LT(r["curveSplit"]["fieldError"]["opacity"].get<double>(), 0.8 * err(r, "stage1", "opacity"));
     for (const char* what : {"opacity", "color"}) EXPECT_LT(err(r, "stage2", what), 0.8 * err(r, "stage1", what)) << what;
     // --keep regions --validated-split off: neither step runs.
     DeformJobOptions off = o;
     off.outDir = dir.file("off");
     off.keepPerGaussian = false;
     off.validatedSplit = false;
-    const nlohmann::json q = runDeformJob(off);
+    const nlohmann::json q = runDeformJob(off).toJson();
     EXPECT_FALSE(q.contains("validatedSplit"));
     EXPECT_FALSE(q["stage2"]["keep"].contains("perGaussian"));
     EXPECT_EQ(q["stage2"]["gaussians"].get<std::size_t>(), input + curveAdded);
@@ -164,7 +164,7 @@ TEST(DeformPipeline, CurveSplitAndTheValidatedKeepAtTheDefaults)
 TEST(DeformPipeline, RigidSpecStageTwoDoesNotRaiseTheError)
 {
     TempDir dir;
-    const nlohmann::json r = runDeformJob(smallJob(dir, "rigid.json", 20));
+    const nlohmann::json r = runDeformJob(smallJob(dir, "rigid.json", 20)).toJson();
     // Stage I is exact for a rigid spec: Stage II is skipped and deformed.ply is the Stage I model.
     EXPECT_EQ(r["stage2"]["skipped"], "rigid spec");
     EXPECT_EQ(fileBytes(dir.file("out") + "/deformed.ply"), fileBytes(dir.file("out") + "/baseline.ply"));
@@ -172,9 +172,9 @@ TEST(DeformPipeline, RigidSpecStageTwoDoesNotRaiseTheError)
     // (judge measured 2.7e-6; 5.6e-7 at the training lattice, whose filter hides more).
     EXPECT_LT(err(r, "stage1", "opacity"), 1e-5);
     // Against the known ground truth (the rest model from the inversely moved cameras): measured 139 dB.
-    ASSERT_TRUE(r["stage1"]["field_error"].contains("image_psnr"));
-    EXPECT_GT(r["stage1"]["field_error"]["image_psnr"]["db"].get<double>(), 100.0);
-    EXPECT_GT(r["stage2"]["field_error"]["image_psnr"]["db"].get<double>(), 100.0);
+    ASSERT_TRUE(r["stage1"]["fieldError"].contains("imagePsnr"));
+    EXPECT_GT(r["stage1"]["fieldError"]["imagePsnr"]["db"].get<double>(), 100.0);
+    EXPECT_GT(r["stage2"]["fieldError"]["imagePsnr"]["db"].get<double>(), 100.0);
     EXPECT_LE(err(r, "stage2", "opacity"), err(r, "stage1", "opacity") + 1e-6);
     EXPECT_LE(err(r, "stage2", "color"), err(r, "stage1", "color") + 1e-6);
 }
@@ -183,34 +183,34 @@ TEST(DeformPipeline, TheJudgeIgnoresTrainingFlagsAndEvalPrintsTheReport)
 {
     TempDir dir;
     const DeformJobOptions a = smallJob(dir, "bend.json", 2);
-    const nlohmann::json ra = runDeformJob(a);
+    const nlohmann::json ra = runDeformJob(a).toJson();
     DeformJobOptions b = a;
     b.outDir = dir.file("out12");
     b.grid.cells = 12;
     b.grid.samplesPerAxis = kAutoSamplesPerAxis; // the CLI's default
-    const nlohmann::json rb = runDeformJob(b);
+    const nlohmann::json rb = runDeformJob(b).toJson();
     // Stage I does not depend on the lattice: the same baseline.ply, judged the same; the error
     // at the training lattice does depend on it.
-    EXPECT_EQ(ra["stage1"]["field_error"], rb["stage1"]["field_error"]);
-    EXPECT_NE(ra["stage1"]["lattice_error"]["opacity"], rb["stage1"]["lattice_error"]["opacity"]);
-    EXPECT_FALSE(ra["stage1"]["field_error"].contains("image_psnr")); // a bend is not rigid
+    EXPECT_EQ(ra["stage1"]["fieldError"], rb["stage1"]["fieldError"]);
+    EXPECT_NE(ra["stage1"]["latticeError"]["opacity"], rb["stage1"]["latticeError"]["opacity"]);
+    EXPECT_FALSE(ra["stage1"]["fieldError"].contains("imagePsnr")); // a bend is not rigid
     // eval on the written files prints the reports' numbers (the run's graph override is part
     // of the deformation: eval takes it too).
     const std::string eval =
         "-q eval --rest " + a.input + " --spec " + a.specPath + " --nodes 64 --points 20000 --json --deformed ";
-    EXPECT_EQ(evalJson(dir, eval + a.outDir + "/baseline.ply"), ra["stage1"]["field_error"]);
-    EXPECT_EQ(evalJson(dir, eval + a.outDir + "/deformed.ply"), ra["stage2"]["field_error"]);
-    EXPECT_EQ(evalJson(dir, eval + b.outDir + "/deformed.ply"), rb["stage2"]["field_error"]);
+    EXPECT_EQ(evalJson(dir, eval + a.outDir + "/baseline.ply"), ra["stage1"]["fieldError"]);
+    EXPECT_EQ(evalJson(dir, eval + a.outDir + "/deformed.ply"), ra["stage2"]["fieldError"]);
+    EXPECT_EQ(evalJson(dir, eval + b.outDir + "/deformed.ply"), rb["stage2"]["fieldError"]);
     // A lattice flag without --lattice is a usage error; with it, eval gives the lattice error
     // (same graph, lattice and points as run a).
     EXPECT_EQ(runCli(eval + a.outDir + "/baseline.ply --cells 20"), 2);
     const nlohmann::json lattice = evalJson(dir, eval + a.outDir + "/baseline.ply --lattice --cells 20 --samples-per-cell 4");
-    EXPECT_EQ(lattice["opacity"], ra["stage1"]["lattice_error"]["opacity"]);
-    EXPECT_EQ(lattice["color"], ra["stage1"]["lattice_error"]["color"]);
+    EXPECT_EQ(lattice["opacity"], ra["stage1"]["latticeError"]["opacity"]);
+    EXPECT_EQ(lattice["color"], ra["stage1"]["latticeError"]["color"]);
     // --samples-per-cell auto (both commands' default) resolves to the same lattice in eval as in deform.
     EXPECT_GT(rb["stage2"]["samplesPerCell"].get<int>(), 4);
     const nlohmann::json autoLattice = evalJson(dir, eval + b.outDir + "/deformed.ply --lattice --cells 12");
-    EXPECT_EQ(autoLattice["opacity"], rb["stage2"]["lattice_error"]["opacity"]);
+    EXPECT_EQ(autoLattice["opacity"], rb["stage2"]["latticeError"]["opacity"]);
     // A missing spec file is bad input: exit 1.
     EXPECT_EQ(runCli("eval --rest " + a.input + " --deformed " + a.outDir + "/baseline.ply --spec " + dir.file("missing.json")), 1);
 }

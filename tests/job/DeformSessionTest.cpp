@@ -82,7 +82,7 @@ TEST(DeformSession, RefineAfterAnotherPoseEqualsDeform)
     session.refine(control);
     EXPECT_GE(calls, 6);
     EXPECT_EQ(last, 6);
-    const nlohmann::json report = session.write(fx.dir.file("session"));
+    const nlohmann::json report = session.write(fx.dir.file("session")).toJson();
     for (const char* f : {"baseline.ply", "deformed.ply"})
         EXPECT_TRUE(fileBytes(fx.dir.file(std::string("session/") + f)) == fileBytes(fx.dir.file(std::string("job/") + f))) << f;
     EXPECT_TRUE(report.contains("stage2"));

@@ -122,7 +122,7 @@ TEST(FromVdbCli, LevelSetIsConvertedToFogWithANote)
     ASSERT_EQ(runCli("from-vdb " + dir.file("ls.vdb") + " -o " + dir.file("ls.ply") + " --no-fit --eval-points 2000", log), 0)
         << slurp(log);
     const nlohmann::json r = nlohmann::json::parse(slurp(dir.file("ls.report.json")));
-    EXPECT_TRUE(r["input"]["level_set"].get<bool>());
+    EXPECT_TRUE(r["input"]["levelSet"].get<bool>());
     EXPECT_GE(r["input"]["min"].get<double>(), 0.0);
     EXPECT_NEAR(r["input"]["max"].get<double>(), 1.0, 1e-6);
     EXPECT_NE(r["input"]["notes"].dump().find("level set converted"), std::string::npos) << r["input"]["notes"].dump();
@@ -145,12 +145,12 @@ TEST(FromVdbCli, WritesModelReportAndPicture)
     EXPECT_EQ(r["input"]["grid"], "smoke");
     EXPECT_EQ(r["as"], "extinction");
     EXPECT_EQ(r["gaussians"]["budget"], (512u - 47u) / 8u); // 47 of the 512 values are 0 (i % 11 == 0)
-    EXPECT_TRUE(r["held_out"].contains("fit"));
+    EXPECT_TRUE(r["heldOut"].contains("fit"));
     // eval --volume judges the written model with the same yardstick as the report.
     ASSERT_EQ(runCli("eval --volume " + dir.file("fog.vdb") + " --model " + dir.file("fog.ply") +
                          " --points 2000 --json", dir.file("eval.json")), 0) << slurp(dir.file("eval.json"));
     const nlohmann::json e = nlohmann::json::parse(slurp(dir.file("eval.json")));
-    EXPECT_NEAR(double(e["opacity"]), double(r["held_out"]["fit"]["opacity"]), 0.02);
+    EXPECT_NEAR(double(e["opacity"]), double(r["heldOut"]["fit"]["opacity"]), 0.02);
 }
 
 } // namespace

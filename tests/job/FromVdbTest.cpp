@@ -74,11 +74,11 @@ TEST(FromVdb, RecoversOneGaussianWrittenToAGrid)
     for (int a = 0; a < 3; ++a) EXPECT_NEAR(got[std::size_t(a)], want[std::size_t(a)], 1e-4);
     // The held-out error of the exact Gaussian is what the model's 1/255 cutoff drops: the tail
     // of the grid beyond alpha*G = 1/255 (a few per cent of the mass) and trilinear rounding.
-    const double noFit = r.report["held_out"]["no_fit"]["opacity"];
+    const double noFit = r.report["heldOut"]["noFit"]["opacity"];
     EXPECT_LT(noFit, 0.05);
     // The fit starts at the answer; with the best iterate kept it cannot leave it far.
     const FromVdbResult fitted = fromVdb(volume, fieldOptions(1, 20));
-    EXPECT_LE(double(fitted.report["held_out"]["fit"]["opacity"]), noFit * 1.1);
+    EXPECT_LE(double(fitted.report["heldOut"]["fit"]["opacity"]), noFit * 1.1);
 }
 
 TEST(FromVdb, RoundTripOfAGeneratedModel)
@@ -289,8 +289,8 @@ GaussianCloud fitted(const Volume& v, const std::string& name, double& scale)
     FromVdbOptions o = defaultFromVdbOptions();
     o.judge.points = 20000;
     const FromVdbResult r = fromVdb(v, o);
-    std::cout << name << ": " << r.splats.size() << " splats, capped " << r.report["opacity_capped"] << ", held-out "
-              << r.report["held_out"]["fit"]["opacity"] << ", cpu " << r.report["cpu_s"] << " s\n";
+    std::cout << name << ": " << r.splats.size() << " splats, capped " << r.report["opacityCapped"] << ", held-out "
+              << r.report["heldOut"]["fit"]["opacity"] << ", cpu " << r.report["cpuSeconds"] << " s\n";
     GaussianCloud g = r.splats;
     opacityToExtinction(g, scale); // back to densities
     if (!cache.empty()) writePly(cache, g);
@@ -367,10 +367,10 @@ void slabRules(const Volume& volume, double densityScale)
     o.densityScale = densityScale;
     const FromVdbResult r = fromVdb(volume, o);
     GaussianCloud g = r.splats;
-    const double scale = r.report["density_scale"];
+    const double scale = r.report["densityScale"];
     opacityToExtinction(g, scale);
     std::printf("slab, density scale %.2f: %zu splats, capped %d; the fitted field's depth (naive):", scale, g.size(),
-                int(r.report["opacity_capped"]));
+                int(r.report["opacityCapped"]));
     for (const Vec3d& d : dirs) std::printf(" %.3f", naiveFieldDepth(g, scale, c, d * (1.0 / length(d))));
     std::printf("\n");
     for (int rule = -1; rule < kRules; ++rule) {

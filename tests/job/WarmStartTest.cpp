@@ -119,7 +119,7 @@ TEST(WarmStart, AWarmStartWorseThanTheLimitFallsBackToTheColdStartsBytes)
     const DeformJobOptions o = smallBend(dir);
     std::unique_ptr<DeformRest> rest = prepareDeformRest(o, graphOptionsOf(loadDeformSpec(o.specPath), o));
     const DeformSpec spec = loadDeformSpec(o.specPath);
-    const nlohmann::json coldReport = runDeformFrame(*rest, spec, o, fittedTo(dir.file("cold.ply")));
+    const nlohmann::json coldReport = runDeformFrame(*rest, spec, o, fittedTo(dir.file("cold.ply"))).toJson();
     ASSERT_FALSE(coldReport["stage2"].contains("start")); // deform's report is unchanged
     const double coldFit = coldReport["stage2"]["bestEnergy"].get<double>();
     // A correction made deliberately wrong: every moving Gaussian's opacity logit pushed far up.
@@ -131,13 +131,13 @@ TEST(WarmStart, AWarmStartWorseThanTheLimitFallsBackToTheColdStartsBytes)
                                 if (s1.moving[i]) m.opacities[i] += 6.0f;
                         },
                         rejectsLikeAnimate};
-    const nlohmann::json r = runDeformFrame(*rest, spec, o, fittedTo(dir.file("fellBack.ply")), nullptr, wrong);
+    const nlohmann::json r = runDeformFrame(*rest, spec, o, fittedTo(dir.file("fellBack.ply")), nullptr, wrong).toJson();
     EXPECT_EQ(r["stage2"]["start"], "cold");
     EXPECT_GT(r["stage2"]["warmEnergy"].get<double>(), kWarmEnergyLimit * coldFit);
     EXPECT_EQ(fileBytes(dir.file("fellBack.ply")), fileBytes(dir.file("cold.ply")));
     // A start that is not rejected is fitted once and reported as the warm one.
     StageTwoStart same{[](const StageOneResult&, GaussianCloud&) {}, [](const StageTwoReport&) { return false; }};
-    const nlohmann::json k = runDeformFrame(*rest, spec, o, fittedTo(dir.file("kept.ply")), nullptr, same);
+    const nlohmann::json k = runDeformFrame(*rest, spec, o, fittedTo(dir.file("kept.ply")), nullptr, same).toJson();
     EXPECT_EQ(k["stage2"]["start"], "warm");
     EXPECT_FALSE(k["stage2"].contains("warmEnergy"));
     EXPECT_EQ(fileBytes(dir.file("kept.ply")), fileBytes(dir.file("cold.ply")));
