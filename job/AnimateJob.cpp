@@ -26,7 +26,7 @@ namespace {
 /// Every setting that changes a frame's bytes (the settings hash covers it; resume compares it).
 json settingsJson(const DeformJobOptions& o)
 {
-    return {{"stage1Only", o.stage1Only},
+    json settings = {{"stage1Only", o.stage1Only},
             {"nodes", o.nodes ? *o.nodes : -1},
             {"k", o.k ? *o.k : -1},
             {"seed", o.seed ? std::int64_t(*o.seed) : std::int64_t(-1)},
@@ -64,6 +64,8 @@ json settingsJson(const DeformJobOptions& o)
             {"vdb", o.writeVdb},
             {"render", o.render},
             {"device", deviceName(o.device)}};
+    if (o.maxGaussians) settings["maxGaussians"] = o.maxGaussians->text(); // absent: the hash of earlier runs holds
+    return settings;
 }
 
 /// The frame previews side by side (when every one exists as a regular file).

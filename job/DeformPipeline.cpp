@@ -161,6 +161,7 @@ CurveSplitResult curveSplitOf(const DeformRest& rest, const Deformation& deforma
 {
     CurveSplitOptions co = o.curve;
     co.threaded = o.grid.threaded;
+    if (o.maxGaussians) co.maxAddedCount = o.maxGaussians->added(rest.model.size());
     auto split = [&](double fanAbove) {
         co.fanAbove = fanAbove;
         return curveSplit(rest.model, rest.rig, rest.graph, deformation.transforms, deformation.nodeMoving, stage1,
@@ -204,7 +205,8 @@ void splitByValidation(const DeformRest& rest, const Deformation& deformation, c
                        const DeformJobOptions& o, const Judge& validation, std::vector<float>& curve, ColdStart& c,
                        FrameReport& report)
 {
-    const std::size_t allowed = std::size_t(double(o.curve.maxAdded) * double(rest.model.size()));
+    const std::size_t allowed = o.maxGaussians ? o.maxGaussians->added(rest.model.size())
+                                               : std::size_t(double(o.curve.maxAdded) * double(rest.model.size()));
     const std::size_t budget = allowed > c.added ? allowed - c.added : 0;
     StageOneOptions s1 = o.stage1;
     s1.threaded = o.grid.threaded;
@@ -343,12 +345,14 @@ GaussianCloud stageTwo(DeformRest& rest, const Deformation& deformation, const S
     };
     StageTwoOptions s2 = o.stage2;
     s2.device = rest.device;
+    DensifyJobOptions densify = o.densify; // Stage II's split spends what the splits before it left
+    if (o.maxGaussians) densify.maxSplits = o.maxGaussians->added(rest.model.size()) - cold.added;
     DensifyCounts counts;
     auto fit = [&] {
         progress(msg("Stage II: ", o.stage2.iterations, " iterations on ", stage1.movingCount + cold.added, " moving Gaussians"));
         curve.clear();
         counts = DensifyCounts();
-        return fitInRounds(fitted, samples, cold.moving, cold.cells, s2, o.densify,
+        return fitInRounds(fitted, samples, cold.moving, cold.cells, s2, densify,
                            o.evalEvery > 0 ? std::function<void(int, const GaussianCloud&)>(onEval)
                                            : std::function<void(int, const GaussianCloud&)>(),
                            o.evalEvery, counts, dropCurveAfter);
@@ -378,6 +382,7 @@ GaussianCloud stageTwo(DeformRest& rest, const Deformation& deformation, const S
         report.timingsMs["keep"] = keep.ms();
     }
     recordGaussianCounts(cold, counts, o, fitted, keptName, record);
+    if (o.maxGaussians) record.gaussianBudget = o.maxGaussians->limit(rest.model.size());
     report.timingsMs["stage2"] = record.fit.msTotal + rejectedMs + counts.ms;
     if (start.change) record.start = warm && !rejectedStart ? "warm" : "cold";
     record.warmEnergy = rejectedStart;
@@ -410,6 +415,7 @@ namespace {
 /// The rest side past the model: graph, Stage I rig, sample grid, the validation and judge points.
 void prepareRestOf(DeformRest& rest, const DeformJobOptions& o, const GraphOptions& graph)
 {
+    if (o.maxGaussians) o.maxGaussians->limit(rest.model.size()); // refused before any work
     Stopwatch clock;
     rest.graph = DeformationGraph::build(rest.model, graph, o.ed.threaded);
     rest.graphMs = clock.ms();

@@ -16,6 +16,7 @@
 #include "job/Judge.h"
 #include "vdb/SampleGrid.h"
 #include "core/Device.h"
+#include "core/GaussianBudget.h"
 #include "deform/CurveSplit.h"
 #include "deform/DeformSpec.h"
 #include "deform/Deformation.h"
@@ -43,6 +44,10 @@ struct DeformJobOptions {
     StageTwoOptions stage2;
     DensifyJobOptions densify;
     bool curveSplit = true;    ///< split the Gaussians Stage I cannot bend before Stage II (deform/CurveSplit.h)
+    /// The most Gaussians the output may hold; every step that adds Gaussians (curve split,
+    /// validated split, Stage II's split) spends from it in that order. None: the curve split's
+    /// maxAdded bounds its and the validated split's additions, Stage II's split is unbounded.
+    std::optional<GaussianBudget> maxGaussians;
     CurveSplitOptions curve;
     /// With --keep validated, the start with its means moved by this share of phi's second-order
     /// offset is one more candidate (deform/CurveSplit.h curveShifted()); nullopt: the share of

@@ -117,6 +117,7 @@ json stageTwoJson(const StageTwoRecord& s)
                         {"splitOffset", d.splitOffset},      {"pruneBelow", d.pruneBelow},     {"ms", s.densifyMs}};
     }
     j.update({{"gaussiansAdded", s.gaussiansAdded}, {"gaussiansRemoved", s.gaussiansRemoved}, {"gaussians", s.gaussians}});
+    if (s.gaussianBudget) j["gaussianBudget"] = *s.gaussianBudget;
     if (s.keep) j["keep"] = keepJson(*s.keep);
     if (s.start) j["start"] = *s.start;
     if (s.warmEnergy) j["warmEnergy"] = *s.warmEnergy;

@@ -82,6 +82,7 @@ struct StageTwoRecord {
     DensifyJobOptions densify;
     double densifyMs = 0;
     std::size_t gaussiansAdded = 0, gaussiansRemoved = 0, gaussians = 0;
+    std::optional<std::size_t> gaussianBudget; ///< `--max-gaussians`: the most the output may hold
     std::optional<std::string> start;     ///< animate --warm-start: "warm" or "cold"
     std::optional<double> warmEnergy;     ///< the rejected warm start's energy
     std::optional<double> warmLimit;      ///< animate: the energy a warm start had to stay under

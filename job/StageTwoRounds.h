@@ -5,6 +5,7 @@
 ///        rules; the rounds' reports are merged into one.
 #include <cstddef>
 #include <cstdint>
+#include <optional>
 #include <functional>
 #include <string>
 #include <vector>
@@ -24,6 +25,9 @@ struct DensifyJobOptions {
     float splitAfter = 0.5f;    ///< share of the iterations before the split (0: split before Stage II)
     float splitOffset = kSplitOffset; ///< children at mean +- this x sigma along the longest axis
     float pruneBelow = 0.0f;    ///< remove moving Gaussians whose opacity ends below this (0: none)
+    /// With split: at most this many Gaussians split (each adds one), the first stretched ones
+    /// in index order; none: no limit (`--max-gaussians`).
+    std::optional<std::size_t> maxSplits;
 };
 
 /// @brief Gaussians split and pruned by a Stage II run, and the time it took.

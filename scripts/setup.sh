@@ -18,13 +18,32 @@ for p in "${PACKAGES[@]}"; do
 done
 if [ ${#missing[@]} -eq 0 ]; then
   echo "setup: all ${#PACKAGES[@]} packages present"
-  exit 0
+else
+  SUDO=""
+  if [ "$(id -u)" -ne 0 ]; then
+    command -v sudo >/dev/null || { echo "setup: need root or sudo to install: ${missing[*]}" >&2; exit 1; }
+    SUDO="sudo"
+  fi
+  echo "setup: installing ${missing[*]}"
+  $SUDO apt-get update -qq
+  DEBIAN_FRONTEND=noninteractive $SUDO apt-get install -y -qq --no-install-recommends "${missing[@]}"
 fi
-SUDO=""
-if [ "$(id -u)" -ne 0 ]; then
-  command -v sudo >/dev/null || { echo "setup: need root or sudo to install: ${missing[*]}" >&2; exit 1; }
-  SUDO="sudo"
+
+# node and npm for the interop tests (tests/interop): by command, not by package, since a NodeSource
+# nodejs bundles npm and conflicts with Debian's npm package. Debian 12 gives node 18 and npm 9.
+if ! command -v node >/dev/null || ! command -v npm >/dev/null; then
+  SUDO=""
+  [ "$(id -u)" -eq 0 ] || SUDO="sudo"
+  echo "setup: installing nodejs npm"
+  $SUDO apt-get update -qq
+  DEBIAN_FRONTEND=noninteractive $SUDO apt-get install -y -qq --no-install-recommends nodejs npm
 fi
-echo "setup: installing ${missing[*]}"
-$SUDO apt-get update -qq
-DEBIAN_FRONTEND=noninteractive $SUDO apt-get install -y -qq --no-install-recommends "${missing[@]}"
+# The interop tests' peer, PlayCanvas splat-transform, at the version tests/interop/package-lock.json
+# pins (no install scripts: the only one, webgpu's, is for macOS). Skipped when that lock file is
+# already installed (it is copied into node_modules after a successful install).
+interop="$(cd "$(dirname "$0")/.." && pwd)/tests/interop"
+if ! cmp -s "$interop/package-lock.json" "$interop/node_modules/.splatwarp-installed-lock.json" 2>/dev/null; then
+  echo "setup: npm ci in tests/interop (@playcanvas/splat-transform)"
+  (cd "$interop" && npm ci --ignore-scripts --no-audit --no-fund --loglevel=error &&
+   cp package-lock.json node_modules/.splatwarp-installed-lock.json)
+fi

@@ -21,7 +21,7 @@ const CommandRegistrar reg(30, [](CLI::App& app) {
     sub->add_flag("--vdb", job.writeVdb, "Also write field.vdb: the Stage II model's sampled field (as `to-vdb`)");
     sub->add_flag("--render", job.render, "Also write compare.png (rest | Stage I | Stage II from a few orbit views) and stretched.png (the same three, close up on the most stretched cell holding matter, the rest moved rigidly there; report.json \"stretched\" says where)");
     // About eight flags a user touches; the other ~35 are expert settings, listed by --help-all.
-    splitHelpLevels(sub, {"--spec", "-o", "--vdb", "--render", "--stage1-only", "--recipe", "--iterations", "--cells"});
+    splitHelpLevels(sub, {"--spec", "-o", "--vdb", "--render", "--stage1-only", "--recipe", "--iterations", "--cells", "--max-gaussians"});
     sub->callback([args, sub] {
         const DeformJobOptions job = deformJobOptions(*args, sub);
         if (job.render && job.stage1Only) throw UsageError("--render needs Stage II (drop --stage1-only)");

@@ -26,6 +26,7 @@ struct DeformArgs {
     std::string split = "off";
     std::string curveSplit = "auto", validatedSplit = "auto", keep = "validated", curveShift = "auto";
     std::string recipe = "default";
+    std::string maxGaussians;
     float fineBelow = 4.0f;
 };
 
@@ -83,6 +84,14 @@ inline void addDensifyOptions(CLI::App* sub, DeformArgs& args)
                     "--curve-split-max); off: no such split")
         ->capture_default_str()
         ->check(CLI::IsMember({"auto", "off"}));
+    sub->add_option("--max-gaussians", args.maxGaussians,
+                    "The most Gaussians the output may hold: N, or a factor of the input's count such as 1.5x (1x: "
+                    "no growth); the curve split, the validated split and Stage II's split spend it in that order "
+                    "(default: none; the curve split's own share then bounds the splits before Stage II)")
+        ->check([](const std::string& text) {
+            GaussianBudget unused;
+            return parseGaussianBudget(text, unused);
+        });
     sub->add_option("--curve-split-max", args.job.curve.maxAdded,
                     "At most this many Gaussians added by the curve split and the validated split together, as a share "
                     "of the model's")
@@ -221,6 +230,10 @@ inline DeformJobOptions deformJobOptions(DeformArgs& args, CLI::App* sub)
     job.validatedSplit = args.validatedSplit == "auto";
     job.keepPerGaussian = args.keep == "validated";
     if (args.curveShift != "auto") job.curveShift = std::strtod(args.curveShift.c_str(), nullptr);
+    if (!args.maxGaussians.empty()) {
+        if (sub->count("--curve-split-max")) throw UsageError("--curve-split-max and --max-gaussians: give one budget");
+        parseGaussianBudget(args.maxGaussians, job.maxGaussians.emplace());
+    }
     return job;
 }
 

@@ -193,7 +193,7 @@ CurveSplitResult curveSplit(const GaussianCloud& rest, const StageOneRig& rig, c
     res.moving = stage1.moving;
     res.parent.resize(rest.size());
     std::iota(res.parent.begin(), res.parent.end(), 0);
-    std::size_t budget = std::size_t(double(o.maxAdded) * double(rest.size()));
+    std::size_t budget = o.maxAddedCount ? *o.maxAddedCount : std::size_t(double(o.maxAdded) * double(rest.size()));
     StageOneOptions childOptions = s1;
     childOptions.threaded = o.threaded;
 

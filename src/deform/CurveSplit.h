@@ -17,6 +17,7 @@
 ///        its mass; scripts/curve-split-weights.py derives them); the field is a plain sum, so the
 ///        other axes are untouched.
 #include <cstddef>
+#include <optional>
 #include <cstdint>
 #include <vector>
 
@@ -46,6 +47,8 @@ struct CurveSplitOptions {
     /// At most this x the model's Gaussians are added (most bent first). 1.25, not 1: playbot-31k
     /// twist 0.637 -> 0.556 of Stage I at 2.25x the model (1.5: 0.530 at 2.5x; boundary weight 1).
     float maxAdded = 1.25f;
+    /// When set, replaces maxAdded: at most this many Gaussians added (`--max-gaussians`).
+    std::optional<std::size_t> maxAddedCount;
     double fanAbove = kFanAbove; ///< fan the Gaussians bent by more (<= 0: split every one in three)
     bool threaded = true;
 };

@@ -1,0 +1,86 @@
+// --max-gaussians: the budget every step that adds Gaussians spends (issue 33).
+#include <gtest/gtest.h>
+
+#include <filesystem>
+#include <fstream>
+
+#include <nlohmann/json.hpp>
+
+#include "core/GaussianBudget.h"
+#include "io/GaussianIO.h"
+#include "support/TestSupport.h"
+
+using namespace splatwarp;
+using namespace splatwarp::test;
+
+TEST(GaussianBudget, ParsesCountsAndFactorsAndRefusesTheRest)
+{
+    GaussianBudget b;
+    EXPECT_EQ(parseGaussianBudget("250000", b), "");
+    EXPECT_EQ(b.limit(1000), 250000u);
+    EXPECT_EQ(parseGaussianBudget("1.5x", b), "");
+    EXPECT_EQ(b.limit(1001), 1501u); // floor(1.5 x 1001)
+    EXPECT_EQ(b.added(1001), 500u);
+    EXPECT_EQ(b.text(), "1.5x");
+    EXPECT_EQ(parseGaussianBudget("2\u00d7", b), "");
+    EXPECT_EQ(b.limit(7), 14u);
+    EXPECT_EQ(parseGaussianBudget("1x", b), "");
+    EXPECT_EQ(b.added(12345), 0u);
+    for (const char* bad : {"", "0", "-1", "abc", "1.5y", "0.5x", "1.5", "x", "1e3", "2000x"})
+        EXPECT_NE(parseGaussianBudget(bad, b), "") << bad;
+    EXPECT_EQ(parseGaussianBudget("900", b), "");
+    EXPECT_THROW(b.limit(1000), UsageError); // below the input: nothing removes Gaussians to meet it
+}
+
+namespace {
+
+std::size_t countOf(const std::string& ply) { return readGaussians(ply).size(); }
+
+nlohmann::json reportOf(const std::string& dir)
+{
+    std::ifstream in(dir + "/report.json");
+    return nlohmann::json::parse(in);
+}
+
+} // namespace
+
+TEST(GaussianBudget, DeformHonoursTheBudgetAndOneTimesKeepsTheCount)
+{
+    TempDir dir;
+    const std::string model = dir.file("s.ply"), spec = std::string(SPLATWARP_SOURCE_DIR) + "/samples/specs/bend.json";
+    ASSERT_EQ(runCli("-q sample stripes --count 2000 -o " + model), 0);
+    const std::string common = "-q deform " + model + " --spec " + spec + " --iterations 4 ";
+    // Without a budget the splits add more than 300 here, so a budget of 2300 binds.
+    ASSERT_EQ(runCli(common + "-o " + dir.file("free")), 0);
+    const std::size_t free = countOf(dir.file("free/deformed.ply"));
+    ASSERT_GT(free, 2300u);
+    ASSERT_EQ(runCli(common + "-o " + dir.file("b2300") + " --max-gaussians 2300"), 0);
+    const std::size_t bounded = countOf(dir.file("b2300/deformed.ply"));
+    EXPECT_LE(bounded, 2300u);
+    EXPECT_GT(bounded, 2000u);
+    const nlohmann::json r = reportOf(dir.file("b2300"));
+    EXPECT_EQ(r["stage2"]["gaussianBudget"].get<std::size_t>(), 2300u);
+    EXPECT_EQ(r["stage2"]["gaussians"].get<std::size_t>(), bounded);
+    EXPECT_EQ(r["stage2"]["gaussiansAdded"].get<std::size_t>() - r["stage2"]["gaussiansRemoved"].get<std::size_t>(), bounded - 2000);
+    // 1x: no step adds a Gaussian, Stage II's own split included.
+    ASSERT_EQ(runCli(common + "-o " + dir.file("one") + " --max-gaussians 1x --split auto --split-stretch 1.01"), 0);
+    EXPECT_EQ(countOf(dir.file("one/deformed.ply")), 2000u);
+    EXPECT_EQ(reportOf(dir.file("one"))["stage2"]["gaussiansAdded"].get<std::size_t>(), 0u);
+    // Without the budget that split does add Gaussians (so the line above tests the budget).
+    ASSERT_EQ(runCli(common + "-o " + dir.file("split") + " --curve-split off --validated-split off --split auto --split-stretch 1.01"), 0);
+    EXPECT_GT(countOf(dir.file("split/deformed.ply")), 2000u);
+}
+
+TEST(GaussianBudget, BadBudgetsExitTwoAndWriteNothing)
+{
+    TempDir dir;
+    const std::string model = dir.file("s.ply"), spec = std::string(SPLATWARP_SOURCE_DIR) + "/samples/specs/bend.json";
+    ASSERT_EQ(runCli("-q sample stripes --count 500 -o " + model), 0);
+    for (const char* bad : {"0", "abc", "0.5x", "-3", "400"}) {
+        const std::string out = dir.file(std::string("bad-") + bad);
+        EXPECT_EQ(runCli("-q deform " + model + " --spec " + spec + " -o " + out + " --max-gaussians " + bad, dir.file("e.log")), 2) << bad;
+        EXPECT_FALSE(std::filesystem::exists(out)) << bad;
+        EXPECT_NE(fileBytes(dir.file("e.log")).find("--max-gaussians"), std::string::npos) << fileBytes(dir.file("e.log"));
+    }
+    EXPECT_NE(fileBytes(dir.file("e.log")).find("below the input's 500 Gaussians"), std::string::npos) << fileBytes(dir.file("e.log"));
+}
