@@ -221,6 +221,12 @@ def test_deform_settings_are_checked_as_flags(stripes):
         splatwarp.deform(stripes, BEND, iterations="many")
     with pytest.raises(ValueError, match="--cells"):
         splatwarp.deform(stripes, BEND, cells=-3)
+    # A usage error after parsing: the CLI's message (exit 2), word for word.
+    run = cli("deform", stripes, "--spec", BEND, "-o", "never", "--max-gaussians", "1x", "--curve-split-max", 0.1, ok=False)
+    assert run.returncode == 2
+    with pytest.raises(splatwarp.Error) as caught:
+        splatwarp.deform(stripes, BEND, max_gaussians="1x", curve_split_max=0.1)
+    assert "splatwarp: usage error: " + str(caught.value) == run.stderr.strip().splitlines()[-1]
 
 
 def test_render_equals_the_cli_png(work, stripes):
