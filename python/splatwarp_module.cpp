@@ -10,6 +10,9 @@
 #include "core/Progress.h"
 #include "io/GaussianIO.h"
 #include "vdb/VdbPoints.h"
+#ifdef SPLATWARP_WITH_CUDA
+#include "kernels/CudaBackends.h"
+#endif
 
 namespace py = pybind11;
 
@@ -170,6 +173,9 @@ PYBIND11_MODULE(splatwarp, m)
     using namespace splatwarp::python;
     m.doc() = "splatwarp: deform 3D Gaussian Splatting models; read, write, render and judge them.";
     splatwarp::registerVdbPointFormat();
+#ifdef SPLATWARP_WITH_CUDA
+    splatwarp::cuda::registerBackends(); // device='auto'|'cuda' as in the CLI
+#endif
     bindErrors(m);
     bindModel(m);
     bindReadWrite(m);
