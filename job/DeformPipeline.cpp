@@ -410,6 +410,51 @@ GraphOptions graphOptionsOf(const DeformSpec& spec, const DeformJobOptions& o)
     return g;
 }
 
+namespace {
+
+/// The rest side past the model: graph, Stage I rig, sample grid, the validation and judge points.
+void prepareRestOf(DeformRest& rest, const DeformJobOptions& o, const GraphOptions& graph)
+{
+    if (o.maxGaussians) o.maxGaussians->limit(rest.model.size()); // refused before any work
+    Stopwatch clock;
+    rest.graph = DeformationGraph::build(rest.model, graph, o.ed.threaded);
+    rest.graphMs = clock.ms();
+    progress(msg("deformation graph: ", rest.graph.nodeCount(), " nodes, k = ", rest.graph.k(), " (", int(rest.graphMs), " ms)"));
+    clock.reset();
+    rest.rig = prepareStageOne(rest.model, rest.graph, o.stage1);
+    rest.rigMs = clock.ms();
+    StageOneOptions stageOneOptions = o.stage1;
+    stageOneOptions.device = rest.device;
+    rest.stageOne = std::make_unique<StageOneUpdater>(rest.model, rest.rig, rest.graph, stageOneOptions);
+    if (o.stage1Only) return;
+    // The rest field sampled into sparse cells; every frame warps a copy of it.
+    clock.reset();
+    SampleGridOptions gridOptions = o.grid;
+    gridOptions.device = rest.device;
+    gridOptions.extraBytesPerSample += stageTwoBytesPerSample(rest.model.shDegree);
+    rest.grid = runStage("sample grid", [&] { return std::make_unique<SampleGrid>(rest.model, gridOptions); });
+    rest.sampleGridMs = clock.ms();
+    if (o.keepValidated) {
+        HeldOutOptions validation = o.heldOut;
+        validation.device = rest.device;
+        validation.seed ^= kValidationSeedXor;
+        rest.validation = prepareValidationRest(rest.model, validation);
+    }
+    if (o.evaluate || o.evalEvery > 0) {
+        clock.reset();
+        HeldOutOptions heldOutOptions = o.heldOut;
+        heldOutOptions.device = rest.device;
+        rest.judge = prepareJudgeRest(rest.model, heldOutOptions);
+        rest.latticePoints = drawHeldOutPoints(*rest.grid, heldOutOptions);
+        rest.latticeRest = unrotatedTarget(rest.model, *rest.latticePoints);
+        rest.heldOutMs = clock.ms();
+        progress(msg("judge: ", heldOutOptions.points, " held-out points in the rest model's active region (",
+                     int(rest.heldOutMs), " ms with the training-lattice points)"));
+    }
+}
+
+} // namespace
+
 std::unique_ptr<DeformRest> prepareDeformRest(const DeformJobOptions& o, const GraphOptions& graph)
 {
     auto rest = std::make_unique<DeformRest>();
@@ -422,43 +467,21 @@ std::unique_ptr<DeformRest> prepareDeformRest(const DeformJobOptions& o, const G
     if (rest->model.empty())
         throw InputError(msg(o.input, ": no Gaussians", rest->read.dropped ? " left after dropping unusable ones" : ""));
     rest->readMs = clock.ms();
-    if (o.maxGaussians) o.maxGaussians->limit(rest->model.size()); // refused before any work
     progress(msg("read ", rest->model.size(), " Gaussians (SH degree ", rest->model.shDegree, ") from ", o.input));
-    clock.reset();
-    rest->graph = DeformationGraph::build(rest->model, graph, o.ed.threaded);
-    rest->graphMs = clock.ms();
-    progress(msg("deformation graph: ", rest->graph.nodeCount(), " nodes, k = ", rest->graph.k(), " (", int(rest->graphMs), " ms)"));
-    clock.reset();
-    rest->rig = prepareStageOne(rest->model, rest->graph, o.stage1);
-    rest->rigMs = clock.ms();
-    StageOneOptions stageOneOptions = o.stage1;
-    stageOneOptions.device = rest->device;
-    rest->stageOne = std::make_unique<StageOneUpdater>(rest->model, rest->rig, rest->graph, stageOneOptions);
-    if (o.stage1Only) return rest;
-    // The rest field sampled into sparse cells; every frame warps a copy of it.
-    clock.reset();
-    SampleGridOptions gridOptions = o.grid;
-    gridOptions.device = rest->device;
-    gridOptions.extraBytesPerSample += stageTwoBytesPerSample(rest->model.shDegree);
-    rest->grid = runStage("sample grid", [&] { return std::make_unique<SampleGrid>(rest->model, gridOptions); });
-    rest->sampleGridMs = clock.ms();
-    if (o.keepValidated) {
-        HeldOutOptions validation = o.heldOut;
-        validation.device = rest->device;
-        validation.seed ^= kValidationSeedXor;
-        rest->validation = prepareValidationRest(rest->model, validation);
-    }
-    if (o.evaluate || o.evalEvery > 0) {
-        clock.reset();
-        HeldOutOptions heldOutOptions = o.heldOut;
-        heldOutOptions.device = rest->device;
-        rest->judge = prepareJudgeRest(rest->model, heldOutOptions);
-        rest->latticePoints = drawHeldOutPoints(*rest->grid, heldOutOptions);
-        rest->latticeRest = unrotatedTarget(rest->model, *rest->latticePoints);
-        rest->heldOutMs = clock.ms();
-        progress(msg("judge: ", heldOutOptions.points, " held-out points in the rest model's active region (",
-                     int(rest->heldOutMs), " ms with the training-lattice points)"));
-    }
+    prepareRestOf(*rest, o, graph);
+    return rest;
+}
+
+std::unique_ptr<DeformRest> prepareDeformRest(const DeformJobOptions& o, const GraphOptions& graph, GaussianCloud model,
+                                              ReadReport read)
+{
+    auto rest = std::make_unique<DeformRest>();
+    rest->device = resolveDevice(o.device);
+    if (model.empty()) throw InputError(msg(o.input, ": no Gaussians"));
+    model.checkConsistent();
+    rest->model = std::move(model);
+    rest->read = std::move(read);
+    prepareRestOf(*rest, o, graph);
     return rest;
 }
 

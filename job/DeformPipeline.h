@@ -98,6 +98,10 @@ struct DeformRest {
 
 /// @brief Read the model and compute the rest side for a graph (graphOptionsOf() of a spec).
 std::unique_ptr<DeformRest> prepareDeformRest(const DeformJobOptions& options, const GraphOptions& graph);
+/// @brief The rest side of a model already in memory (the Python module); options.input only names
+///        it in messages and the report, and `read` is what the report says about its reading.
+std::unique_ptr<DeformRest> prepareDeformRest(const DeformJobOptions& options, const GraphOptions& graph, GaussianCloud model,
+                                              ReadReport read = {});
 
 /// @brief Where one run of a spec writes; an empty path is not written (deformed: Stage II only).
 struct FrameOutputs {

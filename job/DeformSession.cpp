@@ -24,7 +24,21 @@ DeformSession::DeformSession(DeformJobOptions options, const DeformSpec& graphSp
     mRestMs = clock.ms();
 }
 
+DeformSession::DeformSession(DeformJobOptions options, const DeformSpec& graphSpec, GaussianCloud model)
+    : mOptions(std::move(options)), mGraph(graphOptionsOf(graphSpec, mOptions))
+{
+    const Stopwatch clock;
+    mRest = prepareDeformRest(mOptions, mGraph, std::move(model));
+    mRestMs = clock.ms();
+}
+
 DeformSession::~DeformSession() = default;
+
+const FrameReport& DeformSession::report() const
+{
+    if (!mFrame) throw UsageError("report needs a pose first");
+    return mFrame->report;
+}
 
 const StageOneResult& DeformSession::pose(const DeformSpec& spec)
 {

@@ -24,6 +24,8 @@ public:
     ///        With options.stage1Only, no sample grid is made and refine() is refused.
     /// @throws InputError / IoError naming the file, as deform does.
     DeformSession(DeformJobOptions options, const DeformSpec& graphSpec);
+    /// @brief The same for a model already in memory (options.input only names it).
+    DeformSession(DeformJobOptions options, const DeformSpec& graphSpec, GaussianCloud model);
     ~DeformSession();
     DeformSession(const DeformSession&) = delete;
     DeformSession& operator=(const DeformSession&) = delete;
@@ -49,6 +51,9 @@ public:
     FrameReport write(const std::string& dir, const std::vector<std::pair<std::string, std::string>>& extraFiles = {});
 
     bool refined() const { return mFrame && mFrame->fitted.has_value(); }
+    /// @brief The last pose's report so far: what write() returns less the outputs and the write timings.
+    /// @throws UsageError without a pose.
+    const FrameReport& report() const;
 
 private:
     DeformJobOptions mOptions;

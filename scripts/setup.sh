@@ -15,6 +15,7 @@ PACKAGES=(
   # polled: no WebSocket library needed); Debian's build is a header plus a shared library.
   libcpp-httplib-dev
   chromium  # Edit.BrowserEndToEnd: the editor page in headless Chromium (software GL), about a minute
+  pybind11-dev python3-numpy python3-pytest  # python/: the `import splatwarp` module and its pytest tests
 )
 missing=()
 for p in "${PACKAGES[@]}"; do

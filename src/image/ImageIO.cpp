@@ -41,9 +41,9 @@ std::uint8_t toByte(float v) { return std::uint8_t(std::lround(std::clamp(v, 0.0
 
 } // namespace
 
-void writePng(const std::string& path, const Image& image, const PngWriteOptions& options)
+std::vector<std::uint8_t> pngBytes(const std::string& name, const Image& image, const PngWriteOptions& options)
 {
-    requireColourImage(path, image);
+    requireColourImage(name, image);
     const int out = (options.alpha && image.channels == 4) ? 4 : 3;
     std::vector<std::uint8_t> bytes(std::size_t(image.width) * image.height * out);
     for (int y = 0; y < image.height; ++y)
@@ -54,6 +54,13 @@ void writePng(const std::string& path, const Image& image, const PngWriteOptions
                 const bool encode = options.values == PngValues::Linear && c < 3;
                 bytes[(std::size_t(y) * image.width + x) * out + c] = toByte(encode ? linearToSrgb(v) : v);
             }
+    return bytes;
+}
+
+void writePng(const std::string& path, const Image& image, const PngWriteOptions& options)
+{
+    const int out = (options.alpha && image.channels == 4) ? 4 : 3;
+    const std::vector<std::uint8_t> bytes = pngBytes(path, image, options);
     png_image png{};
     png.version = PNG_IMAGE_VERSION;
     png.width = png_uint_32(image.width);

@@ -5,7 +5,9 @@
 /// @note  Renders hold display values (image/Image.h): a PNG stores them as they are (what
 ///        graphdeco's renderer and the splat viewers show), writeImage() stores an EXR as their
 ///        linear decode (displayToLinear()).
+#include <cstdint>
 #include <string>
+#include <vector>
 
 #include "image/Image.h"
 
@@ -25,6 +27,10 @@ struct PngWriteOptions {
     bool alpha = false;
 };
 
+/// @brief The 8-bit values writePng() stores, [height, width, 3 or 4 with options.alpha] (the
+///        Python module's render() returns them).
+/// @throws InputError for an image without 3 or 4 channels; `name` stands for it in the message.
+std::vector<std::uint8_t> pngBytes(const std::string& name, const Image& image, const PngWriteOptions& options = {});
 /// @brief Write an 8-bit PNG (RGB, or RGBA with options.alpha) atomically.
 /// @throws InputError for an image without 3 or 4 channels; IoError when the file cannot be written.
 void writePng(const std::string& path, const Image& image, const PngWriteOptions& options = {});

@@ -99,6 +99,13 @@ bool hasOpenVdbMagic(const std::string& data) { return data.compare(0, 8, std::s
 
 } // namespace
 
+void applyReadRules(const std::string& name, GaussianCloud& cloud, const ReadOptions& options, ReadReport* report)
+{
+    ReadReport local;
+    applyInvalidPolicy(name, cloud, options, local);
+    if (report) *report = std::move(local);
+}
+
 std::string shPropertyName(int shDegree, int j, int c)
 {
     if (j == 0) return "f_dc_" + std::to_string(c);

@@ -40,6 +40,13 @@ struct ReadReport {
 ///         cannot be read.
 GaussianCloud readGaussians(const std::string& path, const ReadOptions& options = {}, ReadReport* report = nullptr);
 
+/// @brief The readers' rule for unusable Gaussians (NaN/Inf, values that overflow in use) applied
+///        to a cloud built in memory (the Python module's Model.from_arrays()): refuse it, drop or
+///        keep them as options say; `name` stands for the source in messages.
+/// @throws InputError as readGaussians() does.
+void applyReadRules(const std::string& name, GaussianCloud& cloud, const ReadOptions& options = {},
+                    ReadReport* report = nullptr);
+
 /// @brief readGaussians() of bytes already in memory (fuzzers, in-memory callers); `name` stands
 ///        for the file in messages.
 GaussianCloud readGaussiansFromBytes(const std::string& name, const std::string& data, const ReadOptions& options = {},

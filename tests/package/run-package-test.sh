@@ -18,4 +18,9 @@ export PKG_CONFIG_PATH="$tmp/prefix/lib/pkgconfig:$tmp/prefix/lib/x86_64-linux-g
 c++ -std=c++17 -O1 "$src/tests/package/consumer/main.cpp" -o "$tmp/consumer-pc" $(pkg-config --cflags --libs splatwarp)
 "$tmp/consumer-pc" "$tmp/out-pc"
 "$tmp/prefix/bin/splatwarp" info "$tmp/out-pc/model.glb" >/dev/null
+# The Python module, when it was built, lands in the prefix's site-packages and imports from there.
+module="$(find "$tmp/prefix" -name 'splatwarp.cpython-*.so' | head -n 1)"
+if [ -n "$module" ]; then
+  (cd "$tmp" && PYTHONPATH="$(dirname "$module")" python3 -c "import splatwarp; print(splatwarp.__file__)") >/dev/null
+fi
 echo "package test: installed, built with CMake and with pkg-config, ran both"
