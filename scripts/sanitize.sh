@@ -4,6 +4,9 @@
 # Extra arguments go to ctest (e.g. -R BadInput).
 set -euo pipefail
 cd "$(dirname "$0")/.."
+# ccache keys on paths relative to the checkout's parent, so clones and worktrees in other folders
+# (CI's, a second checkout) reuse each other's objects.
+export CCACHE_BASEDIR="${CCACHE_BASEDIR:-$(cd .. && pwd)}"
 start=$(date +%s)
 SAN="-fsanitize=address,undefined -fno-sanitize-recover=all -fno-omit-frame-pointer"
 # The Python module is left out: an ASan-built extension cannot load into a python3 that is not
