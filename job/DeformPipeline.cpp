@@ -153,6 +153,14 @@ struct ColdStart {
     std::size_t added = 0;
 };
 
+/// The Gaussians the splits before and inside Stage II may add to a model of `n`: the --max-gaussians
+/// budget, else the curve split's share (which the validated split shares; Stage II's split is then
+/// unbounded).
+std::size_t splitBudget(const DeformJobOptions& o, std::size_t n)
+{
+    return o.maxGaussians ? o.maxGaussians->added(n) : std::size_t(double(o.curve.maxAdded) * double(n));
+}
+
 /// The curve split; with validation points, split with fans and without and keep the one they
 /// judge better (fans win where a few Gaussians are bent far beyond three halvings, playbot-31k;
 /// they lose where many thin ones are, guitar: docs/lab/fidelity-study.md).
@@ -161,7 +169,7 @@ CurveSplitResult curveSplitOf(const DeformRest& rest, const Deformation& deforma
 {
     CurveSplitOptions co = o.curve;
     co.threaded = o.grid.threaded;
-    if (o.maxGaussians) co.maxAddedCount = o.maxGaussians->added(rest.model.size());
+    co.maxAddedCount = splitBudget(o, rest.model.size());
     auto split = [&](double fanAbove) {
         co.fanAbove = fanAbove;
         return curveSplit(rest.model, rest.rig, rest.graph, deformation.transforms, deformation.nodeMoving, stage1,
@@ -205,8 +213,7 @@ void splitByValidation(const DeformRest& rest, const Deformation& deformation, c
                        const DeformJobOptions& o, const Judge& validation, std::vector<float>& curve, ColdStart& c,
                        FrameReport& report)
 {
-    const std::size_t allowed = o.maxGaussians ? o.maxGaussians->added(rest.model.size())
-                                               : std::size_t(double(o.curve.maxAdded) * double(rest.model.size()));
+    const std::size_t allowed = splitBudget(o, rest.model.size());
     const std::size_t budget = allowed > c.added ? allowed - c.added : 0;
     StageOneOptions s1 = o.stage1;
     s1.threaded = o.grid.threaded;
@@ -346,7 +353,7 @@ GaussianCloud stageTwo(DeformRest& rest, const Deformation& deformation, const S
     StageTwoOptions s2 = o.stage2;
     s2.device = rest.device;
     DensifyJobOptions densify = o.densify; // Stage II's split spends what the splits before it left
-    if (o.maxGaussians) densify.maxSplits = o.maxGaussians->added(rest.model.size()) - cold.added;
+    if (o.maxGaussians) densify.maxSplits = splitBudget(o, rest.model.size()) - cold.added;
     DensifyCounts counts;
     auto fit = [&] {
         progress(msg("Stage II: ", o.stage2.iterations, " iterations on ", stage1.movingCount + cold.added, " moving Gaussians"));
