@@ -18,6 +18,7 @@ cmake --build build-asan -j"$(nproc)"
 built=$(date +%s)
 echo "sanitize: build $((built - start)) s"
 export ASAN_OPTIONS=halt_on_error=1:detect_leaks=1:strict_string_checks=1:detect_stack_use_after_return=1
+export LSAN_OPTIONS="suppressions=$PWD/scripts/lsan.supp:print_suppressions=0"
 export UBSAN_OPTIONS=halt_on_error=1:print_stacktrace=1
 cd build-asan && ctest --output-on-failure -j"$(nproc)" "$@"
 echo "sanitize: tests $(( $(date +%s) - built )) s"
