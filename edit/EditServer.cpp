@@ -198,17 +198,17 @@ void EditServer::Impl::pose(const httplib::Request& req, httplib::Response& res)
     posed = false; // a pose that fails leaves the session without one
     posedSpec.clear();
     refinedBytes.clear();
-    const Stopwatch clock;
-    const StageOneResult& stage1 = session->pose(spec);
-    const double poseMs = clock.ms();
+    // A live preview (warm-started solve, no SH rotation); refine and save pose the spec exactly.
+    const DeformSession::Preview stage1 = session->preview(spec);
     specJson["graph"] = graphBlock(graphOptionsOf(spec, options.job));
     posedSpec = specJson.dump(2) + "\n";
     posed = true;
-    res.set_content(encodeGaussians(stage1.deformed), kBinary);
-    res.set_header("X-Splatwarp-Solve-Ms", std::to_string(poseMs - stage1.timings.updateMs));
-    res.set_header("X-Splatwarp-Update-Ms", std::to_string(stage1.timings.updateMs));
-    res.set_header("X-Splatwarp-Encode-Ms", std::to_string(clock.ms() - poseMs));
-    res.set_header("X-Splatwarp-Moving", std::to_string(stage1.movingCount));
+    const Stopwatch clock;
+    res.set_content(encodeGaussians(stage1.cloud, session->rest().model.shDegree), kBinary);
+    res.set_header("X-Splatwarp-Solve-Ms", std::to_string(stage1.solveMs));
+    res.set_header("X-Splatwarp-Update-Ms", std::to_string(stage1.updateMs));
+    res.set_header("X-Splatwarp-Encode-Ms", std::to_string(clock.ms()));
+    res.set_header("X-Splatwarp-Moving", std::to_string(stage1.moving));
 }
 
 void EditServer::Impl::startRefine(httplib::Response& res)

@@ -25,14 +25,14 @@ std::uint32_t getU32(const std::string& in, std::size_t at)
 
 } // namespace
 
-std::string encodeGaussians(const GaussianCloud& cloud)
+std::string encodeGaussians(const GaussianCloud& cloud, int modelShDegree)
 {
     const std::size_t n = cloud.size();
     std::string out(kLayoutHeaderBytes + n * kLayoutFloats * 4, '\0');
     std::memcpy(out.data(), kLayoutMagic, 4);
     putU32(out, 4, std::uint32_t(n));
     putU32(out, 8, std::uint32_t(kLayoutFloats));
-    putU32(out, 12, std::uint32_t(cloud.shDegree));
+    putU32(out, 12, std::uint32_t(modelShDegree < 0 ? cloud.shDegree : modelShDegree));
     // x86-64 and aarch64 are little-endian: the arrays are copied as they are.
     char* at = out.data() + kLayoutHeaderBytes;
     const auto put = [&](const float* data, std::size_t count) {

@@ -20,7 +20,8 @@ constexpr std::size_t kLayoutFloats = 14;
 /// @brief Encode: "SWG1", uint32 count N, uint32 floats per Gaussian (14), uint32 SH degree of
 ///        the model; then means [N,3], rotations [N,4] (w,x,y,z as stored), logScales [N,3],
 ///        opacity logits [N], SH DC [N,3] (f_dc RGB), all float32, the model's raw values bit for bit.
-std::string encodeGaussians(const GaussianCloud& cloud);
+///        modelShDegree >= 0 is written as the SH degree instead of the cloud's (a preview holds DC only).
+std::string encodeGaussians(const GaussianCloud& cloud, int modelShDegree = -1);
 
 /// @brief Decode a buffer of encodeGaussians() into a cloud of SH degree 0 (tests, bench).
 /// @throws InputError when the header or the size is wrong.

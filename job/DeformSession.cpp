@@ -40,18 +40,56 @@ const FrameReport& DeformSession::report() const
     return mFrame->report;
 }
 
-const StageOneResult& DeformSession::pose(const DeformSpec& spec)
+void DeformSession::checkGraph(const DeformSpec& spec) const
 {
     if (!sameGraph(graphOptionsOf(spec, mOptions), mGraph))
         throw InputError(msg(spec.source.empty() ? std::string("spec") : spec.source,
                              ": its graph block (nodes, k, seed) differs from the one this session was prepared for"));
+}
+
+const StageOneResult& DeformSession::pose(const DeformSpec& spec)
+{
+    checkGraph(spec);
     mFrame.reset();
+    mPreviewed.reset();
     mFrame = poseFrame(*mRest, spec, mOptions);
+    mLastSolve = mFrame->deformation.transforms;
     return mFrame->stage1;
+}
+
+DeformSession::Preview DeformSession::preview(const DeformSpec& spec)
+{
+    if (mRest->stageOne->device() == Device::Cuda) {
+        const StageOneResult& stage1 = pose(spec);
+        return {stage1.deformed, stage1.movingCount, mFrame->deformation.report.solver.ms, stage1.timings.updateMs};
+    }
+    checkGraph(spec);
+    mFrame.reset();
+    mPreviewed.reset();
+    const Stopwatch solveClock;
+    const Deformation d = solveDeformation(mRest->graph, mRest->model, spec, mOptions.ed, mLastSolve ? &*mLastSolve : nullptr);
+    const double solveMs = solveClock.ms();
+    const Stopwatch updateClock;
+    if (!mPreviewCloud) mPreviewCloud = previewCloudOf(mRest->model);
+    StageOneOptions stageOne = mOptions.stage1;
+    stageOne.device = mRest->device;
+    const std::size_t moving = applyStageOnePreview(mRest->model, mRest->rig, mRest->graph, d.transforms, d.nodeMoving,
+                                                    stageOne, *mPreviewCloud);
+    mLastSolve = d.transforms;
+    mPreviewed = spec;
+    return {*mPreviewCloud, moving, solveMs, updateClock.ms()};
+}
+
+void DeformSession::poseThePreview()
+{
+    if (!mPreviewed) return;
+    const DeformSpec spec = std::move(*mPreviewed);
+    pose(spec);
 }
 
 const GaussianCloud& DeformSession::refine(const RunControl& control)
 {
+    poseThePreview();
     if (!mFrame) throw UsageError("refine needs a pose first");
     if (mOptions.stage1Only) throw UsageError("this session was prepared for Stage I only (stage1Only)");
     const RunControlScope scope(control);
@@ -63,6 +101,7 @@ const GaussianCloud& DeformSession::refine(const RunControl& control)
 
 FrameReport DeformSession::write(const std::string& dir, const std::vector<std::pair<std::string, std::string>>& extraFiles)
 {
+    poseThePreview();
     if (!mFrame) throw UsageError("write needs a pose first");
     OutputSet outputs({mOptions.input, mOptions.specPath});
     outputs.createDirectory(dir);

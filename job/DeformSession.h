@@ -37,6 +37,20 @@ public:
     /// @throws InputError when the spec's graph block differs from the session's.
     const StageOneResult& pose(const DeformSpec& spec);
 
+    /// @brief What preview() gives: the posed model at SH degree 0 and the times of its two parts.
+    struct Preview {
+        const GaussianCloud& cloud;
+        std::size_t moving = 0;
+        double solveMs = 0, updateMs = 0;
+    };
+    /// @brief A live pose for a drag: the ED solve warm-started from the last solve of this session
+    ///        and Stage I's means, rotations and scales only (previewCloudOf(): no SH rotation, DC
+    ///        as rest). Within the solver's tolerance of pose(spec), not bit-equal: refine() and
+    ///        write() pose the previewed spec exactly first, so what they give is pose()'s. A session
+    ///        whose Stage I runs on CUDA poses exactly (the device update is not the cost there).
+    /// @throws InputError as pose().
+    Preview preview(const DeformSpec& spec);
+
     /// @brief Stage II and the recipe's other steps on the last pose. `control` sees each Stage II
     ///        iteration; setting its cancel flag stops within one iteration (Cancelled is thrown,
     ///        the pose is kept, nothing is written).
@@ -61,6 +75,12 @@ private:
     std::unique_ptr<DeformRest> mRest;
     std::optional<FrameResult> mFrame;
     double mRestMs = 0;
+    std::optional<DeformSpec> mPreviewed;      ///< the last preview()'s spec, not yet posed exactly
+    std::optional<NodeTransforms> mLastSolve;  ///< the warm start of the next preview()
+    std::optional<GaussianCloud> mPreviewCloud;
+
+    void checkGraph(const DeformSpec& spec) const;
+    void poseThePreview(); ///< pose() the previewed spec, if one waits
 };
 
 } // namespace splatwarp

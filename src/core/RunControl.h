@@ -45,4 +45,16 @@ void reportProgress(const char* phase, int done, int total);
 /// @brief Throws Cancelled when this thread's RunControl has been cancelled (between steps).
 void checkCancelled();
 
+/// @brief The steps of a run that are not iterations (the refine's warp, splits, keep), each
+///        reported as a phase when it starts: done = the steps started before it, of `total`. A
+///        driver sees the run move before the first iteration, and a cancel stops it there.
+class StepProgress {
+public:
+    explicit StepProgress(int total) : mTotal(total) {}
+    void start(const char* name) { reportProgress(name, mDone++, mTotal); }
+
+private:
+    int mDone = 0, mTotal;
+};
+
 } // namespace splatwarp

@@ -77,32 +77,74 @@ StageOneRig prepareStageOne(const GaussianCloud& rest, const DeformationGraph& g
     return rig;
 }
 
+namespace {
+
+/// Stage I of every Gaussian into `into` (which holds rest's values where nothing moves); SH bands
+/// up to shDegree are rotated (0: none). Returns the moving Gaussians' count.
+std::size_t updateInto(const GaussianCloud& rest, const StageOneRig& rig, const DeformationGraph& graph,
+                       const NodeTransforms& transforms, const std::vector<std::uint8_t>& nodeMoving,
+                       const StageOneOptions& o, int shDegree, GaussianCloud& into, std::vector<std::uint8_t>& moving)
+{
+    checkStageOneInputs(rest, rig, graph, transforms, nodeMoving);
+    const std::size_t n = rest.size();
+    moving.assign(n, 0);
+    const std::vector<NodeAffine> affines = nodeAffines(graph, transforms);
+    StageOneInputs in = stageOneInputs(rest, rig, affines.data());
+    in.nodeMoving = nodeMoving.data();
+    in.shTables = &shRotationTables();
+    in.shDegree = shDegree;
+    StageOneOutputs out;
+    out.means = into.means.data();
+    out.rotations = into.rotations.data();
+    out.logScales = into.logScales.data();
+    out.sh = into.sh.data();
+    out.moving = moving.data();
+    const StageOneParams params = stageOneParams(o, rig.extent);
+    parallelFor(n, 256, o.threaded, [&](std::size_t i) { stageOneUpdate(in, params, i, out); });
+    return std::size_t(std::count(moving.begin(), moving.end(), std::uint8_t(1)));
+}
+
+} // namespace
+
 StageOneResult applyStageOneCpu(const GaussianCloud& rest, const StageOneRig& rig, const DeformationGraph& graph,
                              const NodeTransforms& transforms, const std::vector<std::uint8_t>& nodeMoving,
                              const StageOneOptions& o)
 {
     const Stopwatch clock;
-    checkStageOneInputs(rest, rig, graph, transforms, nodeMoving);
-    const std::size_t n = rest.size();
     StageOneResult res;
     res.deformed = rest; // static Gaussians stay bit-exact
-    res.moving.assign(n, 0);
-    const std::vector<NodeAffine> affines = nodeAffines(graph, transforms);
-    StageOneInputs in = stageOneInputs(rest, rig, affines.data());
-    in.nodeMoving = nodeMoving.data();
-    in.shTables = &shRotationTables();
-    in.shDegree = rest.shDegree;
-    StageOneOutputs out;
-    out.means = res.deformed.means.data();
-    out.rotations = res.deformed.rotations.data();
-    out.logScales = res.deformed.logScales.data();
-    out.sh = res.deformed.sh.data();
-    out.moving = res.moving.data();
-    const StageOneParams params = stageOneParams(o, rig.extent);
-    parallelFor(n, 256, o.threaded, [&](std::size_t i) { stageOneUpdate(in, params, i, out); });
-    res.movingCount = std::size_t(std::count(res.moving.begin(), res.moving.end(), std::uint8_t(1)));
+    res.movingCount = updateInto(rest, rig, graph, transforms, nodeMoving, o, rest.shDegree, res.deformed, res.moving);
     res.timings.updateMs = clock.ms();
     return res;
+}
+
+GaussianCloud previewCloudOf(const GaussianCloud& rest)
+{
+    GaussianCloud preview;
+    preview.shDegree = 0;
+    preview.means = rest.means;
+    preview.rotations = rest.rotations;
+    preview.logScales = rest.logScales;
+    preview.opacities = rest.opacities;
+    const std::size_t n = rest.size(), stride = 3 * std::size_t(rest.shCoeffs());
+    preview.sh.resize(3 * n);
+    for (std::size_t i = 0; i < n; ++i) std::copy_n(rest.sh.begin() + std::ptrdiff_t(i * stride), 3, preview.sh.begin() + std::ptrdiff_t(3 * i));
+    return preview;
+}
+
+std::size_t applyStageOnePreview(const GaussianCloud& rest, const StageOneRig& rig, const DeformationGraph& graph,
+                                 const NodeTransforms& transforms, const std::vector<std::uint8_t>& nodeMoving,
+                                 const StageOneOptions& o, GaussianCloud& preview)
+{
+    if (preview.size() != rest.size() || preview.shDegree != 0)
+        throw UsageError(msg("Stage I preview: the preview cloud holds ", preview.size(), " Gaussians of SH degree ",
+                             preview.shDegree, " for a model of ", rest.size(), " (make it with previewCloudOf())"));
+    // Gaussians that moved in the last preview and not in this one must read as rest again.
+    std::copy(rest.means.begin(), rest.means.end(), preview.means.begin());
+    std::copy(rest.rotations.begin(), rest.rotations.end(), preview.rotations.begin());
+    std::copy(rest.logScales.begin(), rest.logScales.end(), preview.logScales.begin());
+    std::vector<std::uint8_t> moving;
+    return updateInto(rest, rig, graph, transforms, nodeMoving, o, 0, preview, moving);
 }
 
 } // namespace splatwarp

@@ -2,7 +2,10 @@
 // with progress and a cancel, write what deform writes, byte for byte.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <atomic>
+#include <cmath>
+#include <cstdio>
 #include <filesystem>
 
 #include "job/DeformSession.h"
@@ -61,6 +64,40 @@ TEST(DeformSession, PoseTwiceGivesTheBytesOfStageOneOnly)
     EXPECT_THROW(session.refine(), UsageError);
 }
 
+TEST(DeformSession, PreviewIsStageOneLessTheShAndWriteAfterItIsExact)
+{
+    Fixture fx;
+    fx.deform("bend45-y.json", "cli", " --stage1-only");
+    fx.options.stage1Only = true;
+    DeformSession session(fx.options, loadDeformSpec(kSpecs + "bend.json")), exact(fx.options, loadDeformSpec(kSpecs + "bend.json"));
+    const GaussianCloud& rest = session.rest().model;
+    // The first preview solves from rest, as pose does: the same means, rotations and scales.
+    const GaussianCloud cold = session.preview(loadDeformSpec(kSpecs + "bend.json")).cloud;
+    const StageOneResult& bend = exact.pose(loadDeformSpec(kSpecs + "bend.json"));
+    EXPECT_EQ(cold.shDegree, 0);
+    EXPECT_TRUE(cold.means == bend.deformed.means);
+    EXPECT_TRUE(cold.rotations == bend.deformed.rotations);
+    EXPECT_TRUE(cold.logScales == bend.deformed.logScales);
+    EXPECT_TRUE(cold.opacities == rest.opacities);
+    for (std::size_t i = 0; i < rest.size(); i += 97)
+        for (int c = 0; c < 3; ++c) EXPECT_EQ(cold.sh[3 * i + std::size_t(c)], rest.sh[i * std::size_t(rest.shStride()) + std::size_t(c)]);
+    // The next one starts from that solve: within the solver's tolerance of a solve from rest.
+    const DeformSession::Preview warm = session.preview(loadDeformSpec(kSpecs + "bend45-y.json"));
+    const StageOneResult& other = exact.pose(loadDeformSpec(kSpecs + "bend45-y.json"));
+    EXPECT_EQ(warm.moving, other.movingCount);
+    Vec3f lo, hi;
+    centreBounds(rest, lo, hi);
+    const double extent = std::max({hi.x - lo.x, hi.y - lo.y, hi.z - lo.z});
+    double worst = 0.0;
+    for (std::size_t i = 0; i < warm.cloud.means.size(); ++i)
+        worst = std::max(worst, double(std::fabs(warm.cloud.means[i] - other.deformed.means[i])));
+    EXPECT_LT(worst, 2e-3 * extent);
+    // Writing after a preview poses its spec exactly: deform's bytes.
+    session.write(fx.dir.file("session"));
+    EXPECT_TRUE(fileBytes(fx.dir.file("session/baseline.ply")) == fileBytes(fx.dir.file("cli/baseline.ply")));
+    std::printf("preview: warm-started means within %.3g of the model extent\n", worst / extent);
+}
+
 TEST(DeformSession, RefineAfterAnotherPoseEqualsDeform)
 {
     Fixture fx;
@@ -72,9 +109,14 @@ TEST(DeformSession, RefineAfterAnotherPoseEqualsDeform)
     session.pose(loadDeformSpec(kSpecs + "bend45-y.json")); // a drag elsewhere first: the rest side is reused
     session.pose(loadDeformSpec(kSpecs + "bend.json"));
     int calls = 0, last = 0;
+    std::vector<std::string> steps; // the phases besides Stage II's iterations, in order
     RunControl control;
     control.onProgress = [&](const std::string& phase, int done, int total) {
-        EXPECT_EQ(phase, "Stage II");
+        if (phase != "Stage II") {
+            EXPECT_EQ(done, int(steps.size())) << phase;
+            steps.push_back(phase);
+            return;
+        }
         EXPECT_EQ(total, 6);
         last = done;
         ++calls;
@@ -82,6 +124,8 @@ TEST(DeformSession, RefineAfterAnotherPoseEqualsDeform)
     session.refine(control);
     EXPECT_GE(calls, 6);
     EXPECT_EQ(last, 6);
+    // The steps around Stage II report as they start, so a driver sees the refine move at once.
+    EXPECT_EQ(steps, (std::vector<std::string>{"warp", "judge Stage I", "curve split", "validated split", "curve shift", "keep", "judge"}));
     const nlohmann::json report = session.write(fx.dir.file("session")).toJson();
     for (const char* f : {"baseline.ply", "deformed.ply"})
         EXPECT_TRUE(fileBytes(fx.dir.file(std::string("session/") + f)) == fileBytes(fx.dir.file(std::string("job/") + f))) << f;
@@ -98,7 +142,8 @@ TEST(DeformSession, CancelStopsWithinOneIterationAndWritesNothing)
     int seen = 0, afterCancel = 0;
     RunControl control;
     control.cancel = &cancel;
-    control.onProgress = [&](const std::string&, int done, int) {
+    control.onProgress = [&](const std::string& phase, int done, int) {
+        if (phase != "Stage II") return; // the steps before it
         ++seen;
         if (cancel) ++afterCancel;
         if (done == 3) cancel = true;
