@@ -254,19 +254,23 @@ std::vector<float> splitBent(const DeformRest& rest, const Deformation& deformat
 }
 
 ColdStart coldStart(const DeformRest& rest, const Deformation& deformation, const StageOneResult& stage1,
-                    const DeformJobOptions& o, const FrameErrors& errors, const Judge* validation, FrameReport& report)
+                    const DeformJobOptions& o, const FrameErrors& errors, const Judge* validation, FrameReport& report,
+                    StepProgress& steps)
 {
     ColdStart c{stage1.deformed, {}, stage1.moving, rest.grid->gaussianCell(), 0};
     std::vector<float> curve; // phi's second-order offsets of c.model's Gaussians
     if (o.curveSplit) {
+        steps.start("curve split");
         curve = splitBent(rest, deformation, stage1, o, errors, validation, c, report);
     } else if (validation && o.curveShift != 0.0) {
         curve = stageOneBendingOf(rest.model, rest.rig, rest.graph, deformation.transforms, stage1.deformed,
                                   stage1.moving, o.stage1).curve;
     }
-    checkCancelled();
-    if (validation && o.validatedSplit) splitByValidation(rest, deformation, stage1, o, *validation, curve, c, report);
-    checkCancelled();
+    if (validation && o.validatedSplit) {
+        steps.start("validated split");
+        splitByValidation(rest, deformation, stage1, o, *validation, curve, c, report);
+    }
+    if (validation && o.curveShift != 0.0) steps.start("curve shift");
     c.shifted = curveShiftOf(c.model, curve, o, errors, validation, report);
     checkCancelled();
     return c;
@@ -303,6 +307,13 @@ void recordGaussianCounts(const ColdStart& cold, const DensifyCounts& counts, co
                      ": ", kept.size(), " Gaussians"));
 }
 
+/// How many steps stageTwo() starts besides Stage II's iterations (for StepProgress).
+int refineStepCount(const DeformRest& rest, const DeformJobOptions& o)
+{
+    const bool validation = o.keepValidated, judge = rest.judge.has_value();
+    return 1 + 2 * judge + o.curveSplit + (validation && o.validatedSplit) + (validation && o.curveShift != 0.0) + validation;
+}
+
 /// Warp a copy of the rest samples (the rest samples stay untouched for the next frame).
 SampleSet warpedSamples(const DeformRest& rest, const Deformation& deformation, const DeformJobOptions& o,
                         FrameReport& report)
@@ -321,9 +332,12 @@ GaussianCloud stageTwo(DeformRest& rest, const Deformation& deformation, const S
                        const DeformJobOptions& o, const StageTwoStart& start, FrameReport& report)
 {
     if (rigidMotionOf(deformation)) return skipStageTwo(rest, deformation, stage1, o, report);
+    StepProgress steps(refineStepCount(rest, o));
+    steps.start("warp");
     const SampleSet samples = warpedSamples(rest, deformation, o, report);
 
     Stopwatch clock;
+    if (rest.judge) steps.start("judge Stage I");
     const FrameErrors errors(rest, deformation, o);
     if (errors.judge) {
         report.stage1Errors = errors.record(stage1.deformed, "Stage I");
@@ -332,7 +346,7 @@ GaussianCloud stageTwo(DeformRest& rest, const Deformation& deformation, const S
 
     std::optional<Judge> validation; // --keep validated: the judge's rule with another seed
     if (o.keepValidated) validation.emplace(rest.model, *rest.validation, deformation, o.grid.threaded);
-    const ColdStart cold = coldStart(rest, deformation, stage1, o, errors, validation ? &*validation : nullptr, report);
+    const ColdStart cold = coldStart(rest, deformation, stage1, o, errors, validation ? &*validation : nullptr, report, steps);
     GaussianCloud fitted = cold.model;
     if (start.change) { // a warm start corrects each Stage I Gaussian: a split start stays cold
         GaussianCloud warm = stage1.deformed;
@@ -382,6 +396,7 @@ GaussianCloud stageTwo(DeformRest& rest, const Deformation& deformation, const S
     checkCancelled();
     std::string keptName; // the keep's choice, passed on as a value
     if (o.keepValidated) {
+        steps.start("keep");
         KeepRecord& keep = record.keep.emplace();
         fitted = keepValidated(*validation, rejectedStart ? cold.model : startModel, &cold.shifted, std::move(fitted),
                                counts.split == 0 && counts.pruned == 0, o.keepPerGaussian, keep);
@@ -394,6 +409,7 @@ GaussianCloud stageTwo(DeformRest& rest, const Deformation& deformation, const S
     if (start.change) record.start = warm && !rejectedStart ? "warm" : "cold";
     record.warmEnergy = rejectedStart;
     if (o.evalEvery > 0) record.evalCurve = std::move(curve);
+    if (errors.judge) steps.start("judge");
     record.errors = errors.record(fitted, "Stage II");
     return fitted;
 }
