@@ -73,7 +73,9 @@ class SplatView {
             }
             const w = model.rotations[4 * i], x = model.rotations[4 * i + 1], y = model.rotations[4 * i + 2], z = model.rotations[4 * i + 3];
             const len = Math.hypot(w, x, y, z) || 1;
-            rot[4 * i] = half(x / len); rot[4 * i + 1] = half(y / len); rot[4 * i + 2] = half(z / len); rot[4 * i + 3] = half(w / len);
+            // (w, x, y, z): the default format's getRotation() is read as w,x,y,z by the splat shader
+            // (it swizzles .yzwx into x,y,z,w), whatever its d.ts says; tests/edit's cross-check shows it.
+            rot[4 * i] = half(w / len); rot[4 * i + 1] = half(x / len); rot[4 * i + 2] = half(y / len); rot[4 * i + 3] = half(z / len);
             const t = tint ? tint[i] : 0;
             for (let a = 0; a < 3; ++a) {
                 let v = 0.5 + SH_C0 * model.dc[3 * i + a];
@@ -141,7 +143,8 @@ class Editor {
         this.view = 'stage1';
         this.handles = [];         // {nodes, gaussians, fixed, pivot, translate, quat: [x,y,z,w]}
         this.active = -1;          // the handle the gizmo moves
-        this.selection = null;     // {gaussians, nodes} of the last box
+        this.selection = null;     // {gaussians, nodes} of the last box, sphere or brush stroke
+        this.tool = 'box';         // what shift-drag selects with: box, sphere, brush
         this.history = [];
         this.future = [];
         this.poses = 0;            // poses shown (the test hook waits on it)
@@ -234,34 +237,25 @@ class Editor {
         this.gizmos[this.mode].attach([this.pivot]);
     }
 
-    // ---- pointer: orbit, pan, zoom, box selection ----
+    // ---- pointer: orbit, pan, zoom, selection (box, sphere, brush) ----
 
     bindPointer() {
         let drag = null;
-        const rect = $('rect');
         this.canvas.addEventListener('contextmenu', (e) => e.preventDefault());
         this.canvas.addEventListener('pointerdown', (e) => {
             if (this.dragging) return; // the gizmo has it
             drag = { x: e.offsetX, y: e.offsetY, button: e.button, select: e.shiftKey && e.button === 0 };
+            if (drag.select) drag.tool = this.beginSelect(e.offsetX, e.offsetY);
             this.canvas.setPointerCapture(e.pointerId);
         });
         this.canvas.addEventListener('pointermove', (e) => {
             if (!drag || this.dragging) return;
-            if (drag.select) {
-                Object.assign(rect.style, {
-                    display: 'block', left: `${Math.min(drag.x, e.offsetX)}px`, top: `${Math.min(drag.y, e.offsetY)}px`,
-                    width: `${Math.abs(e.offsetX - drag.x)}px`, height: `${Math.abs(e.offsetY - drag.y)}px`
-                });
-                return;
-            }
+            if (drag.select) { this.moveSelect(drag, e.offsetX, e.offsetY); return; }
             if (drag.button === 0) this.orbit.rotate(e.movementX, e.movementY);
             else this.orbit.pan(e.movementX, e.movementY, this.canvas.clientHeight);
         });
         this.canvas.addEventListener('pointerup', (e) => {
-            if (drag && drag.select) {
-                rect.style.display = 'none';
-                this.selectRect(drag.x, drag.y, e.offsetX, e.offsetY);
-            }
+            if (drag && drag.select) this.endSelect(drag, e.offsetX, e.offsetY);
             drag = null;
         });
         this.canvas.addEventListener('wheel', (e) => { e.preventDefault(); this.orbit.zoom(e.deltaY); }, { passive: false });
@@ -273,22 +267,130 @@ class Editor {
         return s.z > 0 ? [s.x, s.y] : null; // in the canvas's CSS pixels (its client rect)
     }
 
+    /** The Gaussians selectable where they are shown (a refined model with other Gaussians: where they rest). */
+    selectable() {
+        return this.shownModel().n === this.rest.n ? this.shownModel() : this.rest;
+    }
+
+    /** Screen x, y and distance from the camera (NaN behind it) of every shown Gaussian and graph node, once per selection. */
+    project() {
+        const shown = this.selectable(), camera = this.cameraEntity.camera, v = new pc.Vec3(), out = new pc.Vec3();
+        const eye = this.cameraEntity.getPosition();
+        const at = (p, dst, i) => {
+            camera.worldToScreen(v.set(p[0], p[1], p[2]), out);
+            dst[3 * i] = out.x, dst[3 * i + 1] = out.y, dst[3 * i + 2] = out.z > 0 ? v.distance(eye) : NaN;
+        };
+        const gaussians = new Float32Array(3 * shown.n), nodes = new Float32Array(3 * this.graph.nodes.length);
+        for (let i = 0; i < shown.n; ++i) at([shown.means[3 * i], shown.means[3 * i + 1], shown.means[3 * i + 2]], gaussians, i);
+        this.graph.nodes.forEach((p, j) => at(this.nodePosition(j, p), nodes, j));
+        return { shown, gaussians, nodes };
+    }
+
+    beginSelect(x, y) {
+        const tool = { kind: this.tool, projected: this.tool === 'box' ? null : this.project() };
+        if (tool.kind === 'sphere') tool.centre = this.pickGaussian(tool.projected, x, y);
+        if (tool.kind === 'brush') { tool.gaussians = new Set(); tool.nodes = new Set(); this.paint(tool, x, y); }
+        return tool;
+    }
+
+    moveSelect(drag, x, y) {
+        const t = drag.tool;
+        if (t.kind === 'box') {
+            this.overlay(Math.min(drag.x, x), Math.min(drag.y, y), Math.abs(x - drag.x), Math.abs(y - drag.y), false);
+        } else if (t.kind === 'sphere' && t.centre) {
+            t.radius = this.sphereRadius(t.centre, x, y);
+            const r = Math.hypot(x - t.centre.screen[0], y - t.centre.screen[1]);
+            this.overlay(t.centre.screen[0] - r, t.centre.screen[1] - r, 2 * r, 2 * r, true);
+        } else if (t.kind === 'brush') {
+            this.paint(t, x, y);
+        }
+    }
+
+    endSelect(drag, x, y) {
+        $('rect').style.display = 'none';
+        const t = drag.tool;
+        if (t.kind === 'box') return this.selectRect(drag.x, drag.y, x, y);
+        if (t.kind === 'sphere') {
+            if (!t.centre) return this.setStatus('sphere: press on the model (a Gaussian centre under the pointer) and drag out the radius');
+            return this.selectSphere(t.centre.world, this.sphereRadius(t.centre, x, y));
+        }
+        this.paint(t, x, y);
+        this.setSelection([...t.gaussians].sort((a, b) => a - b), [...t.nodes].sort((a, b) => a - b));
+    }
+
+    /** The box overlay, or a circle (sphere, brush) in canvas pixels. */
+    overlay(left, top, width, height, round) {
+        Object.assign($('rect').style, { display: 'block', left: `${left}px`, top: `${top}px`, width: `${width}px`,
+            height: `${height}px`, borderRadius: round ? '50%' : '0' });
+    }
+
+    /** The nearest-to-the-camera Gaussian whose centre projects within 12 pixels of (x, y). */
+    pickGaussian(projected, x, y) {
+        let best = -1;
+        const g = projected.gaussians;
+        for (let i = 0; 3 * i < g.length; ++i) {
+            if (!(g[3 * i + 2] > 0) || Math.hypot(g[3 * i] - x, g[3 * i + 1] - y) > 12) continue;
+            if (best < 0 || g[3 * i + 2] < g[3 * best + 2]) best = i;
+        }
+        if (best < 0) return null;
+        const m = projected.shown.means;
+        return { world: [m[3 * best], m[3 * best + 1], m[3 * best + 2]], screen: [g[3 * best], g[3 * best + 1]], depth: g[3 * best + 2] };
+    }
+
+    /** World radius of a sphere about a picked centre whose rim passes under (x, y), at the centre's distance from the camera. */
+    sphereRadius(centre, x, y) {
+        const rim = this.cameraEntity.camera.screenToWorld(x, y, centre.depth, new pc.Vec3());
+        return Math.hypot(rim.x - centre.world[0], rim.y - centre.world[1], rim.z - centre.world[2]);
+    }
+
+    /** Brush: add what projects within the brush radius of (x, y). */
+    paint(tool, x, y) {
+        const r = this.brushRadius, { gaussians, nodes } = tool.projected;
+        for (let i = 0; 3 * i < gaussians.length; ++i)
+            if (gaussians[3 * i + 2] > 0 && Math.hypot(gaussians[3 * i] - x, gaussians[3 * i + 1] - y) <= r) tool.gaussians.add(i);
+        for (let j = 0; 3 * j < nodes.length; ++j)
+            if (nodes[3 * j + 2] > 0 && Math.hypot(nodes[3 * j] - x, nodes[3 * j + 1] - y) <= r) tool.nodes.add(j);
+        this.overlay(x - r, y - r, 2 * r, 2 * r, true);
+    }
+
+    get brushRadius() { return Math.max(2, Number($('brushRadius').value) || 24); }
+
     /** The Gaussians (shown model) and graph nodes whose centres project into a screen box. */
     selectRect(x0, y0, x1, y1) {
         const [ax, bx] = [Math.min(x0, x1), Math.max(x0, x1)], [ay, by] = [Math.min(y0, y1), Math.max(y0, y1)];
         const inside = (p) => { const s = this.worldToScreen(p); return s && s[0] >= ax && s[0] <= bx && s[1] >= ay && s[1] <= by; };
-        // Gaussians where they are shown (a refined model with other Gaussians: where they rest).
-        const shown = this.shownModel().n === this.rest.n ? this.shownModel() : this.rest;
+        const shown = this.selectable();
         const gaussians = [];
         for (let i = 0; i < shown.n; ++i)
             if (inside([shown.means[3 * i], shown.means[3 * i + 1], shown.means[3 * i + 2]])) gaussians.push(i);
         const nodes = [];
         this.graph.nodes.forEach((p, j) => { if (inside(this.nodePosition(j, p))) nodes.push(j); });
+        this.setSelection(gaussians, nodes);
+    }
+
+    /** The Gaussians (shown model) and graph nodes (where shown) within a world-space sphere. */
+    selectSphere(c, r) {
+        const shown = this.selectable(), within = (p) => Math.hypot(p[0] - c[0], p[1] - c[1], p[2] - c[2]) <= r;
+        const gaussians = [];
+        for (let i = 0; i < shown.n; ++i)
+            if (within([shown.means[3 * i], shown.means[3 * i + 1], shown.means[3 * i + 2]])) gaussians.push(i);
+        const nodes = [];
+        this.graph.nodes.forEach((p, j) => { if (within(this.nodePosition(j, p))) nodes.push(j); });
+        this.lastSphere = { centre: c, radius: r };
+        this.setSelection(gaussians, nodes);
+    }
+
+    setSelection(gaussians, nodes) {
         this.selection = nodes.length ? { gaussians, nodes } : null;
         $('selection').textContent = nodes.length ? `${gaussians.length} Gaussians, ${nodes.length} graph nodes`
-            : `${gaussians.length} Gaussians but no graph node: draw a larger box`;
+            : `${gaussians.length} Gaussians but no graph node: select a larger part`;
         $('addFixed').disabled = $('addMoving').disabled = !this.selection;
         this.render();
+    }
+
+    setTool(tool) {
+        this.tool = tool;
+        for (const [id, t] of [['toolBox', 'box'], ['toolSphere', 'sphere'], ['toolBrush', 'brush']]) $(id).classList.toggle('on', t === tool);
     }
 
     /** A node's shown position: at rest, or moved with its handle's motion (the view follows the pose). */
@@ -447,6 +549,9 @@ class Editor {
             else if (e.key === 'w' || e.key === 'W') this.setMode('translate');
             else if (e.key === 'e' || e.key === 'E') this.setMode('rotate');
             else if (e.key === 'r' || e.key === 'R') this.setMode('scale');
+            else if (e.key === 'b' || e.key === 'B') this.setTool('box');
+            else if (e.key === 's' || e.key === 'S') this.setTool('sphere');
+            else if (e.key === 'p' || e.key === 'P') this.setTool('brush');
         });
     }
 
@@ -465,6 +570,9 @@ class Editor {
     }
 
     bindButtons() {
+        $('toolBox').onclick = () => this.setTool('box');
+        $('toolSphere').onclick = () => this.setTool('sphere');
+        $('toolBrush').onclick = () => this.setTool('brush');
         $('addFixed').onclick = () => this.addHandle(true);
         $('addMoving').onclick = () => this.addHandle(false);
         $('modeTranslate').onclick = () => this.setMode('translate');
@@ -644,6 +752,14 @@ window.splatwarpEditor = {
     get lastSave() { return editor.lastSave; },
     get lastAnimation() { return editor.lastAnimation; },
     get handles() { return editor.handles.length; },
+    /** The selection: indices of Gaussians and graph nodes, and the last sphere {centre, radius}. */
+    get selection() { return editor.selection && { ...editor.selection, sphere: editor.lastSphere ?? null }; },
+    /** Where the selectable Gaussians and the graph nodes are shown ([x,y,z] each). */
+    shownPoints() {
+        const m = editor.selectable().means, g = [];
+        for (let i = 0; 3 * i < m.length; ++i) g.push([m[3 * i], m[3 * i + 1], m[3 * i + 2]]);
+        return { gaussians: g, nodes: editor.graph.nodes.map((p, j) => editor.nodePosition(j, p)) };
+    },
     get busy() { return editor.posing || editor.posePending; },
     /** Pixels of the canvas that differ from the clear colour (the test's "something is drawn"). */
     litPixels() {
@@ -656,6 +772,14 @@ window.splatwarpEditor = {
         for (let i = 0; i < d.length; i += 4) if (Math.abs(d[i] - 31) + Math.abs(d[i + 1] - 31) + Math.abs(d[i + 2] - 36) > 24) ++lit;
         return lit;
     },
+    /** The camera as the cross-check renders it: position, axes (right, up, forward), vertical fov, canvas pixels. */
+    camera() {
+        const e = editor.cameraEntity, v = (x) => [x.x, x.y, x.z];
+        return { position: v(e.getPosition()), right: v(e.right), up: v(e.up), forward: v(e.forward), fov: e.camera.fov,
+            width: editor.canvas.width, height: editor.canvas.height };
+    },
+    /** The canvas as a PNG data URL. */
+    canvasPng: () => editor.canvas.toDataURL('image/png'),
     worldToScreen: (p) => editor.worldToScreen(p),
     bbox: () => ({ min: editor.graph.bboxMin, max: editor.graph.bboxMax }),
     nudge: (translate, degrees) => editor.nudge(translate, degrees),

@@ -1,12 +1,12 @@
 // Edit.BrowserEndToEnd: `splatwarp edit` on 127.0.0.1 (port 0) driven in Debian's headless
-// Chromium (software GL) by puppeteer-core, through the page's own UI: box-select the stripes'
-// ends (shift-drag), make them a fixed and a moving handle, turn the moving one with the keys and
+// Chromium (software GL) by puppeteer-core, through the page's own UI: a sphere and a brush
+// selection checked against the geometry, then box-select the stripes' ends (shift-drag), make them a fixed and a moving handle, turn the moving one with the keys and
 // drag it with the gizmo, undo and redo, scale it, wait for the live Stage I update, key frames 0 and 23,
 // scrub, save the animation, refine, save; then `splatwarp deform` with the saved spec must
 // give byte-identical baseline.ply and deformed.ply. Exit 77 (skip) without chromium or node_modules.
 // Usage: node browser-e2e.mjs SPLATWARP_BINARY [SCREENSHOT.png]
 import { spawn, spawnSync } from 'node:child_process';
-import { existsSync, mkdtempSync, readFileSync, rmSync, copyFileSync } from 'node:fs';
+import { existsSync, mkdtempSync, readFileSync, rmSync, copyFileSync, writeFileSync } from 'node:fs';
 import { tmpdir } from 'node:os';
 import path from 'node:path';
 
@@ -54,6 +54,88 @@ async function boxSelect(page, lo, hi) {
     await page.keyboard.up('Shift');
 }
 
+/**
+ * Two renderers, one picture: the page's PlayCanvas canvas of the rest model against
+ * `splatwarp render` of the same model from the same camera (a graphdeco cameras.json written from
+ * the page's camera: OpenCV axes right, down, forward; fx = fy from the vertical fov).
+ */
+async function crossCheck(page, dir) {
+    await new Promise((r) => setTimeout(r, 1500)); // the splat sort runs in a worker: let it settle
+    const cam = await page.evaluate(() => window.splatwarpEditor.camera());
+    const f = cam.height / 2 / Math.tan((cam.fov * Math.PI) / 360);
+    const rotation = [0, 1, 2].map((r) => [cam.right[r], -cam.up[r], cam.forward[r]]);
+    writeFileSync(`${dir}/cameras.json`, JSON.stringify([{ id: 0, img_name: 'page', width: cam.width, height: cam.height,
+        position: cam.position, rotation, fx: f, fy: f }]));
+    const png = await page.evaluate(() => window.splatwarpEditor.canvasPng());
+    writeFileSync(`${dir}/page.png`, Buffer.from(png.split(',')[1], 'base64'));
+    const render = spawnSync(binary, ['-q', 'render', `${dir}/in.ply`, '--camera', `${dir}/cameras.json`, '-o', `${dir}/ours.png`,
+        '--background', '0.12,0.12,0.14', '--device', 'cpu'], { encoding: 'utf8' });
+    check(render.status === 0, `splatwarp render from the page's camera ${render.stderr || ''}`);
+    const cmp = spawnSync(binary, ['compare', `${dir}/page.png`, `${dir}/ours.png`, '--json'], { encoding: 'utf8' });
+    const { psnr, ssim } = JSON.parse(cmp.stdout);
+    console.log(`cross-check: PlayCanvas canvas vs splatwarp render, ${cam.width}x${cam.height}: PSNR ${psnr.toFixed(2)} dB, SSIM ${ssim.toFixed(4)}`);
+    check(psnr >= 30, `the two renderers agree (PSNR ${psnr.toFixed(2)} dB >= 30)`);
+}
+
+/** Canvas offset in the page. */
+async function canvasAt(page) {
+    return page.evaluate(() => { const r = document.getElementById('canvas').getBoundingClientRect(); return [r.left, r.top]; });
+}
+
+/** Shift-drag from one canvas point to another (the page's selection gesture). */
+async function shiftDrag(page, from, to, steps) {
+    const c = await canvasAt(page);
+    await page.keyboard.down('Shift');
+    await page.mouse.move(c[0] + from[0], c[1] + from[1]);
+    await page.mouse.down();
+    await page.mouse.move(c[0] + to[0], c[1] + to[1], { steps });
+    await page.mouse.up();
+    await page.keyboard.up('Shift');
+}
+
+const dist = (a, b) => Math.hypot(...a.map((v, i) => v - b[i]));
+
+/** Sphere (S) and brush (P) selection, checked against the geometry computed here. */
+async function sphereAndBrush(page) {
+    const points = await page.evaluate(() => window.splatwarpEditor.shownPoints());
+    const screen = await page.evaluate((ps) => ps.map((p) => window.splatwarpEditor.worldToScreen(p)), points.gaussians);
+    const { min, max } = await page.evaluate(() => window.splatwarpEditor.bbox());
+    const mid = min.map((v, a) => (v + max[a]) / 2);
+    let near = 0; // the Gaussian nearest the box's middle: press there
+    points.gaussians.forEach((p, i) => { if (dist(p, mid) < dist(points.gaussians[near], mid)) near = i; });
+    const press = screen[near];
+    await page.keyboard.press('s');
+    await shiftDrag(page, press, [press[0] + 70, press[1]], 6);
+    const sphere = await page.evaluate(() => window.splatwarpEditor.selection);
+    check(sphere && sphere.sphere && sphere.sphere.radius > 0, 'a sphere selection was made');
+    const { centre, radius } = sphere.sphere;
+    const centreAt = await page.evaluate((p) => window.splatwarpEditor.worldToScreen(p), centre);
+    check(dist(centreAt, press) <= 12.01, `its centre is a Gaussian under the pointer (${dist(centreAt, press).toFixed(1)} px away)`);
+    const within = (list) => list.map((p, i) => [i, dist(p, centre)]).filter(([, d]) => d <= radius).map(([i]) => i);
+    const same = (got, want, all) => { // equal sets, but for points on the rim (rounding)
+        const g = new Set(got), w = new Set(want);
+        return [...g, ...w].every((i) => g.has(i) === w.has(i) || Math.abs(dist(all[i], centre) - radius) < 1e-5 * radius);
+    };
+    check(same(sphere.gaussians, within(points.gaussians), points.gaussians) && same(sphere.nodes, within(points.nodes), points.nodes),
+        `the sphere (r ${radius.toFixed(3)}) selects exactly the Gaussians and nodes within it (${sphere.gaussians.length} and ${sphere.nodes.length})`);
+    check(sphere.nodes.length > 0 && sphere.gaussians.length < points.gaussians.length, 'a part, with graph nodes');
+
+    await page.keyboard.press('p');
+    await page.$eval('#brushRadius', (el) => { el.value = '20'; });
+    const from = [press[0] - 60, press[1]], to = [press[0] + 60, press[1]];
+    await shiftDrag(page, from, to, 10);
+    const brush = await page.evaluate(() => window.splatwarpEditor.selection);
+    const toSegment = (q) => { // distance in pixels from the stroke from -> to
+        const t = Math.max(0, Math.min(1, (q[0] - from[0]) / (to[0] - from[0])));
+        return Math.hypot(q[0] - (from[0] + t * (to[0] - from[0])), q[1] - from[1]);
+    };
+    check(brush && brush.gaussians.length > 0 && brush.gaussians.every((i) => screen[i] && toSegment(screen[i]) <= 20.01),
+        `the brush selects only what lies under its stroke (${brush ? brush.gaussians.length : 0} Gaussians)`);
+    const underPress = screen.findIndex((q) => q && dist(q, from) < 10);
+    check(underPress < 0 || brush.gaussians.includes(underPress), 'and what was under the pointer where it started');
+    await page.keyboard.press('b');
+}
+
 /** Drag the gizmo's x handle (the gizmo sits at the handle's pivot + translate) 40 pixels right. */
 async function gizmoDrag(page, handle) {
     const at = handle.pivot.map((v, a) => v + handle.translate[a]);
@@ -72,12 +154,14 @@ async function waitIdle(page, posesBefore) {
 }
 
 /** The page's part: select, pose, refine, save, screenshot. */
-async function drive(page, url, shot) {
+async function drive(page, url, shot, dir) {
     const errors = [];
     page.on('pageerror', (e) => errors.push(String(e)));
     page.on('console', (m) => { if (m.type() === 'error') errors.push(m.text()); });
     await page.goto(url);
     await page.waitForFunction(() => window.splatwarpEditor && window.splatwarpEditor.ready, { timeout: 60000 });
+    await crossCheck(page, dir);
+    await sphereAndBrush(page);
     const { min, max } = await page.evaluate(() => window.splatwarpEditor.bbox());
     const ext = max.map((v, a) => v - min[a]);
     await boxSelect(page, min, [min[0] + 0.08 * ext[0], max[1], max[2]]);
@@ -161,7 +245,7 @@ async function main() {
             args: ['--use-angle=swiftshader', '--enable-unsafe-swiftshader', '--no-sandbox', '--disable-background-networking',
                 '--disable-component-update', '--disable-sync', '--no-first-run', '--disable-quic', `--user-data-dir=${dir}/profile`]
         });
-        await drive(await browser.newPage(), editor.url, `${dir}/editor.png`);
+        await drive(await browser.newPage(), editor.url, `${dir}/editor.png`, dir);
         if (screenshotCopy) copyFileSync(`${dir}/editor.png`, screenshotCopy);
         await browser.close();
         browser = null;
@@ -181,7 +265,7 @@ async function main() {
     } finally {
         if (browser) await browser.close().catch(() => {});
         if (editor && editor.child.exitCode === null) editor.child.kill('SIGINT');
-        rmSync(dir, { recursive: true, force: true });
+        if (process.env.KEEP_E2E) console.log(`kept ${dir}`); else rmSync(dir, { recursive: true, force: true });
     }
 }
 
