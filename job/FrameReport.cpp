@@ -102,7 +102,7 @@ json fitJson(const StageTwoRecord& s)
               {"fineNeighbours", s.gridOptions.fineNeighbours}}},
             {"timingsMs",
              {{"setup", r.msSetup}, {"coverage", r.msCoverage}, {"forward", r.msForward}, {"backward", r.msBackward},
-              {"update", r.msUpdate}, {"total", r.msTotal}}}};
+              {"update", r.msUpdate}, {"rejected", r.msRejected}, {"total", r.msTotal}}}};
 }
 
 json stageTwoJson(const StageTwoRecord& s)

@@ -36,6 +36,7 @@ void appendRound(StageTwoReport& all, const StageTwoReport& next, int offset, bo
     all.msCoverage += before.msCoverage;
     all.msForward += before.msForward;
     all.msBackward += before.msBackward;
+    all.msRejected += before.msRejected;
     all.msUpdate += before.msUpdate;
     all.msTotal += before.msTotal;
 }

@@ -44,6 +44,9 @@ struct StageTwoReport {
     std::uint64_t gpuPeakBytes = 0;               ///< CUDA: peak GPU memory of the run's buffers (not the context); CPU: 0
     // Time per phase in milliseconds.
     double msSetup = 0, msCoverage = 0, msForward = 0, msBackward = 0, msUpdate = 0, msTotal = 0;
+    /// Of msForward + msBackward: the passes that evaluated a step the run then rejected (redone
+    /// from the kept iterate at a lower rate: work lost).
+    double msRejected = 0;
 };
 
 /// @brief Run Stage II.

@@ -162,12 +162,17 @@ StageTwoReport runStageTwoLoop(StageTwoSolver& solver, GaussianCloud& cloud, con
         solver.prepare();
         updateCoverage(solver, o, it, report);
         std::uint64_t pairs = 0;
+        const StageTwoPhaseTimes before = solver.times();
         StageTwoEnergy e = solver.forward(it, pairs);
         if (stopsOnNonFinite(e, it, o)) {
             last = it;
             break;
         }
         e.rejected = !keeper.judge(it, e.total, report);
+        if (e.rejected) {
+            const StageTwoPhaseTimes after = solver.times();
+            report.msRejected += after.forward - before.forward + after.backward - before.backward;
+        }
         if (it % reportEvery == 0 || it == o.iterations || e.rejected) {
             report.energies.push_back(e);
             logEnergy(solver, e, pairs);
