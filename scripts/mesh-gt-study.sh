@@ -2,8 +2,11 @@
 # The paper's image judge on meshes (issue 31): each mesh is turned into splats (from-mesh, CPU),
 # deformed by each spec, and judged by `eval --mesh` (the mesh deformed by the same graph, 200 views
 # over the sphere): Stage I with the paper's polar shape (--stage1-only --stage1-shape polar), the
-# default Stage I (affine, baseline.ply) and the default result (deformed.ply); PSNR / SSIM, the
-# Gaussian counts and the times. One Markdown row per mesh x spec; the rest models' held-out
+# paper's Stage II (--recipe paper), the default Stage I (affine, baseline.ply), the default result
+# (deformed.ply), the default held to the input's Gaussian count (--max-gaussians 1x) and the
+# default with the keep's two other modes (--keep regions: no per-Gaussian choice; --keep fit: no
+# keep); PSNR / SSIM, the field judge's opacity error of paper / default / regions, the Gaussian
+# counts and the times. One Markdown row per mesh x spec; the rest models' held-out
 # scores first.
 #   bash scripts/mesh-gt-study.sh OUTDIR            (MESHES="spot bunny stripes", SPECS="bend twist stretch")
 # ITERATIONS, SIZE, VIEWS, EVAL_VIEWS, EVAL_SIZE choose the training and judging budgets.
@@ -76,8 +79,8 @@ done
 
 echo
 echo "## Deformed: eval --mesh ($eval_views views of ${eval_size}x$eval_size), PSNR dB / SSIM"
-echo "| mesh | spec | rest model | Stage I polar | Stage I (default, affine) | default | default - polar | Gaussians rest -> default | deform s |"
-echo "|---|---|---|---|---|---|---|---|---|"
+echo "| mesh | spec | rest model | Stage I polar | paper (Stage II) | Stage I (default, affine) | default | default at 1x | --keep regions | --keep fit | default - polar | default - paper | field error: paper / default / regions | Gaussians rest -> default | deform s |"
+echo "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|"
 for m in "${meshes[@]}"; do
   dir="$out/$m"
   [ -f "$dir/rest.ply" ] || continue
@@ -88,11 +91,19 @@ for m in "${meshes[@]}"; do
     "$bin" -q deform "$dir/rest.ply" --spec "$spec" -o "$run" --device cpu > "$run.log" 2>&1 || { echo "| $m | $s | failed: see $run.log |"; continue; }
     end=$(date +%s.%N)
     "$bin" -q deform "$dir/rest.ply" --spec "$spec" -o "$run-polar" --device cpu --stage1-only --stage1-shape polar > "$run-polar.log" 2>&1
+    "$bin" -q deform "$dir/rest.ply" --spec "$spec" -o "$run-paper" --device cpu --recipe paper > "$run-paper.log" 2>&1
+    "$bin" -q deform "$dir/rest.ply" --spec "$spec" -o "$run-1x" --device cpu --max-gaussians 1x > "$run-1x.log" 2>&1
+    "$bin" -q deform "$dir/rest.ply" --spec "$spec" -o "$run-regions" --device cpu --keep regions > "$run-regions.log" 2>&1
+    "$bin" -q deform "$dir/rest.ply" --spec "$spec" -o "$run-keepfit" --device cpu --keep fit > "$run-keepfit.log" 2>&1
     # shellcheck disable=SC2046
     judge() { "$bin" -q eval --mesh $(mesh_args "$m") --rest "$dir/rest.ply" --spec "$spec" --deformed "$1" \
                 --views "$eval_views" --size "$eval_size" --json "${@:2}"; }
     judge "$run-polar/baseline.ply" > "$run/judge-polar.json"
+    judge "$run-paper/deformed.ply" > "$run/judge-paper.json"
     judge "$run/baseline.ply" > "$run/judge-stage1.json"
+    judge "$run-1x/deformed.ply" > "$run/judge-1x.json"
+    judge "$run-regions/deformed.ply" > "$run/judge-regions.json"
+    judge "$run-keepfit/deformed.ply" > "$run/judge-keepfit.json"
     judge "$run/deformed.ply" --montage "$run/worst.png" > "$run/judge-default.json"
     python3 - "$run" "$m" "$s" "$dir/rest.json" "$(echo "$end - $start" | bc)" <<'PY'
 import json, sys, struct
@@ -102,11 +113,14 @@ def count(p):
     with open(p, "rb") as f:
         for line in f:
             if line.startswith(b"element vertex"): return int(line.split()[2])
-p, a, d = j("polar"), j("stage1"), j("default")
+p, q, a, d, o, g, k = j("polar"), j("paper"), j("stage1"), j("default"), j("1x"), j("regions"), j("keepfit")
+field = lambda d: json.load(open(d + "/report.json"))["stage2"]["fieldError"]["opacity"]
 r = json.load(open(rest))
 cell = lambda x: "%.2f / %.4f" % (x["psnr"], x["ssim"])
-print("| %s | %s | %.2f / %.4f | %s | %s | %s | %+.2f dB | %d -> %d | %.0f |" % (m, s, r["test"]["psnr"], r["test"]["ssim"],
-      cell(p), cell(a), cell(d), d["psnr"] - p["psnr"], r["gaussians"], count(run + "/deformed.ply"), float(secs)))
+print("| %s | %s | %.2f / %.4f | %s | %s | %s | %s | %s | %s | %s | %+.2f dB | %+.2f dB | %.3f / %.3f / %.3f | %d -> %d | %.0f |" % (
+      m, s, r["test"]["psnr"], r["test"]["ssim"], cell(p), cell(q), cell(a), cell(d), cell(o), cell(g), cell(k), d["psnr"] - p["psnr"],
+      d["psnr"] - q["psnr"], field(run + "-paper"), field(run), field(run + "-regions"), r["gaussians"], count(run + "/deformed.ply"),
+      float(secs)))
 PY
   done
 done
