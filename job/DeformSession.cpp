@@ -70,7 +70,7 @@ DeformSession::Preview DeformSession::preview(const DeformSpec& spec)
     const Deformation d = solveDeformation(mRest->graph, mRest->model, spec, mOptions.ed, mLastSolve ? &*mLastSolve : nullptr);
     const double solveMs = solveClock.ms();
     const Stopwatch updateClock;
-    if (!mPreviewCloud) mPreviewCloud = previewCloudOf(mRest->model);
+    if (!mPreviewCloud) mPreviewCloud = withShDegree(mRest->model, 0);
     StageOneOptions stageOne = mOptions.stage1;
     stageOne.device = mRest->device;
     const std::size_t moving = applyStageOnePreview(mRest->model, mRest->rig, mRest->graph, d.transforms, d.nodeMoving,

@@ -118,27 +118,13 @@ StageOneResult applyStageOneCpu(const GaussianCloud& rest, const StageOneRig& ri
     return res;
 }
 
-GaussianCloud previewCloudOf(const GaussianCloud& rest)
-{
-    GaussianCloud preview;
-    preview.shDegree = 0;
-    preview.means = rest.means;
-    preview.rotations = rest.rotations;
-    preview.logScales = rest.logScales;
-    preview.opacities = rest.opacities;
-    const std::size_t n = rest.size(), stride = 3 * std::size_t(rest.shCoeffs());
-    preview.sh.resize(3 * n);
-    for (std::size_t i = 0; i < n; ++i) std::copy_n(rest.sh.begin() + std::ptrdiff_t(i * stride), 3, preview.sh.begin() + std::ptrdiff_t(3 * i));
-    return preview;
-}
-
 std::size_t applyStageOnePreview(const GaussianCloud& rest, const StageOneRig& rig, const DeformationGraph& graph,
                                  const NodeTransforms& transforms, const std::vector<std::uint8_t>& nodeMoving,
                                  const StageOneOptions& o, GaussianCloud& preview)
 {
     if (preview.size() != rest.size() || preview.shDegree != 0)
         throw UsageError(msg("Stage I preview: the preview cloud holds ", preview.size(), " Gaussians of SH degree ",
-                             preview.shDegree, " for a model of ", rest.size(), " (make it with previewCloudOf())"));
+                             preview.shDegree, " for a model of ", rest.size(), " (make it with withShDegree(rest, 0))"));
     // Gaussians that moved in the last preview and not in this one must read as rest again.
     std::copy(rest.means.begin(), rest.means.end(), preview.means.begin());
     std::copy(rest.rotations.begin(), rest.rotations.end(), preview.rotations.begin());

@@ -90,13 +90,10 @@ StageOneResult applyStageOneCpu(const GaussianCloud& rest, const StageOneRig& ri
 /// @brief Stage I for a live preview (the editor's drag), on the CPU: the same means, rotations and
 ///        log-scales as applyStageOneCpu(), written into `preview`, and no SH rotation (a preview
 ///        shows the DC colour). `preview` is a copy of rest at SH degree 0 (opacities and DC as
-///        rest; see previewCloudOf()); Gaussians that do not move get their rest values back.
+///        rest: withShDegree(rest, 0)); Gaussians that do not move get their rest values back.
 /// @returns the moving Gaussians' count
 std::size_t applyStageOnePreview(const GaussianCloud& rest, const StageOneRig& rig, const DeformationGraph& graph,
                                  const NodeTransforms& transforms, const std::vector<std::uint8_t>& nodeMoving,
                                  const StageOneOptions& options, GaussianCloud& preview);
-
-/// @brief The rest model at SH degree 0 (DC kept): the cloud applyStageOnePreview() writes into.
-GaussianCloud previewCloudOf(const GaussianCloud& rest);
 
 } // namespace splatwarp
