@@ -204,7 +204,7 @@ void EditServer::Impl::pose(const httplib::Request& req, httplib::Response& res)
     posedSpec = specJson.dump(2) + "\n";
     posed = true;
     const Stopwatch clock;
-    res.set_content(encodeGaussians(stage1.cloud, session->rest().model.shDegree), kBinary);
+    res.set_content(encodePose(stage1.cloud, session->rest().model.shDegree), kBinary);
     res.set_header("X-Splatwarp-Solve-Ms", std::to_string(stage1.solveMs));
     res.set_header("X-Splatwarp-Update-Ms", std::to_string(stage1.updateMs));
     res.set_header("X-Splatwarp-Encode-Ms", std::to_string(clock.ms()));

@@ -25,13 +25,15 @@ std::uint32_t getU32(const std::string& in, std::size_t at)
 
 } // namespace
 
-std::string encodeGaussians(const GaussianCloud& cloud, int modelShDegree)
+namespace {
+
+std::string encodeArrays(const GaussianCloud& cloud, int modelShDegree, std::size_t floats)
 {
     const std::size_t n = cloud.size();
-    std::string out(kLayoutHeaderBytes + n * kLayoutFloats * 4, '\0');
+    std::string out(kLayoutHeaderBytes + n * floats * 4, '\0');
     std::memcpy(out.data(), kLayoutMagic, 4);
     putU32(out, 4, std::uint32_t(n));
-    putU32(out, 8, std::uint32_t(kLayoutFloats));
+    putU32(out, 8, std::uint32_t(floats));
     putU32(out, 12, std::uint32_t(modelShDegree < 0 ? cloud.shDegree : modelShDegree));
     // x86-64 and aarch64 are little-endian: the arrays are copied as they are.
     char* at = out.data() + kLayoutHeaderBytes;
@@ -42,19 +44,34 @@ std::string encodeGaussians(const GaussianCloud& cloud, int modelShDegree)
     put(cloud.means.data(), 3 * n);
     put(cloud.rotations.data(), 4 * n);
     put(cloud.logScales.data(), 3 * n);
+    if (floats == kPoseFloats) return out;
     put(cloud.opacities.data(), n);
     const std::size_t stride = std::size_t(cloud.shStride());
     for (std::size_t i = 0; i < n; ++i) put(cloud.sh.data() + i * stride, 3); // coefficient 0: f_dc
     return out;
 }
 
-GaussianCloud decodeGaussians(const std::string& bytes)
+} // namespace
+
+std::string encodeGaussians(const GaussianCloud& cloud, int modelShDegree)
+{
+    return encodeArrays(cloud, modelShDegree, kLayoutFloats);
+}
+
+std::string encodePose(const GaussianCloud& cloud, int modelShDegree)
+{
+    return encodeArrays(cloud, modelShDegree, kPoseFloats);
+}
+
+GaussianCloud decodeGaussians(const std::string& bytes, const GaussianCloud* rest)
 {
     if (bytes.size() < kLayoutHeaderBytes || std::memcmp(bytes.data(), kLayoutMagic, 4) != 0)
         throw InputError("not an SWG1 model buffer");
-    const std::size_t n = getU32(bytes, 4);
-    if (getU32(bytes, 8) != kLayoutFloats || bytes.size() != kLayoutHeaderBytes + n * kLayoutFloats * 4)
+    const std::size_t n = getU32(bytes, 4), floats = getU32(bytes, 8);
+    if ((floats != kLayoutFloats && floats != kPoseFloats) || bytes.size() != kLayoutHeaderBytes + n * floats * 4)
         throw InputError(msg("SWG1 buffer of ", bytes.size(), " bytes does not hold ", n, " Gaussians"));
+    if (floats == kPoseFloats && (!rest || rest->size() != n))
+        throw InputError(msg("an SWG1 pose of ", n, " Gaussians holds no opacities or colours: decode it with its rest model"));
     GaussianCloud cloud;
     cloud.resize(n, 0);
     const char* at = bytes.data() + kLayoutHeaderBytes;
@@ -65,8 +82,15 @@ GaussianCloud decodeGaussians(const std::string& bytes)
     get(cloud.means.data(), 3 * n);
     get(cloud.rotations.data(), 4 * n);
     get(cloud.logScales.data(), 3 * n);
-    get(cloud.opacities.data(), n);
-    get(cloud.sh.data(), 3 * n);
+    if (floats == kLayoutFloats) {
+        get(cloud.opacities.data(), n);
+        get(cloud.sh.data(), 3 * n);
+        return cloud;
+    }
+    cloud.opacities = rest->opacities;
+    const std::size_t stride = std::size_t(rest->shStride());
+    for (std::size_t i = 0; i < n; ++i)
+        for (int c = 0; c < 3; ++c) cloud.sh[3 * i + std::size_t(c)] = rest->sh[i * stride + std::size_t(c)];
     return cloud;
 }
 

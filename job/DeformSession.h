@@ -44,8 +44,9 @@ public:
         double solveMs = 0, updateMs = 0;
     };
     /// @brief A live pose for a drag: the ED solve warm-started from the last solve of this session
-    ///        and Stage I's means, rotations and scales only (withShDegree(rest, 0): no SH rotation, DC
-    ///        as rest). Within the solver's tolerance of pose(spec), not bit-equal: refine() and
+    ///        and Stage I's means, rotations and scales only, in float (applyStageOnePreview();
+    ///        withShDegree(rest, 0): no SH rotation, DC as rest). Within the solver's tolerance of
+    ///        pose(spec) and float's rounding, not bit-equal: refine() and
     ///        write() pose the previewed spec exactly first, so what they give is pose()'s. A session
     ///        whose Stage I runs on CUDA poses exactly (the device update is not the cost there).
     /// @throws InputError as pose().

@@ -39,7 +39,7 @@ void runBench(const BenchArgs& a)
     setProgressEnabled(false); // the per-phase lines would swamp the table
     StageOneOptions options;
     options.device = resolveDevice(a.device);
-    std::vector<double> graphMs, weightsMs, uploadMs, solveMs, updateMs, stepMs;
+    std::vector<double> graphMs, weightsMs, uploadMs, solveMs, updateMs, stepMs, previewMs;
     Deformation d;
     StageOneResult s;
     for (int r = 0; r < a.runs; ++r) {
@@ -61,6 +61,13 @@ void runBench(const BenchArgs& a)
         s = updater.apply(d.transforms, d.nodeMoving);
         updateMs.push_back(u.ms());
         stepMs.push_back(t.ms());
+        // The editor's drag preview (float, no SH) of the same transforms, into a reused cloud.
+        GaussianCloud preview = withShDegree(rest, 0);
+        for (int warm = 0; warm < 2; ++warm) {
+            const Stopwatch p;
+            applyStageOnePreview(rest, rig, graph, d.transforms, d.nodeMoving, options, preview);
+            if (warm) previewMs.push_back(p.ms());
+        }
     }
     setProgressEnabled(!quiet);
     const std::string name = a.input.empty() ? std::string("stripes (sample)") : a.input;
@@ -68,7 +75,7 @@ void runBench(const BenchArgs& a)
                         {"nodes", d.graph.nodeCount()}, {"k", d.graph.k()}, {"moving", s.movingCount},
                         {"solverIterations", d.report.solver.iterations}, {"runs", a.runs}, {"device", deviceName(s.device)},
                         {"medianMs", {{"graph", median(graphMs)}, {"weights", median(weightsMs)}, {"upload", median(uploadMs)},
-                                      {"solve", median(solveMs)}, {"update", median(updateMs)},
+                                      {"solve", median(solveMs)}, {"update", median(updateMs)}, {"preview", median(previewMs)},
                                       {"step", median(stepMs)}, {"precompute", median(graphMs) + median(weightsMs)}}}};
     if (a.json) {
         std::printf("%s\n", j.dump(2).c_str());
@@ -83,6 +90,7 @@ void runBench(const BenchArgs& a)
     std::printf("%-34s %10.2f\n", "skin weights (7 points/Gaussian)", m["weights"].get<double>());
     std::printf("%-34s %10.2f\n", "ED solve", m["solve"].get<double>());
     std::printf("%-34s %10.2f\n", "per-Gaussian update", m["update"].get<double>());
+    std::printf("%-34s %10.2f\n", "editor preview update (CPU, float)", m["preview"].get<double>());
     std::printf("%-34s %10.2f\n", "step = solve + update", m["step"].get<double>());
     std::printf("%-34s %10.2f\n", "precompute = graph + weights", m["precompute"].get<double>());
 }

@@ -20,17 +20,23 @@ async function api(path, options = {}) {
     return res;
 }
 
-/** The SWG1 layout (docs/editor-api.md): header, then means, rotations (w,x,y,z), log scales, opacity logits, SH DC. */
-function decodeModel(buffer) {
+/**
+ * The SWG1 layout (docs/editor-api.md): header, then means, rotations (w,x,y,z), log scales and,
+ * in a model (14 floats per Gaussian), opacity logits and SH DC; a pose (10) takes those from `rest`.
+ */
+function decodeModel(buffer, rest = null) {
     const view = new DataView(buffer);
     const magic = String.fromCharCode(view.getUint8(0), view.getUint8(1), view.getUint8(2), view.getUint8(3));
     if (magic !== 'SWG1') throw new Error('not an SWG1 model');
-    const n = view.getUint32(4, true);
-    const f = new Float32Array(buffer, 16, n * 14);
+    const n = view.getUint32(4, true), floats = view.getUint32(8, true);
+    if (floats !== 14 && floats !== 10) throw new Error(`SWG1 with ${floats} floats per Gaussian`);
+    if (floats === 10 && (!rest || rest.n !== n)) throw new Error('an SWG1 pose needs its rest model');
+    const f = new Float32Array(buffer, 16, n * floats);
     return {
         n,
         means: f.subarray(0, 3 * n), rotations: f.subarray(3 * n, 7 * n), logScales: f.subarray(7 * n, 10 * n),
-        opacities: f.subarray(10 * n, 11 * n), dc: f.subarray(11 * n, 14 * n)
+        opacities: floats === 14 ? f.subarray(10 * n, 11 * n) : rest.opacities,
+        dc: floats === 14 ? f.subarray(11 * n, 14 * n) : rest.dc
     };
 }
 
@@ -443,7 +449,7 @@ class Editor {
             const t0 = performance.now();
             const body = JSON.stringify(this.nextPose.spec());
             const res = await api(this.nextPose.path, { method: 'POST', headers: { 'Content-Type': 'application/json' }, body });
-            this.stage1 = decodeModel(await res.arrayBuffer());
+            this.stage1 = decodeModel(await res.arrayBuffer(), this.rest);
             this.refined = null;
             $('viewRefined').disabled = true;
             if (this.view === 'refined') this.view = 'stage1';

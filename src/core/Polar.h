@@ -116,17 +116,19 @@ SPLATWARP_HOST_DEVICE Mat3<T> polarRotation(const Mat3<T>& m)
 /// node matrices near-orthonormal): Newton's iteration X <- (X + X^-T) / 2 converges
 /// quadratically in a few steps, far cheaper than the Jacobi SVD. Returns false (caller falls back
 /// to polarDecomposition()) when det M <= 0 or it does not converge, so the result is the same
-/// polar rotation up to rounding.
-SPLATWARP_HOST_DEVICE bool polarRotationNewton(const Mat3d& m, Mat3d& r)
+/// polar rotation up to rounding (of T: the editor's preview runs it in float).
+template <typename T>
+SPLATWARP_HOST_DEVICE bool polarRotationNewton(const Mat3<T>& m, Mat3<T>& r)
 {
     constexpr int kMaxIterations = 12;
-    constexpr double kStep = 1e-9; // |X_k+1 - X_k|_F: the next error is ~kStep^2, below double rounding
-    Mat3d x = m;
+    // |X_k+1 - X_k|_F: the next error is ~kStep^2, below the rounding of T.
+    constexpr T kStep = sizeof(T) == sizeof(double) ? T(1e-9) : T(1e-4);
+    Mat3<T> x = m;
     for (int it = 0; it < kMaxIterations; ++it) {
-        const double det = x.determinant();
-        if (!(det > 0.0)) return false;
+        const T det = x.determinant();
+        if (!(det > T(0))) return false;
         // X^-T = cofactor(X) / det.
-        Mat3d cof;
+        Mat3<T> cof;
         cof.m[0][0] = x.m[1][1] * x.m[2][2] - x.m[1][2] * x.m[2][1];
         cof.m[0][1] = x.m[1][2] * x.m[2][0] - x.m[1][0] * x.m[2][2];
         cof.m[0][2] = x.m[1][0] * x.m[2][1] - x.m[1][1] * x.m[2][0];
@@ -138,11 +140,11 @@ SPLATWARP_HOST_DEVICE bool polarRotationNewton(const Mat3d& m, Mat3d& r)
         cof.m[2][2] = x.m[0][0] * x.m[1][1] - x.m[0][1] * x.m[1][0];
         // Scaling by det^-1/3 (Higham) speeds up matrices far from orthogonal; near det 1 it
         // gains nothing and the cube root would dominate the iteration.
-        const double g = std::fabs(det - 1.0) > 0.25 ? std::cbrt(1.0 / det) : 1.0, h = 0.5 / (g * det);
-        double change = 0.0;
+        const T g = std::fabs(det - T(1)) > T(0.25) ? std::cbrt(T(1) / det) : T(1), h = T(0.5) / (g * det);
+        T change = T(0);
         for (int i = 0; i < 3; ++i)
             for (int j = 0; j < 3; ++j) {
-                const double next = 0.5 * g * x.m[i][j] + h * cof.m[i][j];
+                const T next = T(0.5) * g * x.m[i][j] + h * cof.m[i][j];
                 change += (next - x.m[i][j]) * (next - x.m[i][j]);
                 x.m[i][j] = next;
             }

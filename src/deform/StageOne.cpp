@@ -118,19 +118,4 @@ StageOneResult applyStageOneCpu(const GaussianCloud& rest, const StageOneRig& ri
     return res;
 }
 
-std::size_t applyStageOnePreview(const GaussianCloud& rest, const StageOneRig& rig, const DeformationGraph& graph,
-                                 const NodeTransforms& transforms, const std::vector<std::uint8_t>& nodeMoving,
-                                 const StageOneOptions& o, GaussianCloud& preview)
-{
-    if (preview.size() != rest.size() || preview.shDegree != 0)
-        throw UsageError(msg("Stage I preview: the preview cloud holds ", preview.size(), " Gaussians of SH degree ",
-                             preview.shDegree, " for a model of ", rest.size(), " (make it with withShDegree(rest, 0))"));
-    // Gaussians that moved in the last preview and not in this one must read as rest again.
-    std::copy(rest.means.begin(), rest.means.end(), preview.means.begin());
-    std::copy(rest.rotations.begin(), rest.rotations.end(), preview.rotations.begin());
-    std::copy(rest.logScales.begin(), rest.logScales.end(), preview.logScales.begin());
-    std::vector<std::uint8_t> moving;
-    return updateInto(rest, rig, graph, transforms, nodeMoving, o, 0, preview, moving);
-}
-
 } // namespace splatwarp

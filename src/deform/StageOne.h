@@ -87,10 +87,12 @@ StageOneResult applyStageOneCpu(const GaussianCloud& rest, const StageOneRig& ri
                              const NodeTransforms& transforms, const std::vector<std::uint8_t>& nodeMoving,
                              const StageOneOptions& options = {});
 
-/// @brief Stage I for a live preview (the editor's drag), on the CPU: the same means, rotations and
-///        log-scales as applyStageOneCpu(), written into `preview`, and no SH rotation (a preview
-///        shows the DC colour). `preview` is a copy of rest at SH degree 0 (opacities and DC as
-///        rest: withShDegree(rest, 0)); Gaussians that do not move get their rest values back.
+/// @brief Stage I for a live preview (the editor's drag), on the CPU, in float: applyStageOneCpu()'s
+///        means and covariances to float's rounding (the rotations and log-scales may name the axes
+///        in another order), written into `preview`, and no SH rotation (a preview shows the DC
+///        colour); 2.5x faster (deform/StageOnePreview.cpp). `preview` is a copy of rest at SH
+///        degree 0 (opacities and DC as rest: withShDegree(rest, 0)); Gaussians that do not move get
+///        their rest values back.
 /// @returns the moving Gaussians' count
 std::size_t applyStageOnePreview(const GaussianCloud& rest, const StageOneRig& rig, const DeformationGraph& graph,
                                  const NodeTransforms& transforms, const std::vector<std::uint8_t>& nodeMoving,

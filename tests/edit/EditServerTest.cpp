@@ -198,13 +198,17 @@ TEST(EditServer, PoseRepliesWithTheBytesOfTheSessionsPreview)
         const httplib::Result r = fx.post("/api/pose", bendDragSpec(degrees));
         ASSERT_EQ(status(r), 200);
         const DeformSession::Preview expected = session.preview(parseDeformSpec(bendDragSpec(degrees), "test"));
-        EXPECT_TRUE(r->body == edit::encodeGaussians(expected.cloud, session.rest().model.shDegree)) << degrees;
+        EXPECT_TRUE(r->body == edit::encodePose(expected.cloud, session.rest().model.shDegree)) << degrees;
         EXPECT_EQ(r->get_header_value("X-Splatwarp-Moving"), std::to_string(expected.moving));
         EXPECT_FALSE(r->get_header_value("X-Splatwarp-Solve-Ms").empty());
         EXPECT_EQ(r->get_header_value("Content-Type"), "application/octet-stream");
-        const GaussianCloud decoded = edit::decodeGaussians(r->body);
+        // A pose carries the geometry only; opacities and colours are the rest model's.
+        EXPECT_EQ(r->body.size(), edit::kLayoutHeaderBytes + expected.cloud.size() * edit::kPoseFloats * 4);
+        EXPECT_THROW(edit::decodeGaussians(r->body), InputError);
+        const GaussianCloud decoded = edit::decodeGaussians(r->body, &session.rest().model);
         EXPECT_TRUE(decoded.means == expected.cloud.means);
         EXPECT_TRUE(decoded.rotations == expected.cloud.rotations);
+        EXPECT_TRUE(decoded.opacities == session.rest().model.opacities);
     }
 }
 
@@ -242,7 +246,7 @@ TEST(EditServer, AnimationFramesAndSaves)
     const AnimSpec parsed = parseAnimSpec(anim, "bend-24");
     const httplib::Result r = fx.post("/api/pose?frame=12", anim);
     ASSERT_EQ(status(r), 200) << (r ? r->body : "");
-    EXPECT_TRUE(r->body == edit::encodeGaussians(session.pose(frameSpec(parsed, 12)).deformed));
+    EXPECT_TRUE(r->body == edit::encodePose(session.preview(frameSpec(parsed, 12)).cloud, session.rest().model.shDegree));
     EXPECT_EQ(status(fx.post("/api/pose?frame=24", anim)), 400);
     EXPECT_EQ(status(fx.post("/api/pose?frame=x", anim)), 400);
     EXPECT_EQ(status(fx.post("/api/save-animation?name=../up", anim)), 400);
@@ -268,7 +272,7 @@ TEST(EditServer, TwoClientsAtOnce)
     // Each reply is its own pose (a preview warm-started from whichever pose came last: within the
     // solver's tolerance of the exact Stage I, and nowhere near the other client's).
     const auto close = [&](const std::string& body, const GaussianCloud& expected) {
-        const GaussianCloud got = edit::decodeGaussians(body);
+        const GaussianCloud got = edit::decodeGaussians(body, &session.rest().model);
         if (got.size() != expected.size()) return false;
         for (std::size_t i = 0; i < got.means.size(); ++i)
             if (std::fabs(got.means[i] - expected.means[i]) > tolerance) return false;
@@ -283,7 +287,7 @@ TEST(EditServer, TwoClientsAtOnce)
             if (status(c->Get("/api/progress")) == 200) ++good;
         }
     };
-    ASSERT_FALSE(close(edit::encodeGaussians(expect30), expect60)); // the check tells the two poses apart
+    ASSERT_FALSE(close(edit::encodePose(expect30, 0), expect60)); // the check tells the two poses apart
     std::thread a(drag, 30.0, std::cref(expect30)), b(drag, 60.0, std::cref(expect60));
     a.join();
     b.join();
