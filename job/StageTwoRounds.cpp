@@ -91,7 +91,7 @@ StageTwoReport fitInRounds(GaussianCloud& fitted, const SampleSet& samples, cons
         prune();
         std::vector<std::size_t> stretched = stretchedGaussians(moving, cell, samples.cellGradient, d.splitStretch);
         if (d.maxSplits && stretched.size() > *d.maxSplits) stretched.resize(*d.maxSplits);
-        counts.split += splitGaussians(dc, stretched, d.splitOffset);
+        counts.split += splitGaussians(dc, stretched, keepMomentsSplit(d.splitOffset));
         counts.ms += clock.ms();
         progress(msg("Stage II: split ", counts.split, " Gaussians of cells stretched over ", d.splitStretch, " (",
                      fitted.size(), " Gaussians)"));

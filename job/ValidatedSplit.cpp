@@ -55,9 +55,9 @@ ValidatedSplitReport validatedSplit(const Judge& validation, const GaussianCloud
     // Every candidate split along each axis, in the rest pose, then moved by Stage I.
     GaussianCloud childRest;
     childRest.shDegree = rest.shDegree;
-    const CurveSplitPattern three = curveSplitPattern(0.0, 0.0);
+    const SplitPattern three = curveSplitPattern(0.0, 0.0);
     for (std::size_t i : candidates)
-        for (int a = 0; a < 3; ++a) appendCurveChildren(rest, i, a, three, childRest);
+        for (int a = 0; a < 3; ++a) appendSplitChildren(rest, i, a, three, childRest);
     const StageOneRig rig = prepareStageOne(childRest, deformation.graph, stage1);
     const StageOneResult moved = applyStageOneCpu(childRest, rig, deformation.graph, deformation.transforms,
                                                   deformation.nodeMoving, stage1);

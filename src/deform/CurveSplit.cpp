@@ -35,7 +35,7 @@ double visibleMass(double peak)
 /// from m to m t^2, less the visible mass the dimmer children lose to the cutoff and the split's
 /// own L1 (taken as the three's 1.15% for a fan too). Near zero or negative for Gaussians too
 /// faint or too thin to weigh.
-double splitGain(const GaussianCloud& g, std::size_t i, double m, const CurveSplitPattern& p)
+double splitGain(const GaussianCloud& g, std::size_t i, double m, const SplitPattern& p)
 {
     const Vec3f s = g.scale(i);
     const double alpha = g.alpha(i), mass = alpha * double(s.x) * double(s.y) * double(s.z);
@@ -57,9 +57,10 @@ struct Generation {
 
 } // namespace
 
-CurveSplitPattern curveSplitPattern(double bend, double fanAbove)
+SplitPattern curveSplitPattern(double bend, double fanAbove)
 {
-    CurveSplitPattern p;
+    SplitPattern p;
+    p.sigma = kCurveChildSigma;
     if (!(fanAbove > 0.0 && bend > fanAbove)) {
         p.offsets = {0.0, kCurveOffset, -kCurveOffset};
         p.weights = {kCurveCentreWeight, kCurveOuterWeight, kCurveOuterWeight};
@@ -75,24 +76,6 @@ CurveSplitPattern curveSplitPattern(double bend, double fanAbove)
         p.weights.push_back(delta / t * std::exp(-0.5 * u * u / var) / std::sqrt(2.0 * M_PI * var));
     }
     return p;
-}
-
-std::size_t appendCurveChildren(const GaussianCloud& g, std::size_t i, int axis, const CurveSplitPattern& pattern,
-                                GaussianCloud& out)
-{
-    const Mat3f r = quatToMatrix(g.rotation(i));
-    const float sigma = g.scale(i)[axis];
-    const Vec3f u{r.m[0][axis], r.m[1][axis], r.m[2][axis]};
-    const Vec3f m = g.mean(i);
-    for (std::size_t c = 0; c < pattern.offsets.size(); ++c) {
-        out.append(g, i);
-        const std::size_t j = out.size() - 1;
-        const float d = float(pattern.offsets[c]) * sigma;
-        out.setMean(j, Vec3f{m.x + d * u.x, m.y + d * u.y, m.z + d * u.z});
-        out.logScales[3 * j + std::size_t(axis)] += float(std::log(pattern.sigma));
-        out.opacities[j] = scaledOpacityLogit(g.opacities[i], pattern.weights[c]);
-    }
-    return pattern.offsets.size();
 }
 
 StageOneBends stageOneBendingOf(const GaussianCloud& rest, const StageOneRig& rig, const DeformationGraph& graph,
@@ -217,10 +200,10 @@ CurveSplitResult curveSplit(const GaussianCloud& rest, const StageOneRig& rig, c
         next.rest.shDegree = rest.shDegree;
         std::vector<std::size_t> counts, taken; // children per split, in the order of next.rest
         for (std::size_t i : bent) {
-            const CurveSplitPattern p = curveSplitPattern(bending[i], o.fanAbove);
+            const SplitPattern p = curveSplitPattern(bending[i], o.fanAbove);
             if (p.offsets.size() - 1 > budget) continue; // a smaller split may still fit
             budget -= p.offsets.size() - 1;
-            counts.push_back(appendCurveChildren(gen.rest, i, bends.axis[i], p, next.rest));
+            counts.push_back(appendSplitChildren(gen.rest, i, bends.axis[i], p, next.rest));
             taken.push_back(i);
         }
         if (taken.empty()) break;

@@ -9,7 +9,7 @@
 ///        what the split costs (the children's own L1 and the mass the dimmer children lose to the
 ///        1/255 cutoff), and the Gaussians are split in order of that gain, within a budget.
 ///
-///        The children of a Gaussian bent by at most kFanAbove (more are fanned, CurveSplitPattern):
+///        The children of a Gaussian bent by at most kFanAbove (more are fanned, curveSplitPattern()):
 ///        three along the bent axis at mean + {-d, 0, +d} sigma, that axis' sigma times
 ///        kCurveChildSigma (halving the second-order term), amplitudes alpha times
 ///        kCurveOuterWeight / kCurveCentreWeight, the parent's rotation, other scales and SH. The
@@ -22,6 +22,7 @@
 #include <vector>
 
 #include "core/GaussianCloud.h"
+#include "core/GaussianSplit.h"
 #include "deform/DeformationGraph.h"
 #include "deform/NodeTransforms.h"
 #include "deform/StageOne.h"
@@ -34,7 +35,7 @@ constexpr double kCurveOuterWeight = 0.3136;    ///< outer children's alpha / pa
 constexpr double kCurveCentreWeight = 0.7784;   ///< centre child's alpha / parent's
 constexpr double kCurveSplitL1 = 0.0115;        ///< the children's L1 distance from the parent / its mass
 
-/// A Gaussian bent by more than this many sigmas is fanned (see CurveSplitPattern) instead of split
+/// A Gaussian bent by more than this many sigmas is fanned (see curveSplitPattern()) instead of split
 /// in three: three rounds of halving cannot bring it down (playbot-31k bend: the 113 Gaussians bent
 /// by 8 sigmas or more hold 17% of Stage I's error; docs/lab/fidelity-study.md).
 constexpr double kFanAbove = 4.0;
@@ -65,25 +66,15 @@ struct CurveSplitResult {
     double ms = 0;
 };
 
-/// @brief How one Gaussian is split along its bent axis: the children's sigma t along it (in the
-///        parent's sigmas; the second-order term scales by t^2), their offsets and amplitudes
-///        (times the parent's). Bend <= kFanAbove: the three L1-closest children (file comment).
+/// @brief The split pattern (core/GaussianSplit.h) for a Gaussian bent by `bend` of its sigmas,
+///        along its bent axis: the children's sigma t along it (in the parent's sigmas; the
+///        second-order term scales by t^2), their offsets and amplitudes (times the parent's), the
+///        one at the mean first. Bend <= fanAbove: the three L1-closest children (file comment).
 ///        Above: a fan, t = max(kFanMinSigma, sqrt(kFanChildBend / bend)), children every 1.25 t
-///        out to 3 sigma, amplitudes 1.25 N(u; 0, 1 - t^2) (the parent is the 1/t-scaled
-///        integral of N(u; 0, 1 - t^2) times a Gaussian of sigma t at u; the ripple of that sum at
-///        1.25 t is below 1e-4).
-struct CurveSplitPattern {
-    double sigma = kCurveChildSigma;
-    std::vector<double> offsets, weights; ///< the first child stays at the mean
-};
-
-/// @brief The split pattern for a bend (see CurveSplitPattern); fanAbove <= 0: never a fan.
-CurveSplitPattern curveSplitPattern(double bend, double fanAbove = kFanAbove);
-
-/// @brief The children of Gaussian i of g split along its own axis (0..2) by a pattern, appended
-///        to out (same SH degree), the one at the mean first; returns how many.
-std::size_t appendCurveChildren(const GaussianCloud& g, std::size_t i, int axis, const CurveSplitPattern& pattern,
-                                GaussianCloud& out);
+///        out to 3 sigma, amplitudes 1.25 N(u; 0, 1 - t^2) (the parent is the 1/t-scaled integral
+///        of N(u; 0, 1 - t^2) times a Gaussian of sigma t at u; the ripple of that sum at 1.25 t is
+///        below 1e-4). fanAbove <= 0: never a fan.
+SplitPattern curveSplitPattern(double bend, double fanAbove = kFanAbove);
 
 /// @brief How Stage I bends each Gaussian of a model (static ones: 0).
 struct StageOneBends {

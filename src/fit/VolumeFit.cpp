@@ -80,10 +80,10 @@ std::size_t splitLargestResidual(GaussianCloud& cloud, const SampleSet& samples,
     count = std::min(count, order.size());
     std::partial_sort(order.begin(), order.begin() + std::ptrdiff_t(count), order.end(),
                       [&](std::size_t a, std::size_t b) { return mass[a] > mass[b] || (mass[a] == mass[b] && a < b); });
-    order.resize(count); // Stage II's split with from-vdb's rule (stage2/Densify.h: SplitPattern::Shrink)
+    order.resize(count); // Stage II's split with from-vdb's rule (stage2/Densify.h: shrinkSplit())
     AllMoving a(cloud.size());
     DensifyCloud d{cloud, a.moving, a.cells};
-    return splitGaussians(d, order, 0.5f, SplitPattern::Shrink);
+    return splitGaussians(d, order, shrinkSplit(0.5f));
 }
 
 VolumeFitReport fitToSamples(GaussianCloud& cloud, const SampleSet& samples, std::size_t budget, const VolumeFitOptions& o)

@@ -41,7 +41,7 @@ VolumeFitReport fitToSamples(GaussianCloud& cloud, const SampleSet& samples, std
 std::size_t pruneTransparent(GaussianCloud& cloud, float alpha);
 
 /// @brief Split the `count` Gaussians with the largest residual mass into two each, by Stage II's
-///        split with from-vdb's rule (stage2/Densify.h SplitPattern::Shrink: +-0.5 sigma along the
+///        split with from-vdb's rule (stage2/Densify.h shrinkSplit(): +-0.5 sigma along the
 ///        widest axis, that axis' scale times 0.6, same opacity and SH).
 /// @param residual [M] |O* - O| at the samples, each attributed to the nearest Gaussian centre
 /// @return the number split

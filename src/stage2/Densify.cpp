@@ -24,62 +24,46 @@ std::vector<std::size_t> stretchedGaussians(const std::vector<std::uint8_t>& mov
 
 namespace {
 
-/// The longest axis of Gaussian i (its index) and that axis' world direction.
-int longestAxis(const GaussianCloud& g, std::size_t i, Vec3f& direction)
+void checkOffset(float k)
 {
-    const Vec3f s = g.scale(i);
-    int axis = 0;
-    for (int a = 1; a < 3; ++a)
-        if (s[a] > s[axis]) axis = a;
-    const Mat3f r = quatToMatrix(g.rotation(i));
-    direction = Vec3f{r.m[0][axis], r.m[1][axis], r.m[2][axis]};
-    return axis;
+    if (!(k > 0.0f && k <= kMaxSplitOffset)) throw InputError(msg("split: offset ", k, " is outside (0, ", kMaxSplitOffset, "]"));
 }
 
 } // namespace
 
-void splitGaussian(DensifyCloud& d, std::size_t i, float k, SplitPattern pattern)
+SplitPattern keepMomentsSplit(float k)
 {
-    GaussianCloud& g = d.cloud;
-    Vec3f u;
-    const int axis = longestAxis(g, i, u);
-    const float offset = k * g.scale(i)[axis];
-    if (pattern == SplitPattern::Shrink) {
-        g.logScales[3 * i + std::size_t(axis)] += std::log(0.6f);
-    } else {
-        const float shrink = std::sqrt(1.0f - k * k);
-        g.logScales[3 * i + std::size_t(axis)] += std::log(shrink);
-        g.opacities[i] = scaledOpacityLogit(g.opacities[i], 1.0 / (2.0 * double(shrink)));
-    }
-    // The second child: a copy of the first, pushed value by value (a range insert from the vector
-    // itself is not allowed).
-    const std::size_t j = g.size();
-    auto copyTail = [i](std::vector<float>& v, std::size_t width) {
-        for (std::size_t c = 0; c < width; ++c) {
-            const float value = v[width * i + c];
-            v.push_back(value);
-        }
-    };
-    copyTail(g.means, 3);
-    copyTail(g.rotations, 4);
-    copyTail(g.logScales, 3);
-    copyTail(g.opacities, 1);
-    copyTail(g.sh, std::size_t(g.shStride()));
-    const Vec3f m = g.mean(i);
-    g.setMean(i, Vec3f{m.x + offset * u.x, m.y + offset * u.y, m.z + offset * u.z});
-    g.setMean(j, Vec3f{m.x - offset * u.x, m.y - offset * u.y, m.z - offset * u.z});
-    d.moving.push_back(d.moving[i]);
-    d.gaussianCell.push_back(d.gaussianCell[i]);
+    checkOffset(k);
+    const float shrink = std::sqrt(1.0f - k * k);
+    const double weight = 1.0 / (2.0 * double(shrink));
+    return {double(shrink), {double(k), -double(k)}, {weight, weight}};
 }
 
-std::size_t splitGaussians(DensifyCloud& d, const std::vector<std::size_t>& which, float offset, SplitPattern pattern)
+SplitPattern shrinkSplit(float k)
 {
-    if (!(offset > 0.0f && offset <= kMaxSplitOffset))
-        throw InputError(msg("split: offset ", offset, " is outside (0, ", kMaxSplitOffset, "]"));
+    checkOffset(k);
+    return {double(0.6f), {double(k), -double(k)}, {1.0, 1.0}};
+}
+
+void splitGaussian(DensifyCloud& d, std::size_t i, const SplitPattern& pattern)
+{
+    GaussianCloud children;
+    children.shDegree = d.cloud.shDegree;
+    const std::size_t count = appendSplitChildren(d.cloud, i, longestAxis(d.cloud, i), pattern, children);
+    d.cloud.assign(i, children, 0);
+    for (std::size_t c = 1; c < count; ++c) {
+        d.cloud.append(children, c);
+        d.moving.push_back(d.moving[i]);
+        d.gaussianCell.push_back(d.gaussianCell[i]);
+    }
+}
+
+std::size_t splitGaussians(DensifyCloud& d, const std::vector<std::size_t>& which, const SplitPattern& pattern)
+{
     const std::size_t n = d.cloud.size();
     for (std::size_t i : which) {
         if (i >= n) throw InputError(msg("split: Gaussian ", i, " outside 0..", n - 1));
-        splitGaussian(d, i, offset, pattern);
+        splitGaussian(d, i, pattern);
     }
     return which.size();
 }

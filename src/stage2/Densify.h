@@ -17,6 +17,7 @@
 #include <vector>
 
 #include "core/GaussianCloud.h"
+#include "core/GaussianSplit.h"
 
 namespace splatwarp {
 
@@ -28,17 +29,16 @@ constexpr float kSplitOffset = 0.5f;
 /// Largest offset: alpha' = alpha / (2 sqrt(1 - k^2)) stays below 1 for every parent up to sqrt(3)/2.
 constexpr float kMaxSplitOffset = 0.85f;
 
-/// @brief How a split shapes its two children (one split implementation, two named rules).
-enum class SplitPattern {
-    /// Stage II's (the file comment): mean +- k sigma u, sigma_u' = sigma_u sqrt(1 - k^2),
-    /// alpha' = alpha / (2 sqrt(1 - k^2)): the pair keeps the parent's mass and moments.
-    KeepMoments,
-    /// from-vdb's, fitting from scratch (3DGS's kind): mean +- k sigma u, sigma_u' = 0.6 sigma_u,
-    /// alpha unchanged (the pair adds mass the next round fits away). Measured with
-    /// `from-vdb wdas_cloud_sixteenth.vdb --rounds 3`: held-out error 0.0617 with it, 0.0628 with
-    /// KeepMoments, so from-vdb keeps it.
-    Shrink,
-};
+/// @brief Stage II's split (the file comment): two children at mean +- k sigma u, sigma_u' =
+///        sigma_u sqrt(1 - k^2), alpha' = alpha / (2 sqrt(1 - k^2)): the pair keeps the parent's
+///        mass and moments. @throws InputError unless 0 < k <= kMaxSplitOffset.
+SplitPattern keepMomentsSplit(float k = kSplitOffset);
+
+/// @brief from-vdb's split, fitting from scratch (3DGS's kind): mean +- k sigma u, sigma_u' = 0.6
+///        sigma_u, alpha unchanged (the pair adds mass the next round fits away). Measured with
+///        `from-vdb wdas_cloud_sixteenth.vdb --rounds 3`: held-out error 0.0617 with it, 0.0628
+///        with keepMomentsSplit(), so from-vdb keeps it. @throws InputError as keepMomentsSplit().
+SplitPattern shrinkSplit(float k = kSplitOffset);
 
 /// @brief A cloud with the per-Gaussian arrays of a Stage II run, kept in step by every change.
 struct DensifyCloud {
@@ -53,14 +53,13 @@ std::vector<std::size_t> stretchedGaussians(const std::vector<std::uint8_t>& mov
                                             const std::vector<std::int32_t>& gaussianCell,
                                             const std::vector<float>& cellGradient, float stretch);
 
-/// @brief Split Gaussian i into two along its longest axis (see the file comment): i becomes the
-///        child at mean + k sigma u, the other child is appended with i's moving flag and cell.
-/// @param offset  k in (0, kMaxSplitOffset]: the children's distance from the mean in units of sigma along u
-void splitGaussian(DensifyCloud& d, std::size_t i, float offset = kSplitOffset, SplitPattern pattern = SplitPattern::KeepMoments);
+/// @brief Split Gaussian i along its longest axis by a pattern (core/GaussianSplit.h): i becomes
+///        the first child, the others are appended with i's moving flag and cell.
+void splitGaussian(DensifyCloud& d, std::size_t i, const SplitPattern& pattern = keepMomentsSplit());
 
 /// @brief Split each listed Gaussian (indices into the cloud before any split); returns how many.
-std::size_t splitGaussians(DensifyCloud& d, const std::vector<std::size_t>& which, float offset = kSplitOffset,
-                           SplitPattern pattern = SplitPattern::KeepMoments);
+std::size_t splitGaussians(DensifyCloud& d, const std::vector<std::size_t>& which,
+                           const SplitPattern& pattern = keepMomentsSplit());
 
 /// @brief Remove the moving Gaussians whose opacity alpha is below `below` (the static ones and
 ///        every other moving one are kept bit for bit, in order); returns how many were removed.

@@ -66,7 +66,7 @@ TEST(CurveSplit, ChildrenMatchTheirParentAlongEveryAxis)
         for (int axis = 0; axis < 3; ++axis) {
             GaussianCloud children;
             children.shDegree = g.shDegree;
-            EXPECT_EQ(appendCurveChildren(g, i, axis, curveSplitPattern(1.0), children), 3u);
+            EXPECT_EQ(appendSplitChildren(g, i, axis, curveSplitPattern(1.0), children), 3u);
             ASSERT_EQ(children.size(), 3u);
             const Field c = fieldAt(children, points);
             const double rel = l1(p.o, c.o) / sum(p.o);
@@ -91,7 +91,7 @@ TEST(CurveSplit, AFanMatchesItsParent)
 {
     const GaussianCloud g = threeGaussians();
     const std::vector<float> points = lattice();
-    const CurveSplitPattern fan = curveSplitPattern(8.0); // t = sqrt(0.5 / 8) = 0.25
+    const SplitPattern fan = curveSplitPattern(8.0); // t = sqrt(0.5 / 8) = 0.25
     EXPECT_NEAR(fan.sigma, 0.25, 1e-12);
     EXPECT_EQ(fan.offsets.size(), 19u); // 0, +-0.3125 ... +-2.8125: within 3 sqrt(1 - t^2) = 2.905
     EXPECT_NEAR(curveSplitPattern(100.0).sigma, kFanMinSigma, 1e-12);
@@ -101,7 +101,7 @@ TEST(CurveSplit, AFanMatchesItsParent)
     parent.append(g, 0);
     GaussianCloud children;
     children.shDegree = g.shDegree;
-    EXPECT_EQ(appendCurveChildren(g, 0, 0, fan, children), 19u); // along the 0.30 axis: children sigma 0.075
+    EXPECT_EQ(appendSplitChildren(g, 0, 0, fan, children), 19u); // along the 0.30 axis: children sigma 0.075
     const Field p = fieldAt(parent, points), c = fieldAt(children, points);
     // Measured: L1 0.21% of the mass, mass kept 0.9979 (the tails beyond 3 sigma).
     EXPECT_LT(l1(p.o, c.o) / sum(p.o), 0.004);

@@ -55,7 +55,7 @@ TEST(ValidationResiduals, AChangeIsTheDifferenceOfTheScores)
         GaussianCloud split = fx.stage1;
         GaussianCloud children;
         children.shDegree = split.shDegree;
-        appendCurveChildren(fx.stage1, 11, 0, curveSplitPattern(0.0, 0.0), children);
+        appendSplitChildren(fx.stage1, 11, 0, curveSplitPattern(0.0, 0.0), children);
         split.assign(11, children, 0);
         split.append(children, 1);
         split.append(children, 2);

@@ -4,6 +4,7 @@
 #include <cstring>
 
 #include "field/FeatureField.h"
+#include "core/Error.h"
 #include "core/Polar.h"
 #include "stage2/Densify.h"
 #include "support/TestGaussians.h"
@@ -62,7 +63,7 @@ void expectSplitKeepsMoments(float cutoff, double tolerance, float offset)
     std::vector<std::uint8_t> moving(3, 1);
     std::vector<std::int32_t> cell = {4, 5, -1};
     DensifyCloud d{g, moving, cell};
-    ASSERT_EQ(splitGaussians(d, {0, 1, 2}, offset), 3u);
+    ASSERT_EQ(splitGaussians(d, {0, 1, 2}, keepMomentsSplit(offset)), 3u);
     ASSERT_EQ(g.size(), 6u);
     const FieldMoments after = moments(g, cutoff);
     EXPECT_NEAR(after.mass / before.mass, 1.0, tolerance);
@@ -113,7 +114,7 @@ TEST(Densify, ChildrenInheritCellAndMovingFlagAndSplitAlongTheLongestAxis)
     std::vector<std::uint8_t> moving = {1, 0, 1};
     std::vector<std::int32_t> cell = {7, 3, 9};
     DensifyCloud d{g, moving, cell};
-    splitGaussian(d, 2, 0.8f); // axis-aligned, longest along z (0.18): children 0.6 x as wide, alpha / 1.2
+    splitGaussian(d, 2, keepMomentsSplit(0.8f)); // axis-aligned, longest along z (0.18): children 0.6 x as wide, alpha / 1.2
     ASSERT_EQ(g.size(), 4u);
     EXPECT_EQ(moving, (std::vector<std::uint8_t>{1, 0, 1, 1}));
     EXPECT_EQ(cell, (std::vector<std::int32_t>{7, 3, 9, 9}));
@@ -180,4 +181,26 @@ TEST(Densify, StretchedGaussiansAreTheMovingOnesOfCellsAboveTheThreshold)
     const std::vector<std::int32_t> cell = {0, 1, 2, 2, 3, -1, 2};
     EXPECT_EQ(stretchedGaussians(moving, cell, gradient, 1.3f), (std::vector<std::size_t>{2, 6}));
     EXPECT_TRUE(stretchedGaussians(moving, cell, gradient, 1.5f).empty());
+}
+
+TEST(Densify, FromVdbsShrinkKeepsTheOpacityBitForBitAndBadOffsetsAreRefused)
+{
+    GaussianCloud g = threeGaussians();
+    const GaussianCloud parent = g;
+    std::vector<std::uint8_t> moving = {1, 1, 1};
+    std::vector<std::int32_t> cell = {0, 0, 0};
+    DensifyCloud d{g, moving, cell};
+    ASSERT_EQ(splitGaussians(d, {0, 2}, shrinkSplit(0.5f)), 2u);
+    ASSERT_EQ(g.size(), 5u);
+    // Both children of each: the parent's logit as it is (a round trip through alpha could move it),
+    // 0.6 x as wide along the longest axis.
+    for (const auto& [child, of] : std::vector<std::pair<std::size_t, std::size_t>>{{0, 0}, {3, 0}, {2, 2}, {4, 2}}) {
+        EXPECT_EQ(g.opacities[child], parent.opacities[of]);
+        const int axis = longestAxis(parent, of);
+        EXPECT_NEAR(g.scale(child)[axis], 0.6f * parent.scale(of)[axis], 1e-6f);
+    }
+    for (const float bad : {0.0f, -0.1f, 0.9f, std::nanf("")}) {
+        EXPECT_THROW(keepMomentsSplit(bad), InputError) << bad;
+        EXPECT_THROW(shrinkSplit(bad), InputError) << bad;
+    }
 }
