@@ -185,10 +185,10 @@ TEST(Densify, StretchedGaussiansAreTheMovingOnesOfCellsAboveTheThreshold)
 
 TEST(Densify, FromVdbsShrinkKeepsTheOpacityBitForBitAndBadOffsetsAreRefused)
 {
-    GaussianCloud g = threeGaussians();
-    const GaussianCloud parent = g;
-    std::vector<std::uint8_t> moving = {1, 1, 1};
-    std::vector<std::int32_t> cell = {0, 0, 0};
+    const GaussianCloud parent = threeGaussians();
+    std::vector<std::uint8_t> moving(3, 1);
+    std::vector<std::int32_t> cell(3, 0);
+    GaussianCloud g = parent;
     DensifyCloud d{g, moving, cell};
     ASSERT_EQ(splitGaussians(d, {0, 2}, shrinkSplit(0.5f)), 2u);
     ASSERT_EQ(g.size(), 5u);
