@@ -64,7 +64,10 @@ json settingsJson(const DeformJobOptions& o)
             {"vdb", o.writeVdb},
             {"render", o.render},
             {"device", deviceName(o.device)}};
-    if (o.maxGaussians) settings["maxGaussians"] = o.maxGaussians->text(); // absent: the hash of earlier runs holds
+    // Written only when they differ from the defaults, so the hash of earlier default runs holds.
+    if (o.maxGaussians) settings["maxGaussians"] = o.maxGaussians->text();
+    if (!o.validatedSplit) settings["validatedSplit"] = false;
+    if (!o.keepPerGaussian) settings["keepPerGaussian"] = false;
     return settings;
 }
 

@@ -133,7 +133,7 @@ TEST(AnimateJob, ResumeRedoesOnlyFramesWhoseFilesOrEntriesAreMissing)
     // Each flag against a run without it (the previous flag's run left other settings behind).
     for (const char* flag : {"--stall-tolerance 0.5", "--max-mean-step 0.2", "--drop-invalid", "--warm-start",
                              "--fine-cells auto", "--stage1-shape polar",
-                             "--endpoint-sigmas 1"}) {
+                             "--endpoint-sigmas 1", "--keep regions", "--validated-split off"}) {
         ASSERT_EQ(runCli(msg("-q animate ", fx.model, " --spec ", fx.spec, " -o ", fx.dir.file("out"), " ", kFlags,
                              " --frames 2-2"), fx.dir.file("plain.log")), 0);
         ASSERT_EQ(runCli(msg("-q animate ", fx.model, " --spec ", fx.spec, " -o ", fx.dir.file("out"), " ", kFlags,
