@@ -327,6 +327,29 @@ SampleSet warpedSamples(const DeformRest& rest, const Deformation& deformation, 
     return samples;
 }
 
+/// The judge's error every --eval-every Stage II iterations (report "evalCurve").
+struct EvalCurve {
+    const FrameErrors& errors;
+    std::vector<CurvePoint> points;
+
+    std::function<void(int, const GaussianCloud&)> onEval(bool on)
+    {
+        if (!on) return {};
+        return [this](int iteration, const GaussianCloud& current) {
+            points.push_back({iteration, errors.judge->fieldError(current)});
+            progress(msg("Stage II iteration ", iteration, ": judged opacity error ", points.back().error.opacity));
+        };
+    }
+    /// Drops the points after an iteration: a run that fell back to the CPU repeats them.
+    std::function<void(int)> dropAfter()
+    {
+        return [this](int after) {
+            points.erase(std::remove_if(points.begin(), points.end(), [&](const CurvePoint& p) { return p.iteration > after; }),
+                         points.end());
+        };
+    }
+};
+
 /// Stage II on a warped copy of the rest samples, with the held-out errors; returns the fitted model.
 GaussianCloud stageTwo(DeformRest& rest, const Deformation& deformation, const StageOneResult& stage1,
                        const DeformJobOptions& o, const StageTwoStart& start, FrameReport& report)
@@ -355,15 +378,7 @@ GaussianCloud stageTwo(DeformRest& rest, const Deformation& deformation, const S
     }
     const bool warm = start.change && cold.added == 0;
     const GaussianCloud startModel = o.keepValidated ? fitted : GaussianCloud();
-    std::vector<CurvePoint> curve;
-    auto onEval = [&](int iteration, const GaussianCloud& current) {
-        curve.push_back({iteration, errors.judge->fieldError(current)});
-        progress(msg("Stage II iteration ", iteration, ": judged opacity error ", curve.back().error.opacity));
-    };
-    auto dropCurveAfter = [&](int after) { // their run fell back to the CPU and repeats them
-        curve.erase(std::remove_if(curve.begin(), curve.end(), [&](const CurvePoint& p) { return p.iteration > after; }),
-                    curve.end());
-    };
+    EvalCurve curve{errors};
     StageTwoOptions s2 = o.stage2;
     s2.device = rest.device;
     DensifyJobOptions densify = o.densify; // Stage II's split spends what the splits before it left
@@ -371,12 +386,10 @@ GaussianCloud stageTwo(DeformRest& rest, const Deformation& deformation, const S
     DensifyCounts counts;
     auto fit = [&] {
         progress(msg("Stage II: ", o.stage2.iterations, " iterations on ", stage1.movingCount + cold.added, " moving Gaussians"));
-        curve.clear();
+        curve.points.clear();
         counts = DensifyCounts();
-        return fitInRounds(fitted, samples, cold.moving, cold.cells, s2, densify,
-                           o.evalEvery > 0 ? std::function<void(int, const GaussianCloud&)>(onEval)
-                                           : std::function<void(int, const GaussianCloud&)>(),
-                           o.evalEvery, counts, dropCurveAfter);
+        return fitInRounds(fitted, samples, cold.moving, cold.cells, s2, densify, curve.onEval(o.evalEvery > 0), o.evalEvery,
+                           counts, curve.dropAfter());
     };
     StageTwoReport r2 = fit();
     std::optional<double> rejectedStart; // the warm start's energy when the frame went back to the cold start
@@ -408,7 +421,7 @@ GaussianCloud stageTwo(DeformRest& rest, const Deformation& deformation, const S
     report.timingsMs["stage2"] = record.fit.msTotal + rejectedMs + counts.ms;
     if (start.change) record.start = warm && !rejectedStart ? "warm" : "cold";
     record.warmEnergy = rejectedStart;
-    if (o.evalEvery > 0) record.evalCurve = std::move(curve);
+    if (o.evalEvery > 0) record.evalCurve = std::move(curve.points);
     if (errors.judge) steps.start("judge");
     record.errors = errors.record(fitted, "Stage II");
     return fitted;

@@ -48,29 +48,10 @@ inline void addFineCellOptions(CLI::App* sub, DeformArgs& args)
                   "With --fine-cells auto: also refine the 26 neighbours of each fine cell");
 }
 
-/// @brief --split, --split-stretch, --split-after, --prune-below (Stage II in rounds, src/stage2/Densify.h).
-inline void addDensifyOptions(CLI::App* sub, DeformArgs& args)
+/// @brief The steps around Stage II that add or choose Gaussians: --curve-split, --validated-split,
+///        --max-gaussians, --curve-split-max/-rounds/-fan, --curve-shift, --keep.
+inline void addSplitStepOptions(CLI::App* sub, DeformArgs& args)
 {
-    DensifyJobOptions& d = args.job.densify;
-    sub->add_option("--split", args.split,
-                    "auto: split each moving Gaussian whose rest cell's deformation gradient F has its largest singular "
-                    "value above --split-stretch into two along its longest axis (same mass, mean, covariance and colour), "
-                    "between two Stage II rounds; off: one round")
-        ->capture_default_str()
-        ->check(CLI::IsMember({"auto", "off"}));
-    sub->add_option("--split-stretch", d.splitStretch,
-                    "With --split auto: the largest singular value of a cell's F above which its Gaussians split")
-        ->capture_default_str()
-        ->check(inRange(1.0, 100.0));
-    sub->add_option("--split-after", d.splitAfter,
-                    "With --split auto: share of the Stage II iterations run before the split (0: split first)")
-        ->capture_default_str()
-        ->check(inRange(0.0, 1.0));
-    sub->add_option("--split-offset", d.splitOffset,
-                    "With --split auto: the children sit at the mean +- this x sigma along the longest axis (their "
-                    "sigma there is sqrt(1 - offset^2) x the parent's)")
-        ->capture_default_str()
-        ->check(inRange(0.05, double(kMaxSplitOffset)));
     sub->add_option("--curve-split", args.curveSplit,
                     "auto: before Stage II, split each Gaussian that the deformation bends more than one affine map can "
                     "follow into three along the bent axis, in the rest pose, and move the children with Stage I again "
@@ -129,6 +110,33 @@ inline void addDensifyOptions(CLI::App* sub, DeformArgs& args)
                     "version of it that lowers the validation score; regions: the region mix only; fit: always keep the fit")
         ->capture_default_str()
         ->check(CLI::IsMember({"validated", "regions", "fit"}));
+}
+
+/// @brief --split, --split-stretch, --split-after, --split-offset, --prune-below (Stage II in rounds,
+///        src/stage2/Densify.h), and between them (for --help's order) addSplitStepOptions().
+inline void addDensifyOptions(CLI::App* sub, DeformArgs& args)
+{
+    DensifyJobOptions& d = args.job.densify;
+    sub->add_option("--split", args.split,
+                    "auto: split each moving Gaussian whose rest cell's deformation gradient F has its largest singular "
+                    "value above --split-stretch into two along its longest axis (same mass, mean, covariance and colour), "
+                    "between two Stage II rounds; off: one round")
+        ->capture_default_str()
+        ->check(CLI::IsMember({"auto", "off"}));
+    sub->add_option("--split-stretch", d.splitStretch,
+                    "With --split auto: the largest singular value of a cell's F above which its Gaussians split")
+        ->capture_default_str()
+        ->check(inRange(1.0, 100.0));
+    sub->add_option("--split-after", d.splitAfter,
+                    "With --split auto: share of the Stage II iterations run before the split (0: split first)")
+        ->capture_default_str()
+        ->check(inRange(0.0, 1.0));
+    sub->add_option("--split-offset", d.splitOffset,
+                    "With --split auto: the children sit at the mean +- this x sigma along the longest axis (their "
+                    "sigma there is sqrt(1 - offset^2) x the parent's)")
+        ->capture_default_str()
+        ->check(inRange(0.05, double(kMaxSplitOffset)));
+    addSplitStepOptions(sub, args);
     sub->add_option("--prune-below", d.pruneBelow,
                     "Remove the moving Gaussians whose opacity Stage II leaves below this (before the split and at the "
                     "end; 0: keep every Gaussian)")
