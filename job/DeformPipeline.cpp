@@ -218,7 +218,7 @@ void splitByValidation(const DeformRest& rest, const Deformation& deformation, c
     StageOneOptions s1 = o.stage1;
     s1.threaded = o.grid.threaded;
     const ValidatedSplitReport r =
-        validatedSplit(validation, rest.model, deformation, s1, stage1.deformed, budget, {c.model, c.moving, c.cells, curve});
+        validatedSplit(validation, rest.model, deformation, s1, stage1.deformed, budget, {c.model, c.moving, c.cells, &curve});
     c.added += r.added;
     report.validatedSplit = ValidatedSplitRecord{r, budget};
     report.timingsMs["validatedSplit"] = r.ms;

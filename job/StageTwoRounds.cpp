@@ -61,7 +61,7 @@ StageTwoReport fitInRounds(GaussianCloud& fitted, const SampleSet& samples, cons
 {
     std::vector<std::uint8_t> moving = stage1Moving;
     std::vector<std::int32_t> cell = gaussianCell;
-    DensifyCloud dc{fitted, moving, cell};
+    FitState dc{fitted, moving, cell};
     const int first = d.split ? int(std::lround(double(s2.iterations) * d.splitAfter)) : s2.iterations;
     StageTwoReport all;
     int done = 0;

@@ -14,12 +14,12 @@ namespace splatwarp {
 namespace {
 
 /// The Gaussians that may split: moving, still Stage I's, the heaviest (alpha s0 s1 s2), heaviest first.
-std::vector<std::size_t> splittable(const GaussianCloud& rest, const GaussianCloud& stage1, const SplitStart& s)
+std::vector<std::size_t> splittable(const GaussianCloud& rest, const GaussianCloud& stage1, const FitState& s)
 {
     std::vector<std::size_t> out;
     std::vector<double> mass(rest.size(), 0.0);
-    for (std::size_t i = 0; i < rest.size() && i < s.model.size(); ++i) {
-        if (!s.moving[i] || !s.model.sameGaussian(i, stage1, i)) continue;
+    for (std::size_t i = 0; i < rest.size() && i < s.cloud.size(); ++i) {
+        if (!s.moving[i] || !s.cloud.sameGaussian(i, stage1, i)) continue;
         const Vec3f sc = rest.scale(i);
         mass[i] = double(rest.alpha(i)) * double(sc.x) * double(sc.y) * double(sc.z);
         out.push_back(i);
@@ -40,7 +40,7 @@ std::vector<GaussianRef> childrenOf(const GaussianCloud& moved, std::size_t c, i
 
 ValidatedSplitReport validatedSplit(const Judge& validation, const GaussianCloud& rest, const Deformation& deformation,
                                     const StageOneOptions& stage1, const GaussianCloud& stage1Deformed,
-                                    std::size_t budget, SplitStart s)
+                                    std::size_t budget, FitState s)
 {
     const Stopwatch clock;
     ValidatedSplitReport r;
@@ -50,7 +50,7 @@ ValidatedSplitReport validatedSplit(const Judge& validation, const GaussianCloud
         r.ms = clock.ms();
         return r;
     }
-    ValidationResiduals residuals(validation, s.model);
+    ValidationResiduals residuals(validation, s.cloud);
     r.before = r.after = residuals.score();
     // Every candidate split along each axis, in the rest pose, then moved by Stage I.
     GaussianCloud childRest;
@@ -62,7 +62,7 @@ ValidatedSplitReport validatedSplit(const Judge& validation, const GaussianCloud
     const StageOneResult moved = applyStageOneCpu(childRest, rig, deformation.graph, deformation.transforms,
                                                   deformation.nodeMoving, stage1);
     std::vector<float> childCurve;
-    if (!s.curve.empty())
+    if (s.curve && !s.curve->empty())
         childCurve = stageOneBendingOf(childRest, rig, deformation.graph, deformation.transforms, moved.deformed,
                                        moved.moving, stage1).curve;
 
@@ -70,7 +70,7 @@ ValidatedSplitReport validatedSplit(const Judge& validation, const GaussianCloud
     std::vector<double> gain(candidates.size(), 0.0);
     parallelFor(candidates.size(), 16, stage1.threaded, [&](std::size_t c) {
         for (int a = 0; a < 3; ++a)
-            gain[c] = std::min(gain[c], residuals.change({{&s.model, candidates[c]}}, childrenOf(moved.deformed, c, a)));
+            gain[c] = std::min(gain[c], residuals.change({{&s.cloud, candidates[c]}}, childrenOf(moved.deformed, c, a)));
     });
     std::vector<std::size_t> order(candidates.size());
     std::iota(order.begin(), order.end(), std::size_t(0));
@@ -82,7 +82,7 @@ ValidatedSplitReport validatedSplit(const Judge& validation, const GaussianCloud
         int best = -1;
         double bestChange = -minGain;
         for (int a = 0; a < 3; ++a) {
-            const double d = residuals.change({{&s.model, i}}, childrenOf(moved.deformed, c, a));
+            const double d = residuals.change({{&s.cloud, i}}, childrenOf(moved.deformed, c, a));
             if (d < bestChange) {
                 bestChange = d;
                 best = a;
@@ -90,22 +90,10 @@ ValidatedSplitReport validatedSplit(const Judge& validation, const GaussianCloud
         }
         if (best < 0) continue;
         const std::vector<GaussianRef> children = childrenOf(moved.deformed, c, best);
-        residuals.apply({{&s.model, i}}, children);
-        for (std::size_t k = 0; k < children.size(); ++k) {
-            const std::size_t src = children[k].index;
-            std::size_t slot = i;
-            if (k == 0) {
-                s.model.assign(i, moved.deformed, src);
-            } else {
-                s.model.append(moved.deformed, src);
-                slot = s.model.size() - 1;
-                s.moving.push_back(0);
-                s.cells.push_back(s.cells[i]);
-                if (!s.curve.empty()) s.curve.resize(s.curve.size() + 3);
-            }
-            s.moving[slot] = moved.moving[src];
-            if (!s.curve.empty()) std::copy_n(&childCurve[3 * src], 3, &s.curve[3 * slot]);
-        }
+        residuals.apply({{&s.cloud, i}}, children);
+        std::vector<std::size_t> rows;
+        for (const GaussianRef& child : children) rows.push_back(child.index);
+        s.replace(i, moved.deformed, rows, moved.moving.data(), childCurve.empty() ? nullptr : childCurve.data());
         budget -= children.size() - 1;
         ++r.split;
         r.added += children.size() - 1;

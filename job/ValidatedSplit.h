@@ -13,6 +13,7 @@
 #include <vector>
 
 #include "job/Judge.h"
+#include "stage2/Densify.h"
 #include "core/GaussianCloud.h"
 #include "deform/Deformation.h"
 #include "deform/StageOne.h"
@@ -25,15 +26,6 @@ constexpr double kValidatedSplitMinGain = 1e-4;
 /// (about 140 MB at SH degree 3).
 constexpr std::size_t kValidatedSplitMaxTried = 65536;
 
-/// @brief Stage II's start: the model, its moving flags, each Gaussian's rest cell and phi's
-///        second-order offsets [N,3] (empty: not kept), changed in place.
-struct SplitStart {
-    GaussianCloud& model;
-    std::vector<std::uint8_t>& moving;
-    std::vector<std::int32_t>& cells;
-    std::vector<float>& curve;
-};
-
 /// @brief What the validated split did.
 struct ValidatedSplitReport {
     std::size_t tried = 0, split = 0, added = 0; ///< tried: 0 when the budget is spent
@@ -43,9 +35,10 @@ struct ValidatedSplitReport {
 
 /// @brief Split (see the file comment) the Gaussians i < rest.size() of `start` that are still
 ///        Stage I's (equal to stage1Deformed's i; the kValidatedSplitMaxTried heaviest), adding at
-///        most `budget` Gaussians.
+///        most `budget` Gaussians. `start` is Stage II's start (its curve rows kept when it has them),
+///        changed in place.
 ValidatedSplitReport validatedSplit(const Judge& validation, const GaussianCloud& rest, const Deformation& deformation,
                                     const StageOneOptions& stage1, const GaussianCloud& stage1Deformed,
-                                    std::size_t budget, SplitStart start);
+                                    std::size_t budget, FitState start);
 
 } // namespace splatwarp

@@ -56,7 +56,7 @@ std::size_t initialGaussianCount(std::size_t budget, const VolumeFitOptions& o)
 std::size_t pruneTransparent(GaussianCloud& cloud, float alpha)
 {
     AllMoving a(cloud.size()); // one prune: Stage II's (stage2/Densify.h)
-    DensifyCloud d{cloud, a.moving, a.cells};
+    FitState d{cloud, a.moving, a.cells};
     return pruneMovingBelow(d, alpha);
 }
 
@@ -82,7 +82,7 @@ std::size_t splitLargestResidual(GaussianCloud& cloud, const SampleSet& samples,
                       [&](std::size_t a, std::size_t b) { return mass[a] > mass[b] || (mass[a] == mass[b] && a < b); });
     order.resize(count); // Stage II's split with from-vdb's rule (stage2/Densify.h: shrinkSplit())
     AllMoving a(cloud.size());
-    DensifyCloud d{cloud, a.moving, a.cells};
+    FitState d{cloud, a.moving, a.cells};
     return splitGaussians(d, order, shrinkSplit(0.5f));
 }
 

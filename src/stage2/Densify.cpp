@@ -1,5 +1,6 @@
 #include "stage2/Densify.h"
 
+#include <algorithm>
 #include <cmath>
 
 #include "core/Error.h"
@@ -45,20 +46,40 @@ SplitPattern shrinkSplit(float k)
     return {double(0.6f), {double(k), -double(k)}, {1.0, 1.0}};
 }
 
-void splitGaussian(DensifyCloud& d, std::size_t i, const SplitPattern& pattern)
+void FitState::replace(std::size_t i, const GaussianCloud& from, const std::vector<std::size_t>& rows,
+                       const std::uint8_t* fromMoving, const float* fromCurve)
+{
+    const bool keepsCurve = curve && !curve->empty();
+    for (std::size_t k = 0; k < rows.size(); ++k) {
+        std::size_t slot = i;
+        if (k == 0) {
+            cloud.assign(i, from, rows[k]);
+        } else {
+            cloud.append(from, rows[k]);
+            slot = cloud.size() - 1;
+            moving.push_back(moving[i]);
+            gaussianCell.push_back(gaussianCell[i]);
+            if (keepsCurve) {
+                const float row[3] = {(*curve)[3 * i], (*curve)[3 * i + 1], (*curve)[3 * i + 2]};
+                curve->insert(curve->end(), row, row + 3);
+            }
+        }
+        if (fromMoving) moving[slot] = fromMoving[rows[k]];
+        if (keepsCurve && fromCurve) std::copy_n(fromCurve + 3 * rows[k], 3, curve->begin() + std::ptrdiff_t(3 * slot));
+    }
+}
+
+void splitGaussian(FitState& d, std::size_t i, const SplitPattern& pattern)
 {
     GaussianCloud children;
     children.shDegree = d.cloud.shDegree;
     const std::size_t count = appendSplitChildren(d.cloud, i, longestAxis(d.cloud, i), pattern, children);
-    d.cloud.assign(i, children, 0);
-    for (std::size_t c = 1; c < count; ++c) {
-        d.cloud.append(children, c);
-        d.moving.push_back(d.moving[i]);
-        d.gaussianCell.push_back(d.gaussianCell[i]);
-    }
+    std::vector<std::size_t> rows(count);
+    for (std::size_t c = 0; c < count; ++c) rows[c] = c;
+    d.replace(i, children, rows);
 }
 
-std::size_t splitGaussians(DensifyCloud& d, const std::vector<std::size_t>& which, const SplitPattern& pattern)
+std::size_t splitGaussians(FitState& d, const std::vector<std::size_t>& which, const SplitPattern& pattern)
 {
     const std::size_t n = d.cloud.size();
     for (std::size_t i : which) {
@@ -68,22 +89,26 @@ std::size_t splitGaussians(DensifyCloud& d, const std::vector<std::size_t>& whic
     return which.size();
 }
 
-std::size_t pruneMovingBelow(DensifyCloud& d, float below)
+std::size_t pruneMovingBelow(FitState& d, float below)
 {
     GaussianCloud kept;
     kept.shDegree = d.cloud.shDegree;
     std::vector<std::uint8_t> moving;
     std::vector<std::int32_t> cell;
+    std::vector<float> curve;
+    const bool keepsCurve = d.curve && !d.curve->empty();
     for (std::size_t i = 0; i < d.cloud.size(); ++i) {
         if (d.moving[i] && d.cloud.alpha(i) < below) continue;
         kept.append(d.cloud, i);
         moving.push_back(d.moving[i]);
         cell.push_back(d.gaussianCell[i]);
+        if (keepsCurve) curve.insert(curve.end(), d.curve->begin() + std::ptrdiff_t(3 * i), d.curve->begin() + std::ptrdiff_t(3 * i + 3));
     }
     const std::size_t removed = d.cloud.size() - kept.size();
     d.cloud = std::move(kept);
     d.moving = std::move(moving);
     d.gaussianCell = std::move(cell);
+    if (keepsCurve) *d.curve = std::move(curve);
     return removed;
 }
 

@@ -40,11 +40,19 @@ SplitPattern keepMomentsSplit(float k = kSplitOffset);
 ///        with keepMomentsSplit(), so from-vdb keeps it. @throws InputError as keepMomentsSplit().
 SplitPattern shrinkSplit(float k = kSplitOffset);
 
-/// @brief A cloud with the per-Gaussian arrays of a Stage II run, kept in step by every change.
-struct DensifyCloud {
+/// @brief A model with the per-Gaussian arrays a fit carries, kept in step by every change: the
+///        split and the prune below, and the validated split (job/ValidatedSplit.h).
+struct FitState {
     GaussianCloud& cloud;
     std::vector<std::uint8_t>& moving;       ///< [N] 1: Stage II moves it
     std::vector<std::int32_t>& gaussianCell; ///< [N] rest cell of its low-pass filter (-1: none)
+    std::vector<float>* curve = nullptr;     ///< [N,3] phi's second-order offsets, when kept (deform's start)
+
+    /// @brief Gaussian i becomes row rows[0] of `from`, the other rows are appended; each takes i's
+    ///        cell, its moving flag from fromMoving and its curve row from fromCurve (both indexed
+    ///        by the row of `from`; null: i's).
+    void replace(std::size_t i, const GaussianCloud& from, const std::vector<std::size_t>& rows,
+                 const std::uint8_t* fromMoving = nullptr, const float* fromCurve = nullptr);
 };
 
 /// @brief The moving Gaussians whose rest cell's F (cellGradient, [C,9]) has its largest singular
@@ -55,14 +63,14 @@ std::vector<std::size_t> stretchedGaussians(const std::vector<std::uint8_t>& mov
 
 /// @brief Split Gaussian i along its longest axis by a pattern (core/GaussianSplit.h): i becomes
 ///        the first child, the others are appended with i's moving flag and cell.
-void splitGaussian(DensifyCloud& d, std::size_t i, const SplitPattern& pattern = keepMomentsSplit());
+void splitGaussian(FitState& d, std::size_t i, const SplitPattern& pattern = keepMomentsSplit());
 
 /// @brief Split each listed Gaussian (indices into the cloud before any split); returns how many.
-std::size_t splitGaussians(DensifyCloud& d, const std::vector<std::size_t>& which,
+std::size_t splitGaussians(FitState& d, const std::vector<std::size_t>& which,
                            const SplitPattern& pattern = keepMomentsSplit());
 
 /// @brief Remove the moving Gaussians whose opacity alpha is below `below` (the static ones and
 ///        every other moving one are kept bit for bit, in order); returns how many were removed.
-std::size_t pruneMovingBelow(DensifyCloud& d, float below);
+std::size_t pruneMovingBelow(FitState& d, float below);
 
 } // namespace splatwarp

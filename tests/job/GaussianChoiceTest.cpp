@@ -130,7 +130,7 @@ TEST(ValidatedSplit, SplitsOnlyWhatTheValidationPointsMeasureToPay)
                                                         : std::vector<std::int32_t>(model.size(), 0);
         std::vector<float> curve(3 * model.size(), 0.0f);
         const ValidatedSplitReport r = validatedSplit(*fx.validation, fx.rest->model, fx.deformation, {}, s1.deformed,
-                                                      budget, {model, moving, cells, curve});
+                                                      budget, {model, moving, cells, &curve});
         EXPECT_GT(r.split, 0u);
         EXPECT_EQ(r.added, 2 * r.split);
         EXPECT_LE(r.added, budget);

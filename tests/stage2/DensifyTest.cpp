@@ -62,7 +62,7 @@ void expectSplitKeepsMoments(float cutoff, double tolerance, float offset)
     const FieldMoments before = moments(g, cutoff);
     std::vector<std::uint8_t> moving(3, 1);
     std::vector<std::int32_t> cell = {4, 5, -1};
-    DensifyCloud d{g, moving, cell};
+    FitState d{g, moving, cell};
     ASSERT_EQ(splitGaussians(d, {0, 1, 2}, keepMomentsSplit(offset)), 3u);
     ASSERT_EQ(g.size(), 6u);
     const FieldMoments after = moments(g, cutoff);
@@ -113,7 +113,7 @@ TEST(Densify, ChildrenInheritCellAndMovingFlagAndSplitAlongTheLongestAxis)
     const GaussianCloud parent = g;
     std::vector<std::uint8_t> moving = {1, 0, 1};
     std::vector<std::int32_t> cell = {7, 3, 9};
-    DensifyCloud d{g, moving, cell};
+    FitState d{g, moving, cell};
     splitGaussian(d, 2, keepMomentsSplit(0.8f)); // axis-aligned, longest along z (0.18): children 0.6 x as wide, alpha / 1.2
     ASSERT_EQ(g.size(), 4u);
     EXPECT_EQ(moving, (std::vector<std::uint8_t>{1, 0, 1, 1}));
@@ -145,7 +145,7 @@ TEST(Densify, PruneRemovesExactlyTheMovingGaussiansBelowTheThreshold)
     const GaussianCloud in = g;
     std::vector<std::uint8_t> moving = movingIn;
     std::vector<std::int32_t> cell = {0, 1, 2, 3, 4, 5};
-    DensifyCloud d{g, moving, cell};
+    FitState d{g, moving, cell};
     // Removed: 1 (0.003) and 3 (0.0039); 2 is below but static, 4 is at 0.004 >= 1/255.
     EXPECT_EQ(pruneMovingBelow(d, 1.0f / 255.0f), 2u);
     const std::vector<std::size_t> kept = {0, 2, 4, 5};
@@ -189,7 +189,7 @@ TEST(Densify, FromVdbsShrinkKeepsTheOpacityBitForBitAndBadOffsetsAreRefused)
     std::vector<std::uint8_t> moving(3, 1);
     std::vector<std::int32_t> cell(3, 0);
     GaussianCloud g = parent;
-    DensifyCloud d{g, moving, cell};
+    FitState d{g, moving, cell};
     ASSERT_EQ(splitGaussians(d, {0, 2}, shrinkSplit(0.5f)), 2u);
     ASSERT_EQ(g.size(), 5u);
     // Both children of each: the parent's logit as it is (a round trip through alpha could move it),
@@ -203,4 +203,34 @@ TEST(Densify, FromVdbsShrinkKeepsTheOpacityBitForBitAndBadOffsetsAreRefused)
         EXPECT_THROW(keepMomentsSplit(bad), InputError) << bad;
         EXPECT_THROW(shrinkSplit(bad), InputError) << bad;
     }
+}
+
+TEST(Densify, AFitStateKeepsItsCurveRowsInStepThroughReplaceAndPrune)
+{
+    const GaussianCloud parent = threeGaussians();
+    GaussianCloud g = parent;
+    std::vector<std::uint8_t> moving = {1, 0, 1};
+    std::vector<std::int32_t> cell = {4, 5, 6};
+    std::vector<float> curve = {0, 0, 1, 0, 0, 2, 0, 0, 3};
+    FitState d{g, moving, cell, &curve};
+    // Gaussian 2 becomes rows 1 and 0 of `from` (parent's 1 and 0): flags and curve rows from
+    // fromMoving / fromCurve, its cell for both.
+    const std::uint8_t fromMoving[3] = {1, 0, 1};
+    const float fromCurve[9] = {7, 7, 7, 8, 8, 8, 9, 9, 9};
+    d.replace(2, parent, {1, 0}, fromMoving, fromCurve);
+    ASSERT_EQ(g.size(), 4u);
+    EXPECT_TRUE(g.sameGaussian(2, parent, 1));
+    EXPECT_TRUE(g.sameGaussian(3, parent, 0));
+    EXPECT_EQ(moving, (std::vector<std::uint8_t>{1, 0, 0, 1}));
+    EXPECT_EQ(cell, (std::vector<std::int32_t>{4, 5, 6, 6}));
+    EXPECT_EQ(curve, (std::vector<float>{0, 0, 1, 0, 0, 2, 8, 8, 8, 7, 7, 7}));
+    // Without sources, the new row repeats the replaced Gaussian's flag and curve.
+    d.replace(0, parent, {2, 2});
+    EXPECT_EQ(moving.back(), 1);
+    EXPECT_EQ(std::vector<float>(curve.end() - 3, curve.end()), (std::vector<float>{0, 0, 1}));
+    // The prune drops the curve rows of what it removes.
+    g.opacities[3] = -20.0f; // moving, alpha ~2e-9
+    ASSERT_EQ(pruneMovingBelow(d, 0.01f), 1u);
+    EXPECT_EQ(curve.size(), 3 * g.size());
+    EXPECT_EQ(std::vector<float>(curve.begin() + 9, curve.begin() + 12), (std::vector<float>{0, 0, 1}));
 }
