@@ -178,10 +178,11 @@ CurveSplitResult curveSplitOf(const DeformRest& rest, const Deformation& deforma
     CurveSplitResult cs = split(o.curve.fanAbove);
     if (validation && o.curve.fanAbove > 0) {
         CurveSplitResult three = split(0.0);
-        record.validationWithFans = validation->score(cs.deformed);
-        record.validationWithoutFans = validation->score(three.deformed);
+        const Selection s = selectBest(*validation, {&cs.deformed, &three.deformed});
+        record.validationWithFans = s.scores[0];
+        record.validationWithoutFans = s.scores[1];
         const double ms = cs.ms + three.ms; // both splits ran
-        if (*record.validationWithoutFans < *record.validationWithFans) {
+        if (s.best == 1) {
             cs = std::move(three);
             record.fans = false;
         }

@@ -87,6 +87,19 @@ GaussianCloud mixOf(const std::vector<StageTwoCandidate>& candidates, const Regi
 
 } // namespace
 
+std::size_t firstLowest(const std::vector<double>& scores)
+{
+    return scores.empty() ? 0 : std::size_t(std::min_element(scores.begin(), scores.end()) - scores.begin());
+}
+
+Selection selectBest(const Judge& validation, const std::vector<const GaussianCloud*>& models)
+{
+    Selection s;
+    for (const GaussianCloud* m : models) s.scores.push_back(validation.score(*m));
+    s.best = firstLowest(s.scores);
+    return s;
+}
+
 GaussianCloud chooseStageTwoModel(const Judge& validation, const std::vector<StageTwoCandidate>& candidates,
                                   bool sameGaussians, StageTwoChoice& report)
 {
@@ -97,7 +110,7 @@ GaussianCloud chooseStageTwoModel(const Judge& validation, const std::vector<Sta
         points.push_back(validation.pointScores(*c.model));
         report.scores.push_back(std::accumulate(points.back().begin(), points.back().end(), 0.0));
     }
-    const std::size_t best = std::size_t(std::min_element(report.scores.begin(), report.scores.end()) - report.scores.begin());
+    const std::size_t best = firstLowest(report.scores);
     GaussianCloud kept = *candidates[best].model;
     report.kept = candidates[best].name;
     report.mix = INFINITY;
@@ -141,6 +154,8 @@ CurveShiftChoice chooseCurveShift(const Judge& validation, const GaussianCloud& 
     const Stopwatch clock;
     CurveShiftChoice c;
     double best = INFINITY;
+    // The selector's rule (the first lowest), one shifted model at a time: holding all four would
+    // add three models to the frame's peak memory.
     for (double share : shares) {
         GaussianCloud shifted = curveShifted(start, curve, share);
         c.scores.push_back(validation.score(shifted));

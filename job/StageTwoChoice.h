@@ -23,6 +23,20 @@ constexpr std::uint32_t kValidationSeedXor = 0x5bd1e995u;
 /// Regions along the validation points' largest warped extent.
 constexpr int kChoiceRegions = 16;
 
+/// @brief The selector's rule, shared by every choice the validation points make (the curve split
+///        with fans or without, the curve shift's share, the keep's candidates): each model's
+///        validation score (opacity + colour relative L1, Judge::score()) and the first lowest.
+struct Selection {
+    std::size_t best = 0;
+    std::vector<double> scores;
+};
+
+/// @brief The first lowest of `scores` (its index; 0 when empty).
+std::size_t firstLowest(const std::vector<double>& scores);
+
+/// @brief Score each model on the validation points and pick the first lowest.
+Selection selectBest(const Judge& validation, const std::vector<const GaussianCloud*>& models);
+
 /// @brief A model the choice may keep: Stage II's start, its fit, or another start.
 struct StageTwoCandidate {
     std::string name;

@@ -108,3 +108,17 @@ TEST(StageTwoChoice, TheCurveShiftTakesTheShareTheValidationPointsPrefer)
     EXPECT_LT(c.scores[1], 0.9 * c.scores[0]);
     EXPECT_GT(c.scores[3], c.scores[1]);
 }
+
+// The selector's rule: each model's validation score, the first lowest kept (ties go to the earlier).
+TEST(StageTwoChoice, TheSelectorKeepsTheFirstLowestScore)
+{
+    EXPECT_EQ(firstLowest({3.0, 1.0, 1.0, 2.0}), 1u);
+    EXPECT_EQ(firstLowest({}), 0u);
+    const ChoiceFixture fx;
+    const GaussianCloud blanked = fx.blanked(true);
+    const Selection s = selectBest(*fx.validation, {&blanked, &fx.stage1, &fx.stage1});
+    ASSERT_EQ(s.scores.size(), 3u);
+    EXPECT_EQ(s.best, 1u);
+    EXPECT_EQ(s.scores[1], fx.validation->score(fx.stage1));
+    EXPECT_GT(s.scores[0], s.scores[1]);
+}
