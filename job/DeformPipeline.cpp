@@ -150,7 +150,10 @@ struct ColdStart {
     GaussianCloud shifted; ///< the curve shift of model (empty when off): a candidate of the keep
     std::vector<std::uint8_t> moving;
     std::vector<std::int32_t> cells;
+    std::vector<float> curve; ///< [N,3] phi's second-order offsets of model's Gaussians, while the splits and shift need them
     std::size_t added = 0;
+    /// The arrays as the steps that change them take them (stage2/Densify.h).
+    FitState state() { return {model, moving, cells, &curve}; }
 };
 
 /// The Gaussians the splits before and inside Stage II may add to a model of `n`: the --max-gaussians
@@ -211,15 +214,14 @@ GaussianCloud curveShiftOf(const GaussianCloud& start, const std::vector<float>&
 /// --validated-split: the splits the validation points measure to pay, within what is left of the
 /// curve split's budget (the report's "validatedSplit").
 void splitByValidation(const DeformRest& rest, const Deformation& deformation, const StageOneResult& stage1,
-                       const DeformJobOptions& o, const Judge& validation, std::vector<float>& curve, ColdStart& c,
-                       FrameReport& report)
+                       const DeformJobOptions& o, const Judge& validation, ColdStart& c, FrameReport& report)
 {
     const std::size_t allowed = splitBudget(o, rest.model.size());
     const std::size_t budget = allowed > c.added ? allowed - c.added : 0;
     StageOneOptions s1 = o.stage1;
     s1.threaded = o.grid.threaded;
     const ValidatedSplitReport r =
-        validatedSplit(validation, rest.model, deformation, s1, stage1.deformed, budget, {c.model, c.moving, c.cells, &curve});
+        validatedSplit(validation, rest.model, deformation, s1, stage1.deformed, budget, c.state());
     c.added += r.added;
     report.validatedSplit = ValidatedSplitRecord{r, budget};
     report.timingsMs["validatedSplit"] = r.ms;
@@ -258,21 +260,21 @@ ColdStart coldStart(const DeformRest& rest, const Deformation& deformation, cons
                     const DeformJobOptions& o, const FrameErrors& errors, const Judge* validation, FrameReport& report,
                     StepProgress& steps)
 {
-    ColdStart c{stage1.deformed, {}, stage1.moving, rest.grid->gaussianCell(), 0};
-    std::vector<float> curve; // phi's second-order offsets of c.model's Gaussians
+    ColdStart c{stage1.deformed, {}, stage1.moving, rest.grid->gaussianCell(), {}, 0};
     if (o.curveSplit) {
         steps.start("curve split");
-        curve = splitBent(rest, deformation, stage1, o, errors, validation, c, report);
+        c.curve = splitBent(rest, deformation, stage1, o, errors, validation, c, report);
     } else if (validation && o.curveShift != 0.0) {
-        curve = stageOneBendingOf(rest.model, rest.rig, rest.graph, deformation.transforms, stage1.deformed,
-                                  stage1.moving, o.stage1).curve;
+        c.curve = stageOneBendingOf(rest.model, rest.rig, rest.graph, deformation.transforms, stage1.deformed,
+                                    stage1.moving, o.stage1).curve;
     }
     if (validation && o.validatedSplit) {
         steps.start("validated split");
-        splitByValidation(rest, deformation, stage1, o, *validation, curve, c, report);
+        splitByValidation(rest, deformation, stage1, o, *validation, c, report);
     }
     if (validation && o.curveShift != 0.0) steps.start("curve shift");
-    c.shifted = curveShiftOf(c.model, curve, o, errors, validation, report);
+    c.shifted = curveShiftOf(c.model, c.curve, o, errors, validation, report);
+    c.curve = std::vector<float>(); // not needed past the shift: free it before Stage II
     checkCancelled();
     return c;
 }
