@@ -73,7 +73,8 @@ GaussianCloud decodeGaussians(const std::string& bytes, const GaussianCloud* res
     if (floats == kPoseFloats && (!rest || rest->size() != n))
         throw InputError(msg("an SWG1 pose of ", n, " Gaussians holds no opacities or colours: decode it with its rest model"));
     GaussianCloud cloud;
-    cloud.resize(n, 0);
+    if (floats == kPoseFloats) cloud = withShDegree(*rest, 0); // its opacities and DC; the geometry below
+    else cloud.resize(n, 0);
     const char* at = bytes.data() + kLayoutHeaderBytes;
     const auto get = [&](float* data, std::size_t count) {
         if (count) std::memcpy(data, at, count * 4);
@@ -85,12 +86,7 @@ GaussianCloud decodeGaussians(const std::string& bytes, const GaussianCloud* res
     if (floats == kLayoutFloats) {
         get(cloud.opacities.data(), n);
         get(cloud.sh.data(), 3 * n);
-        return cloud;
     }
-    cloud.opacities = rest->opacities;
-    const std::size_t stride = std::size_t(rest->shStride());
-    for (std::size_t i = 0; i < n; ++i)
-        for (int c = 0; c < 3; ++c) cloud.sh[3 * i + std::size_t(c)] = rest->sh[i * stride + std::size_t(c)];
     return cloud;
 }
 

@@ -193,6 +193,16 @@ SPLATWARP_HOST_DEVICE Vec3d stageOneBending(const StageOneCurvature& c, const fl
     return out;
 }
 
+/// @brief Whether Gaussian i moves: any of its 7 skinned points has weight on a moving node
+///        (nodes / weights [N*7,k], nodeMoving [J]).
+SPLATWARP_HOST_DEVICE bool stageOneMoves(const std::int32_t* nodes, const float* weights, std::size_t k,
+                                         const std::uint8_t* nodeMoving, std::size_t i)
+{
+    for (std::size_t q = i * kStageOnePoints * k; q < (i + 1) * kStageOnePoints * k; ++q)
+        if (weights[q] > 0.0f && nodeMoving[std::size_t(nodes[q])]) return true;
+    return false;
+}
+
 /// @brief Update Gaussian i: skin its centre and endpoints, M = (P Q^T)(Q Q^T)^-1, polar M = R S,
 ///        then mean, shape (affine: covariance M Sigma M^T; polar: rotation R R0, log-scales + log
 ///        stretch) and SH rotated by R.
@@ -200,9 +210,7 @@ SPLATWARP_HOST_DEVICE void stageOneUpdate(const StageOneInputs& in, const StageO
                                           const StageOneOutputs& out)
 {
     const std::size_t k = in.k;
-    bool moving = false;
-    for (std::size_t q = i * kStageOnePoints * k; q < (i + 1) * kStageOnePoints * k && !moving; ++q)
-        moving = in.weights[q] > 0.0f && in.nodeMoving[std::size_t(in.nodes[q])];
+    const bool moving = stageOneMoves(in.nodes, in.weights, k, in.nodeMoving, i);
     out.moving[i] = moving ? 1 : 0;
     if (!moving) return;
     const StageOneRestFrame f = stageOneRestFrame(in.means, in.rotations, in.logScales, i, p);

@@ -205,12 +205,9 @@ std::vector<std::uint32_t> movingGaussians(const StageOneRig& rig, const std::ve
     const std::size_t n = rig.size(), k = std::size_t(rig.weights.k);
     std::vector<std::uint32_t> out;
     out.reserve(n);
-    for (std::size_t i = 0; i < n; ++i) {
-        bool moves = false;
-        for (std::size_t q = i * kPoints * k; q < (i + 1) * kPoints * k && !moves; ++q)
-            moves = rig.weights.weights[q] > 0.0f && nodeMoving[std::size_t(rig.weights.nodes[q])];
-        if (moves) out.push_back(std::uint32_t(i));
-    }
+    for (std::size_t i = 0; i < n; ++i)
+        if (stageOneMoves(rig.weights.nodes.data(), rig.weights.weights.data(), k, nodeMoving.data(), i))
+            out.push_back(std::uint32_t(i));
     return out;
 }
 
