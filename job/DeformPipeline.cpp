@@ -166,7 +166,8 @@ std::size_t splitBudget(const DeformJobOptions& o, std::size_t n)
 
 /// The curve split; with validation points, split with fans and without and keep the one they
 /// judge better (fans win where a few Gaussians are bent far beyond three halvings, playbot-31k;
-/// they lose where many thin ones are, guitar: docs/lab/fidelity-study.md).
+/// they lose where many thin ones are, guitar: docs/lab/fidelity-study.md). Where no Gaussian was
+/// bent far enough to fan, both are the same split: it is made and scored once.
 CurveSplitResult curveSplitOf(const DeformRest& rest, const Deformation& deformation, const StageOneResult& stage1,
                               const DeformJobOptions& o, const Judge* validation, CurveSplitRecord& record)
 {
@@ -179,7 +180,9 @@ CurveSplitResult curveSplitOf(const DeformRest& rest, const Deformation& deforma
                           o.stage1, co);
     };
     CurveSplitResult cs = split(o.curve.fanAbove);
-    if (validation && o.curve.fanAbove > 0) {
+    if (validation && o.curve.fanAbove > 0 && cs.beyondFan == 0) {
+        record.validationWithFans = record.validationWithoutFans = selectBest(*validation, {&cs.deformed}).scores[0];
+    } else if (validation && o.curve.fanAbove > 0) {
         CurveSplitResult three = split(0.0);
         const Selection s = selectBest(*validation, {&cs.deformed, &three.deformed});
         record.validationWithFans = s.scores[0];

@@ -195,6 +195,8 @@ CurveSplitResult curveSplit(const GaussianCloud& rest, const StageOneRig& rig, c
         measure();
         const std::vector<float>& bending = bends.bend;
         std::vector<std::size_t> bent = bentByGain(gen.rest, bending, o.fanAbove);
+        if (o.fanAbove > 0.0)
+            res.beyondFan += std::size_t(std::count_if(bending.begin(), bending.end(), [&](float b) { return b > o.fanAbove; }));
         if (bent.empty()) break;
         Generation next;
         next.rest.shDegree = rest.shDegree;

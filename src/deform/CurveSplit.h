@@ -63,6 +63,9 @@ struct CurveSplitResult {
     std::vector<float> curve;          ///< [N',3] phi's second-order offset sum_a h_a (StageOneBends)
     std::size_t split = 0, added = 0;  ///< Gaussians split (every round) and Gaussians added
     int rounds = 0;                    ///< rounds that split something
+    /// Gaussians bent beyond fanAbove where a round chose its splits; 0: the split is the one
+    /// fanAbove 0 makes (every pattern and gain the same), so a run without fans need not be made.
+    std::size_t beyondFan = 0;
     double ms = 0;
 };
 

@@ -174,29 +174,55 @@ TEST(CurveSplit, AnAffineDeformationBendsNothing)
 // A flat Gaussian bent into a parabola z = kappa x^2: its one affine copy leaves the curved sheet
 // at its ends; the split's children follow the curve, so the field at the warped points is
 // closer to the rest field there (the judge's measure: O_def(phi(X)) against O_rest(X)).
+namespace {
+
+/// The sheet bent into the parabola z = kappa x^2, moved by Stage I.
+struct BentSheet {
+    GaussianCloud rest = sheet();
+    DeformationGraph graph = latticeGraph();
+    NodeTransforms t;
+    std::vector<std::uint8_t> moving;
+    StageOneRig rig;
+    StageOneResult s1;
+
+    explicit BentSheet(double kappa)
+    {
+        t = transformsOf(
+            graph, [&](const Vec3d& x) { return Vec3d(x.x, x.y, x.z + kappa * x.x * x.x); },
+            [&](const Vec3d& x) {
+                Mat3d j = Mat3d::identity();
+                j.m[2][0] = 2.0 * kappa * x.x;
+                return j;
+            });
+        moving.assign(graph.nodeCount(), 1);
+        rig = prepareStageOne(rest, graph);
+        s1 = applyStageOneCpu(rest, rig, graph, t, moving);
+    }
+    CurveSplitResult split(double fanAbove) const
+    {
+        CurveSplitOptions o;
+        o.maxAdded = 8.0f;
+        o.fanAbove = fanAbove;
+        return curveSplit(rest, rig, graph, t, moving, s1, {}, o);
+    }
+};
+
+} // namespace
+
 TEST(CurveSplit, ABentSheetIsSplitAndItsChildrenFollowTheCurve)
 {
-    const GaussianCloud rest = sheet();
-    const DeformationGraph graph = latticeGraph();
-    const double kappa = 0.5;
-    const NodeTransforms t = transformsOf(
-        graph, [&](const Vec3d& x) { return Vec3d(x.x, x.y, x.z + kappa * x.x * x.x); },
-        [&](const Vec3d& x) {
-            Mat3d j = Mat3d::identity();
-            j.m[2][0] = 2.0 * kappa * x.x;
-            return j;
-        });
-    const std::vector<std::uint8_t> moving(graph.nodeCount(), 1);
-    const StageOneRig rig = prepareStageOne(rest, graph);
-    const StageOneResult s1 = applyStageOneCpu(rest, rig, graph, t, moving);
+    const BentSheet b(0.5);
+    const GaussianCloud& rest = b.rest;
+    const DeformationGraph& graph = b.graph;
+    const NodeTransforms& t = b.t;
+    const StageOneRig& rig = b.rig;
+    const StageOneResult& s1 = b.s1;
     const StageOneBends bends = stageOneBendingOf(rest, rig, graph, t, s1.deformed, s1.moving, {});
     const std::vector<float>& bending = bends.bend;
     // Second-order term along x: 1/2 sigma^2 * 2 kappa = 0.045 in z, 1.5 of the thin sigma 0.03.
     EXPECT_NEAR(bending[0], 1.5, 0.15);
     EXPECT_EQ(bends.axis[0], 0);
-    CurveSplitOptions o;
-    o.maxAdded = 8.0f;
-    const CurveSplitResult cs = curveSplit(rest, rig, graph, t, moving, s1, {}, o);
+    const CurveSplitResult cs = b.split(kFanAbove);
     EXPECT_GE(cs.split, 1u);
     EXPECT_EQ(cs.deformed.size(), 1u + cs.added);
     EXPECT_EQ(cs.parent.size(), cs.deformed.size());
@@ -226,4 +252,21 @@ TEST(CurveSplit, ABentSheetIsSplitAndItsChildrenFollowTheCurve)
     // Measured: Stage I 0.480, shifted 0.461 (bent 1.5 of its thin sigma; scripts/curve-shift-l1.py
     // gives the best share for one Gaussian bent by 1 to 2 sigmas as 0.25-0.3).
     EXPECT_LT(e3, 0.98 * e1) << "Stage I " << e1 << ", shifted " << e3;
+}
+
+// Bent by 1.5 of its sigmas, below the fan threshold: the split says so (beyondFan 0) and is the
+// split made without fans, so deform makes it once. Above the threshold it fans, and says so.
+TEST(CurveSplit, ASplitWithNothingToFanSaysSoAndIsTheSplitWithoutFans)
+{
+    const BentSheet b(0.5);
+    const CurveSplitResult withFans = b.split(kFanAbove), without = b.split(0.0);
+    EXPECT_EQ(withFans.beyondFan, 0u);
+    EXPECT_EQ(without.beyondFan, 0u);
+    ASSERT_EQ(withFans.deformed.size(), without.deformed.size());
+    EXPECT_EQ(withFans.deformed.means, without.deformed.means);
+    EXPECT_EQ(withFans.deformed.opacities, without.deformed.opacities);
+
+    const CurveSplitResult fanned = b.split(1.0);
+    EXPECT_GE(fanned.beyondFan, 1u);
+    EXPECT_NE(fanned.deformed.means, without.deformed.means); // a fan: other children
 }
