@@ -59,6 +59,16 @@ struct LargeAllocator {
 template <typename T>
 using BigVector = std::vector<T, LargeAllocator<T>>;
 
+/// @brief resize(n) of a buffer whose contents the caller rewrites: a growth past the capacity
+///        frees the old block before allocating, where resize() would hold both while it copies
+///        (a Stage II coverage rebuild that adds pairs: old + new partials at once).
+template <typename T, typename A>
+void resizeDiscarding(std::vector<T, A>& v, std::size_t n)
+{
+    if (n > v.capacity()) std::vector<T, A>().swap(v);
+    v.resize(n);
+}
+
 /// @brief Run f(); an allocation failure becomes InputError "<stage>: out of memory ...".
 template <typename F>
 auto runStage(const char* stage, F&& f) -> decltype(f())

@@ -325,8 +325,8 @@ StageTwoEnergy CpuSolver::forward(int iteration, std::uint64_t& pairs)
         mProbe->opacity.assign(mS, 0.0f);
         mProbe->gradO.assign(mS, 0.0f);
     }
-    mPairChunks.resize(mCoverage.pairCount());
-    mPartials.resize(mCoverage.pairCount() * partialStride());
+    resizeDiscarding(mPairChunks, mCoverage.pairCount()); // rewritten by every pass
+    resizeDiscarding(mPartials, mCoverage.pairCount() * partialStride());
     parallelFor(mBlocks.count(), 4, mOptions.threaded, [&](std::size_t b) { mBlockPairs[b] = forwardBlock(b); });
     StageTwoEnergy e;
     e.iteration = iteration;

@@ -201,8 +201,8 @@ void BlockCoverage::flatten(std::size_t nb, std::size_t g, bool threaded)
         }
         mBlockOffsets[b + 1] = at;
     }
-    mBlockItems.resize(pairs);
-    mBlockEntryOf.resize(pairs);
+    resizeDiscarding(mBlockItems, pairs); // every entry is written below
+    resizeDiscarding(mBlockEntryOf, pairs);
     parallelFor(kRanges, 1, threaded, [&](std::size_t r) {
         for (std::size_t k = rangeOf(r).first; k < rangeOf(r).second; ++k) {
             std::uint32_t* entryOf = mBlockEntryOf.data() + mGaussianOffsets[k];
