@@ -99,7 +99,8 @@ const std::vector<std::string>& recipeStepNames()
 
 Recipe builtinRecipe(const std::string& name)
 {
-    if (name == "paper") return {"paper", {{"stage1", {{"shape", "polar"}}}, {"stage2", {{"boundaryWeight", "99"}}}}};
+    if (name == "paper")
+        return {"paper", {{"stage1", {{"shape", "polar"}}}, {"stage2", {{"iterations", "100"}, {"boundaryWeight", "99"}}}}};
     if (name == "default")
         return {"default", {{"stage1", {}}, {"curveSplit", {}}, {"validatedSplit", {}}, {"curveShift", {}}, {"stage2", {}}, {"keep", {}}}};
     throw UsageError(msg("--recipe must be paper, default or a recipe file (.json), not '", name, "'"));

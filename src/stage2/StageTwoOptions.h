@@ -8,7 +8,11 @@
 namespace splatwarp {
 
 struct StageTwoOptions {
-    int iterations = 100;          ///< Adam steps (paper: 100 is about as good as 1000)
+    /// Adam steps. The paper runs 100 ("about as good as 1000"; `--recipe paper` keeps them). 50
+    /// by measurement: the judged error of Stage II's raw fit is lowest early and rises as the
+    /// training energy keeps falling (demo: 0.032 at 10, 0.052 at 100), and deform's kept result is
+    /// as good at 50 on both judges (docs/lab/stage2-iterations.md) in half the time.
+    int iterations = 50;
     float lambdaOpacity = 1.0f;    ///< lambda1: weight of sum |O* - O|
     /// lambda2: extra weight where O* = 0 (keeps Gaussians out of empty space). The paper's 99
     /// weighs a tail crossing the cutoff into empty space 100x against the field inside: on the
@@ -33,7 +37,7 @@ struct StageTwoOptions {
     float cutoff = kDefaultCutoff; ///< a pair counts only where alpha*G >= cutoff
 
     /// Iterations the position rate decays over (0: all of them). `--iterations auto` keeps the
-    /// default run's 100, so its first 100 steps are that run's and later ones go on at the end rate.
+    /// default run's, so its first steps are that run's and later ones go on at the end rate.
     int scheduleIterations = 0;
     int scheduleLength() const { return scheduleIterations > 0 ? scheduleIterations : iterations; }
 

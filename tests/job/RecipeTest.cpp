@@ -31,6 +31,7 @@ TEST(Recipe, PaperIsPolarStageOneThenStageTwoAndNothingElse)
     const Flags paper = recipeFlags(builtinRecipe("paper"));
     EXPECT_EQ(flagValue(paper, "--stage1-shape"), "polar");
     EXPECT_EQ(flagValue(paper, "--boundary-weight"), "99");
+    EXPECT_EQ(flagValue(paper, "--iterations"), "100"); // the paper's, not the default's 50
     for (const char* off : {"--curve-split", "--validated-split", "--split"}) EXPECT_EQ(flagValue(paper, off), "off") << off;
     EXPECT_EQ(flagValue(paper, "--curve-shift"), "0");
     EXPECT_EQ(flagValue(paper, "--keep"), "fit");
@@ -84,6 +85,7 @@ TEST(Recipe, DeformWithARecipeGivesTheBytesOfItsFlags)
     };
     const std::string paper = run("paper", "--recipe paper");
     EXPECT_TRUE(paper == run("flags", "--stage1-shape polar --curve-split off --validated-split off --keep fit --curve-shift 0 --boundary-weight 99"));
+    // (--iterations 4 above wins over the paper's 100, as any flag given beside a recipe.)
     EXPECT_FALSE(paper == run("default", ""));
     EXPECT_TRUE(run("default", "") == run("named", "--recipe default"));
     // A flag beside the recipe wins over it.
