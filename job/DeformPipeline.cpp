@@ -180,20 +180,21 @@ CurveSplitResult curveSplitOf(const DeformRest& rest, const Deformation& deforma
                           o.stage1, co);
     };
     CurveSplitResult cs = split(o.curve.fanAbove);
-    if (validation && o.curve.fanAbove > 0 && cs.beyondFan == 0) {
-        record.validationWithFans = record.validationWithoutFans = selectBest(*validation, {&cs.deformed}).scores[0];
-    } else if (validation && o.curve.fanAbove > 0) {
-        CurveSplitResult three = split(0.0);
-        const Selection s = selectBest(*validation, {&cs.deformed, &three.deformed});
-        record.validationWithFans = s.scores[0];
-        record.validationWithoutFans = s.scores[1];
-        const double ms = cs.ms + three.ms; // both splits ran
-        if (s.best == 1) {
-            cs = std::move(three);
-            record.fans = false;
-        }
-        cs.ms = ms;
+    if (!validation || !(o.curve.fanAbove > 0)) return cs;
+    if (cs.beyondFan == 0) { // nothing fanned: this is also the split without fans
+        record.validationWithFans = record.validationWithoutFans = validation->score(cs.deformed);
+        return cs;
     }
+    CurveSplitResult three = split(0.0);
+    const Selection s = selectBest(*validation, {&cs.deformed, &three.deformed});
+    record.validationWithFans = s.scores[0];
+    record.validationWithoutFans = s.scores[1];
+    const double ms = cs.ms + three.ms; // both splits ran
+    if (s.best == 1) {
+        cs = std::move(three);
+        record.fans = false;
+    }
+    cs.ms = ms;
     return cs;
 }
 
