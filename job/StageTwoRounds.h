@@ -1,8 +1,7 @@
 #pragma once
 /// @file StageTwoRounds.h
-/// @brief Stage II in rounds with split and prune between them (stage2/Densify.h): each round is
-///        one runStageTwo() call on a fresh solver, so the CPU and CUDA solvers follow the same
-///        rules; the rounds' reports are merged into one.
+/// @brief deform's Stage II with --split: two rounds of the one round loop (stage2/Rounds.h) with
+///        the split of stretched cells (and the prune) between them.
 #include <cstddef>
 #include <cstdint>
 #include <optional>
@@ -13,6 +12,7 @@
 #include "core/GaussianCloud.h"
 #include "field/SampleSet.h"
 #include "stage2/Densify.h"
+#include "stage2/Rounds.h"
 #include "stage2/StageTwo.h"
 
 namespace splatwarp {
@@ -35,10 +35,6 @@ struct DensifyCounts {
     std::size_t split = 0, pruned = 0;
     double ms = 0;
 };
-
-/// @brief The device(s) of a run: "cpu" or "cuda", or each round's in order when they differ
-///        ("cuda+cpu": the second round fell back to the CPU).
-std::string devicesName(const StageTwoReport& report);
 
 /// @brief Stage II in rounds: the iterations before the split, split (and prune) on the host, the
 ///        rest; one round when splitting is off. Children inherit their parent's moving flag and cell.

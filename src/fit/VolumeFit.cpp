@@ -9,7 +9,7 @@
 #include "core/Progress.h"
 #include "field/FeatureField.h"
 #include "stage2/Densify.h"
-#include "stage2/StageTwoDevice.h"
+#include "stage2/Rounds.h"
 
 namespace splatwarp {
 
@@ -60,9 +60,13 @@ std::size_t pruneTransparent(GaussianCloud& cloud, float alpha)
     return pruneMovingBelow(d, alpha);
 }
 
-std::size_t splitLargestResidual(GaussianCloud& cloud, const SampleSet& samples, const std::vector<float>& residual,
+namespace {
+
+/// The split of splitLargestResidual() on a fit's state.
+std::size_t splitLargestResidual(FitState& d, const SampleSet& samples, const std::vector<float>& residual,
                                  std::size_t count)
 {
+    const GaussianCloud& cloud = d.cloud;
     if (cloud.empty() || count == 0) return 0;
     CentreCloud centres{cloud.means};
     CentreTree tree(3, centres, nanoflann::KDTreeSingleIndexAdaptorParams(10));
@@ -81,31 +85,41 @@ std::size_t splitLargestResidual(GaussianCloud& cloud, const SampleSet& samples,
     std::partial_sort(order.begin(), order.begin() + std::ptrdiff_t(count), order.end(),
                       [&](std::size_t a, std::size_t b) { return mass[a] > mass[b] || (mass[a] == mass[b] && a < b); });
     order.resize(count); // Stage II's split with from-vdb's rule (stage2/Densify.h: shrinkSplit())
+    return splitGaussians(d, order, shrinkSplit(0.5f));
+}
+
+} // namespace
+
+std::size_t splitLargestResidual(GaussianCloud& cloud, const SampleSet& samples, const std::vector<float>& residual,
+                                 std::size_t count)
+{
     AllMoving a(cloud.size());
     FitState d{cloud, a.moving, a.cells};
-    return splitGaussians(d, order, shrinkSplit(0.5f));
+    return splitLargestResidual(d, samples, residual, count);
 }
 
 VolumeFitReport fitToSamples(GaussianCloud& cloud, const SampleSet& samples, std::size_t budget, const VolumeFitOptions& o)
 {
     if (o.rounds < 1 || o.iterations < 0) throw InputError("volume fit: rounds must be >= 1 and iterations >= 0");
     VolumeFitReport report;
-    for (int round = 0; round < o.rounds; ++round) {
-        StageTwoOptions s2 = o.stage2;
-        s2.iterations = o.iterations / o.rounds + (round < o.iterations % o.rounds ? 1 : 0);
-        const std::vector<std::uint8_t> moving(cloud.size(), 1);
-        const std::vector<std::int32_t> cell(cloud.size(), samples.cellCount() > 0 && s2.lowPassFilter ? 0 : -1);
-        if (s2.iterations > 0) report.rounds.push_back(runStageTwo(cloud, samples, moving, cell, s2));
-        if (round + 1 == o.rounds) break;
+    // Every Gaussian moves; one filter cell for all when the samples have cells (stage2/Rounds.h).
+    std::vector<std::uint8_t> moving(cloud.size(), 1);
+    std::vector<std::int32_t> cells(cloud.size(), samples.cellCount() > 0 && o.stage2.lowPassFilter ? 0 : -1);
+    FitState state{cloud, moving, cells};
+    RoundsPlan plan;
+    for (int round = 0; round < o.rounds; ++round)
+        plan.iterations.push_back(o.iterations / o.rounds + (round < o.iterations % o.rounds ? 1 : 0));
+    plan.between = [&](int round) {
         Stopwatch watch;
-        report.pruned += pruneTransparent(cloud, o.pruneAlpha);
+        report.pruned += pruneMovingBelow(state, o.pruneAlpha);
         if (cloud.size() < budget) {
             const std::size_t room = std::min(budget - cloud.size(), cloud.size());
-            report.split += splitLargestResidual(cloud, samples, opacityResidual(cloud, samples, s2), room);
+            report.split += splitLargestResidual(state, samples, opacityResidual(cloud, samples, o.stage2), room);
         }
         report.msSplit += watch.ms();
         progress(msg("round ", round + 1, ": ", cloud.size(), " Gaussians after pruning and splitting"));
-    }
+    };
+    report.rounds = fitRounds(state, samples, o.stage2, plan).rounds;
     return report;
 }
 

@@ -26,7 +26,7 @@ struct StageTwoEnergy {
 /// @brief What a Stage II run did.
 struct StageTwoReport {
     Device device = Device::Cpu; ///< which device ran (in rounds: the last round's)
-    std::vector<Device> roundDevices; ///< in rounds (job/StageTwoRounds.h): each round's device
+    std::vector<Device> roundDevices; ///< in rounds (stage2/Rounds.h): each round's device
     std::vector<StageTwoEnergy> energies;
     int bestIteration = 0;   ///< the iterate returned (the last accepted one; with neither rejectSteps nor keepBest the last)
     double bestEnergy = 0;   ///< its training energy

@@ -74,3 +74,36 @@ TEST(StageTwoRounds, OneDeviceIsNamedOnce)
     r.roundDevices = {Device::Cpu, Device::Cpu};
     EXPECT_EQ(devicesName(r), "cpu");
 }
+
+// The one round loop (stage2/Rounds.h): a round of 0 iterations is not run but the step after it
+// is, the merged report offsets the later round's iterations, and only deform's plan runs an empty
+// last round when nothing ran.
+TEST(StageTwoRounds, EmptyRoundsAreSkippedBetweenStepsStillRunAndIterationsAreOffset)
+{
+    RigidStageTwoProblem p = rigidStageTwoProblem(12, 0, 7, 0.4f, Mat3d::identity(), Vec3d(0.03, 0, 0), 6, 0.9f);
+    p.options.stallTolerance = 0;
+    p.options.device = resolveDevice(Device::Cpu);
+    std::vector<int> betweenAfter;
+    std::vector<int> evaluated;
+    GaussianCloud cloud = p.start;
+    FitState state{cloud, p.moving, p.cells};
+    RoundsPlan plan;
+    plan.iterations = {0, 2, 3};
+    plan.between = [&](int round) { betweenAfter.push_back(round); };
+    plan.onEval = [&](int it, const GaussianCloud&) { evaluated.push_back(it); };
+    plan.evalEvery = 1;
+    const RoundsReport r = fitRounds(state, p.samples, p.options, plan);
+    EXPECT_EQ(r.rounds.size(), 2u);
+    EXPECT_EQ(betweenAfter, (std::vector<int>{0, 1}));
+    EXPECT_EQ(evaluated, (std::vector<int>{1, 2, 3, 4, 5}));
+    EXPECT_EQ(r.merged.roundDevices, (std::vector<Device>{Device::Cpu, Device::Cpu}));
+    ASSERT_EQ(r.merged.energies.size(), r.rounds[0].energies.size() + r.rounds[1].energies.size());
+    EXPECT_EQ(r.merged.energies.back().iteration, r.rounds[1].energies.back().iteration + 2);
+
+    plan.iterations = {0, 0};
+    betweenAfter.clear();
+    EXPECT_TRUE(fitRounds(state, p.samples, p.options, plan).rounds.empty()); // from-vdb --iterations 0
+    EXPECT_EQ(betweenAfter, (std::vector<int>{0}));
+    plan.atLeastOne = true; // deform: the last round runs so the report has a fit
+    EXPECT_EQ(fitRounds(state, p.samples, p.options, plan).rounds.size(), 1u);
+}
