@@ -5,6 +5,7 @@
 #include <optional>
 #include <set>
 
+#include "job/DeformSettings.h"
 #include "job/WarmStart.h"
 #include "job/ZipWriter.h"
 #include "core/AtomicFile.h"
@@ -22,54 +23,6 @@ namespace fs = std::filesystem;
 using json = nlohmann::json;
 
 namespace {
-
-/// Every setting that changes a frame's bytes (the settings hash covers it; resume compares it).
-json settingsJson(const DeformJobOptions& o)
-{
-    json settings = {{"stage1Only", o.stage1Only},
-            {"nodes", o.nodes ? *o.nodes : -1},
-            {"k", o.k ? *o.k : -1},
-            {"seed", o.seed ? std::int64_t(*o.seed) : std::int64_t(-1)},
-            {"cells", o.grid.cells},
-            {"cellSize", o.grid.cellSize},
-            {"samplesPerCell", o.grid.samplesPerAxis == kAutoSamplesPerAxis ? json("auto") : json(o.grid.samplesPerAxis)},
-            {"cutoff", o.grid.cutoff},
-            {"fineBelow", o.grid.fineBelow},
-            {"fineNeighbours", o.grid.fineNeighbours},
-            {"stage1Shape", o.stage1.shape == StageOneShape::Affine ? "affine" : "polar"},
-            {"endpointSigmas", o.stage1.endpointSigmas},
-            {"iterations", o.stage2.iterations},
-            {"scheduleIterations", o.stage2.scheduleIterations},
-            {"boundaryWeight", o.stage2.boundaryWeight},
-            {"lowPassFilter", o.stage2.lowPassFilter},
-            {"coverageSteps", o.stage2.coverageSteps},
-            {"rebuildEvery", o.stage2.rebuildEvery},
-            {"stallTolerance", o.stage2.stallTolerance},
-            {"maxMeanStep", o.stage2.maxMeanStep},
-            {"split", o.densify.split},
-            {"splitStretch", o.densify.splitStretch},
-            {"splitAfter", o.densify.splitAfter},
-            {"splitOffset", o.densify.splitOffset},
-            {"pruneBelow", o.densify.pruneBelow},
-            {"curveSplit", o.curveSplit},
-            {"curveSplitMax", o.curve.maxAdded},
-            {"curveSplitRounds", o.curve.rounds},
-            {"curveSplitFan", o.curve.fanAbove},
-            {"keepValidated", o.keepValidated},
-            {"curveShift", o.curveShift ? nlohmann::json(*o.curveShift) : nlohmann::json("auto")},
-            {"dropInvalid", o.dropInvalid},
-            {"evaluate", o.evaluate},
-            {"evalEvery", o.evalEvery},
-            {"evalPoints", o.heldOut.points},
-            {"vdb", o.writeVdb},
-            {"render", o.render},
-            {"device", deviceName(o.device)}};
-    // Written only when they differ from the defaults, so the hash of earlier default runs holds.
-    if (o.maxGaussians) settings["maxGaussians"] = o.maxGaussians->text();
-    if (!o.validatedSplit) settings["validatedSplit"] = false;
-    if (!o.keepPerGaussian) settings["keepPerGaussian"] = false;
-    return settings;
-}
 
 /// The frame previews side by side (when every one exists as a regular file).
 void writeStrip(const std::string& dir, const json& items)

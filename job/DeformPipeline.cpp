@@ -1,5 +1,6 @@
 #include "job/DeformPipeline.h"
 #include "job/DeformSession.h"
+#include "job/DeformSettings.h"
 
 #include <algorithm>
 #include <cctype>
@@ -546,6 +547,7 @@ FrameResult poseFrame(DeformRest& rest, const DeformSpec& spec, const DeformJobO
     r.inputShDegree = rest.model.shDegree;
     r.specPath = o.specPath;
     r.recipe = o.recipe;
+    r.settings = settingsJson(o);
     r.timingsMs["read"] = rest.readMs;
     f.ms = clock.ms();
     return f;

@@ -29,7 +29,8 @@
 
 namespace splatwarp {
 
-/// @brief Everything a deform run needs; defaults are those of each stage's options struct.
+/// @brief Everything a deform run needs; defaults are those of each stage's options struct (the
+///        CLI's are deformDefaults(), job/DeformSettings.h, whose table sets and records each one).
 struct DeformJobOptions {
     std::string input;     ///< model to deform (any supported format)
     std::string specPath;  ///< deformation spec JSON
@@ -40,7 +41,8 @@ struct DeformJobOptions {
     std::optional<std::uint32_t> seed;
     EdOptions ed;
     StageOneOptions stage1;
-    SampleGridOptions grid;
+    SampleGridOptions grid;   ///< grid.fineBelow: the fine-cell threshold in use (0: no fine cells)
+    float fineCellsBelow = 4.0f; ///< the threshold --fine-cells auto puts in grid.fineBelow (--fine-below)
     StageTwoOptions stage2;
     DensifyJobOptions densify;
     bool curveSplit = true;    ///< split the Gaussians Stage I cannot bend before Stage II (deform/CurveSplit.h)

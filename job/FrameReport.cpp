@@ -152,6 +152,7 @@ nlohmann::json FrameReport::toJson() const
     j["input"] = {{"path", inputPath}, {"format", inputFormat}, {"gaussians", inputGaussians}, {"shDegree", inputShDegree}};
     j["spec"] = specPath;
     if (!recipe.is_null()) j["recipe"] = recipe;
+    if (!settings.is_null()) j["settings"] = settings;
     if (warpDevice) j["warpDevice"] = *warpDevice;
     if (curveSplit) j["curveSplit"] = curveSplitJson(*curveSplit);
     if (validatedSplit) j["validatedSplit"] = validatedSplitJson(*validatedSplit);

@@ -105,6 +105,7 @@ struct FrameReport {
     std::size_t inputGaussians = 0;
     int inputShDegree = 0;
     nlohmann::json recipe; ///< the recipe's own description (job/Recipe.h), null without one
+    nlohmann::json settings; ///< every setting's value (job/DeformSettings.h settingsJson(); animate hashes the same)
     /// The ED solve's and Stage I's records (graph, handles, solver, stage1, their timings), as
     /// deform/DeformReport.h makes them; written out, never read.
     nlohmann::json stageOne;

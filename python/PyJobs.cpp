@@ -55,10 +55,8 @@ DeformJobOptions deformOptions(const py::kwargs& settings)
     CLI::App app;
     CLI::App* sub = app.add_subcommand("deform");
     cli::addDeformOptions(sub, args);
-    sub->add_flag("--vdb", args.job.writeVdb, "With output: also write field.vdb");
-    sub->add_flag("--render", args.job.render, "With output: also write compare.png and stretched.png");
     parseSettings(app, sub, "deform", settings);
-    DeformJobOptions job = cli::deformJobOptions(args, sub);
+    DeformJobOptions job = cli::deformJobOptions(args);
     if (job.render && job.stage1Only) throw UsageError("--render needs Stage II (drop --stage1-only)");
     return job;
 }

@@ -57,8 +57,6 @@ const CommandRegistrar reg(35, [](CLI::App& app) {
     sub->add_flag("--specs-only", args->specsOnly,
                   "Only write each frame's plain spec to DIR/specs/spec.0000.json ... (deform --spec with one reproduces that frame)");
     addDeformOptions(sub, args->deform);
-    sub->add_flag("--vdb", job.writeVdb, "Also write vdb/field.0000.vdb ... (the sequence naming Houdini and Blender read)");
-    sub->add_flag("--render", job.render, "Also write preview/frame.0000.png ... and preview/strip.png (all frames side by side)");
     sub->add_flag("--warm-start", args->warmStart,
                   msg("Frames in pairs (2k, 2k+1): Stage II of each odd frame starts from the even frame's fit carried onto "
                       "its Stage I model (even frames stay equal to deform), unless that start's training energy is over ",
@@ -78,7 +76,7 @@ const CommandRegistrar reg(35, [](CLI::App& app) {
             return;
         }
         AnimateJobOptions options;
-        options.deform = deformJobOptions(args->deform, sub);
+        options.deform = deformJobOptions(args->deform);
         if ((options.deform.input.empty() && !args->specsOnly) || options.deform.specPath.empty() || options.deform.outDir.empty())
             throw UsageError("animate needs INPUT, --spec and -o (or --merge DIR)");
         if (!args->frames.empty()) parseFrames(args->frames, options);

@@ -18,12 +18,10 @@ const CommandRegistrar reg(30, [](CLI::App& app) {
     sub->add_option("--spec", job.specPath, "Deformation spec JSON (see samples/specs/README.md)")->required();
     sub->add_option("-o,--output", job.outDir, "Output directory (created): baseline.ply, deformed.ply, report.json; all appear together at the end, or none")->required();
     addDeformOptions(sub, *args);
-    sub->add_flag("--vdb", job.writeVdb, "Also write field.vdb: the Stage II model's sampled field (as `to-vdb`)");
-    sub->add_flag("--render", job.render, "Also write compare.png (rest | Stage I | Stage II from a few orbit views) and stretched.png (the same three, close up on the most stretched cell holding matter, the rest moved rigidly there; report.json \"stretched\" says where)");
-    // About eight flags a user touches; the other ~35 are expert settings, listed by --help-all.
-    splitHelpLevels(sub, {"--spec", "-o", "--vdb", "--render", "--stage1-only", "--recipe", "--iterations", "--cells", "--max-gaussians"});
-    sub->callback([args, sub] {
-        const DeformJobOptions job = deformJobOptions(*args, sub);
+    // About eight flags a user touches (the table's user level); the other ~35 are listed by --help-all.
+    splitHelpLevels(sub, userFlags({"--spec", "-o"}));
+    sub->callback([args] {
+        const DeformJobOptions job = deformJobOptions(*args);
         if (job.render && job.stage1Only) throw UsageError("--render needs Stage II (drop --stage1-only)");
         const FrameReport report = runDeformJob(job);
         // A short summary on stdout (progress lines go to stderr).

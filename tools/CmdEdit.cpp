@@ -135,13 +135,11 @@ const CommandRegistrar reg(32, [](CLI::App& app) {
     sub->add_option("--token", e->token, "The token every request must carry (default: random per run)");
     sub->add_flag("--no-open", e->noOpen, "Do not open a browser (the URL is printed either way)");
     addDeformOptions(sub, *args);
-    sub->add_flag("--vdb", job.writeVdb, "Saves also write field.vdb (as deform --vdb)");
-    sub->add_flag("--render", job.render, "Saves also write compare.png and stretched.png (as deform --render)");
     splitHelpLevels(sub, {"-o", "--port", "--host", "--token", "--no-open", "--stage1-only", "--iterations", "--cells"});
     sub->callback([args, e, sub] {
         edit::EditServerOptions options;
         options.replayFlags = replayFlags(sub); // as given: before the recipe fills in the other flags
-        options.job = deformJobOptions(*args, sub);
+        options.job = deformJobOptions(*args);
         if (options.job.render && options.job.stage1Only) throw UsageError("--render needs Stage II (drop --stage1-only)");
         if (!e->token.empty() && !edit::tokenWellFormed(e->token))
             throw UsageError("--token must be 16 to 128 of A-Z, a-z, 0-9, '_' and '-'");

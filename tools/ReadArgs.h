@@ -7,14 +7,13 @@
 #include "core/Error.h"
 #include "core/Progress.h"
 #include "io/GaussianIO.h"
+#include "job/DeformSettings.h"
 
 namespace splatwarp::cli {
 
 inline void addDropInvalidFlag(CLI::App* sub, bool& dropInvalid)
 {
-    sub->add_flag("--drop-invalid", dropInvalid,
-                  "Drop unusable Gaussians (NaN/Inf values, scales whose exp() overflows, zero quaternions) "
-                  "and say how many (default: refuse the file)");
+    sub->add_flag("--drop-invalid", dropInvalid, deformSetting("--drop-invalid").help);
 }
 
 /// @brief readGaussians() with the flag applied; notes (e.g. how many were dropped) go to progress.

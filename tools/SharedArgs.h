@@ -1,6 +1,7 @@
 #pragma once
 /// @file SharedArgs.h
-/// @brief Flags that several commands take, each declared once: `--device` (every command that
+/// @brief Flags that several commands take, each declared once (their help is the deform settings
+///        table's, job/DeformSettings.h): `--device` (every command that
 ///        computes on a device), `--iterations`, `--max-mean-step` and the coverage flags (every
 ///        command that runs Stage II).
 #include <sstream>
@@ -8,6 +9,7 @@
 
 #include "Command.h"
 #include "core/Device.h"
+#include "job/DeformSettings.h"
 #include "stage2/StageTwoOptions.h"
 
 namespace splatwarp::cli {
@@ -20,19 +22,9 @@ inline void addDeviceOption(CLI::App* sub, Device& device, const std::string& wh
     device = Device::Auto;
     sub->add_option_function<std::string>(
            "--device", [&device](const std::string& name) { device = parseDevice(name); },
-           "Where " + what + ": auto (CUDA when compiled in and a GPU is present, else CPU; out of GPU memory falls back "
-                             "to the CPU), cpu or cuda")
+           deviceHelp(what))
         ->default_str("auto")
         ->check(CLI::IsMember({"auto", "cpu", "cuda"}));
-}
-
-inline std::string iterationsHelp()
-{
-    std::ostringstream s;
-    s << "Stage II Adam iterations, or auto: up to " << StageTwoOptions::kAutoIterations
-      << ", stopping once the energy fell by less than a fraction " << StageTwoOptions::kAutoStallTolerance << " over "
-      << StageTwoOptions().stallWindow << " iterations (--stall-tolerance sets that fraction)";
-    return s.str();
 }
 
 /// @brief `--iterations N|auto` into the Stage II options (default: theirs). `auto` sets the cap
@@ -53,7 +45,7 @@ inline void addIterationsOption(CLI::App* sub, StageTwoOptions& stageTwo)
                stageTwo.setAutoIterations();
                if (sub->count("--stall-tolerance")) stageTwo.stallTolerance = tolerance;
            },
-           iterationsHelp())
+           deformSetting("--iterations").help)
         ->default_str(std::to_string(stageTwo.iterations))
         ->check(autoOrWholeNumber(0, 1000000, "auto|N"));
 }
@@ -61,8 +53,7 @@ inline void addIterationsOption(CLI::App* sub, StageTwoOptions& stageTwo)
 /// @brief `--max-mean-step` into the Stage II options (default: the options' value).
 inline void addMaxMeanStepOption(CLI::App* sub, StageTwoOptions& stageTwo)
 {
-    sub->add_option("--max-mean-step", stageTwo.maxMeanStep,
-                    "Longest Stage II step of a Gaussian's centre, in its own standard deviations (0: unbounded)")
+    sub->add_option("--max-mean-step", stageTwo.maxMeanStep, deformSetting("--max-mean-step").help)
         ->capture_default_str()
         ->check(nonNegative());
 }
@@ -70,14 +61,10 @@ inline void addMaxMeanStepOption(CLI::App* sub, StageTwoOptions& stageTwo)
 /// @brief `--coverage-steps` and `--rebuild-every` into the Stage II options (defaults: theirs).
 inline void addCoverageOptions(CLI::App* sub, StageTwoOptions& stageTwo)
 {
-    sub->add_option("--coverage-steps", stageTwo.coverageSteps,
-                    "Stage II coverage (which Gaussians may touch which samples) holds what a Gaussian can reach in "
-                    "this many steps; rebuilt when one leaves it. Speed only: results are the same")
+    sub->add_option("--coverage-steps", stageTwo.coverageSteps, deformSetting("--coverage-steps").help)
         ->capture_default_str()
         ->check(inRange(1, 1000));
-    sub->add_option("--rebuild-every", stageTwo.rebuildEvery,
-                    "Also rebuild the Stage II coverage every K iterations (0: only when a Gaussian leaves it). Speed "
-                    "only: results are the same")
+    sub->add_option("--rebuild-every", stageTwo.rebuildEvery, deformSetting("--rebuild-every").help)
         ->capture_default_str()
         ->check(inRange(0, 1000000));
 }
