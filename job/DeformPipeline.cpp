@@ -10,8 +10,7 @@
 
 #include "deform/SampleWarp.h"
 #include "job/Judge.h"
-#include "job/GaussianChoice.h"
-#include "job/StageTwoChoice.h"
+#include "job/Selector.h"
 #include "job/StageTwoRounds.h"
 #include "job/ValidatedSplit.h"
 #include "job/StretchedView.h"
@@ -170,7 +169,7 @@ std::size_t splitBudget(const DeformJobOptions& o, std::size_t n)
 /// they lose where many thin ones are, guitar: docs/lab/fidelity-study.md). Where no Gaussian was
 /// bent far enough to fan, both are the same split: it is made and scored once.
 CurveSplitResult curveSplitOf(const DeformRest& rest, const Deformation& deformation, const StageOneResult& stage1,
-                              const DeformJobOptions& o, const Judge* validation, CurveSplitRecord& record)
+                              const DeformJobOptions& o, const Selector* validation, CurveSplitRecord& record)
 {
     CurveSplitOptions co = o.curve;
     co.threaded = o.grid.threaded;
@@ -187,7 +186,7 @@ CurveSplitResult curveSplitOf(const DeformRest& rest, const Deformation& deforma
         return cs;
     }
     CurveSplitResult three = split(0.0);
-    const Selection s = selectBest(*validation, {&cs.deformed, &three.deformed});
+    const Selection s = validation->best({&cs.deformed, &three.deformed});
     record.validationWithFans = s.scores[0];
     record.validationWithoutFans = s.scores[1];
     const double ms = cs.ms + three.ms; // both splits ran
@@ -202,12 +201,12 @@ CurveSplitResult curveSplitOf(const DeformRest& rest, const Deformation& deforma
 /// The cold start's curve shift, a candidate of the validated keep (empty without validation
 /// points or with --curve-shift 0; the report's "curveShift", judged when evaluating).
 GaussianCloud curveShiftOf(const GaussianCloud& start, const std::vector<float>& curve, const DeformJobOptions& o,
-                           const FrameErrors& errors, const Judge* validation, FrameReport& report)
+                           const FrameErrors& errors, const Selector* validation, FrameReport& report)
 {
     if (!validation || o.curveShift == 0.0) return {};
     const std::vector<double> shares =
         o.curveShift ? std::vector<double>{*o.curveShift} : std::vector<double>(std::begin(kCurveShares), std::end(kCurveShares));
-    CurveShiftChoice c = chooseCurveShift(*validation, start, curve, shares);
+    CurveShiftChoice c = validation->bestCurveShift(start, curve, shares);
     CurveShiftRecord& r = report.curveShift.emplace();
     r = {c.share, !o.curveShift, shares, c.scores, c.ms, std::nullopt};
     report.timingsMs["curveShift"] = c.ms;
@@ -219,14 +218,14 @@ GaussianCloud curveShiftOf(const GaussianCloud& start, const std::vector<float>&
 /// --validated-split: the splits the validation points measure to pay, within what is left of the
 /// curve split's budget (the report's "validatedSplit").
 void splitByValidation(const DeformRest& rest, const Deformation& deformation, const StageOneResult& stage1,
-                       const DeformJobOptions& o, const Judge& validation, ColdStart& c, FrameReport& report)
+                       const DeformJobOptions& o, const Selector& validation, ColdStart& c, FrameReport& report)
 {
     const std::size_t allowed = splitBudget(o, rest.model.size());
     const std::size_t budget = allowed > c.added ? allowed - c.added : 0;
     StageOneOptions s1 = o.stage1;
     s1.threaded = o.grid.threaded;
     const ValidatedSplitReport r =
-        validatedSplit(validation, rest.model, deformation, s1, stage1.deformed, budget, c.state());
+        validatedSplit(validation.points(), rest.model, deformation, s1, stage1.deformed, budget, c.state());
     c.added += r.added;
     report.validatedSplit = ValidatedSplitRecord{r, budget};
     report.timingsMs["validatedSplit"] = r.ms;
@@ -235,7 +234,7 @@ void splitByValidation(const DeformRest& rest, const Deformation& deformation, c
 /// --curve-split on the cold start (the report's "curveSplit"); returns phi's second-order offsets
 /// of the start's Gaussians.
 std::vector<float> splitBent(const DeformRest& rest, const Deformation& deformation, const StageOneResult& stage1,
-                             const DeformJobOptions& o, const FrameErrors& errors, const Judge* validation,
+                             const DeformJobOptions& o, const FrameErrors& errors, const Selector* validation,
                              ColdStart& c, FrameReport& report)
 {
     CurveSplitRecord& record = report.curveSplit.emplace();
@@ -261,41 +260,18 @@ std::vector<float> splitBent(const DeformRest& rest, const Deformation& deformat
     return std::move(cs.curve);
 }
 
-ColdStart coldStart(const DeformRest& rest, const Deformation& deformation, const StageOneResult& stage1,
-                    const DeformJobOptions& o, const FrameErrors& errors, const Judge* validation, FrameReport& report,
-                    StepProgress& steps)
-{
-    ColdStart c{stage1.deformed, {}, stage1.moving, rest.grid->gaussianCell(), {}, 0};
-    if (o.curveSplit) {
-        steps.start("curve split");
-        c.curve = splitBent(rest, deformation, stage1, o, errors, validation, c, report);
-    } else if (validation && o.curveShift != 0.0) {
-        c.curve = stageOneBendingOf(rest.model, rest.rig, rest.graph, deformation.transforms, stage1.deformed,
-                                    stage1.moving, o.stage1).curve;
-    }
-    if (validation && o.validatedSplit) {
-        steps.start("validated split");
-        splitByValidation(rest, deformation, stage1, o, *validation, c, report);
-    }
-    if (validation && o.curveShift != 0.0) steps.start("curve shift");
-    c.shifted = curveShiftOf(c.model, c.curve, o, errors, validation, report);
-    c.curve = std::vector<float>(); // not needed past the shift: free it before Stage II
-    checkCancelled();
-    return c;
-}
-
 /// --keep validated: Stage II's start, its curve shift (when made), the fit or a region mix of them,
 /// whichever the validation points judge best (job/StageTwoChoice.h; the report's stage2 "keep").
-GaussianCloud keepValidated(const Judge& validation, const GaussianCloud& startModel, const GaussianCloud* shifted,
+GaussianCloud keepValidated(const Selector& validation, const GaussianCloud& startModel, const GaussianCloud* shifted,
                             GaussianCloud fitted, bool sameGaussians, bool perGaussian, KeepRecord& record)
 {
     std::vector<StageTwoCandidate> candidates{{"start", &startModel}};
     if (shifted && !shifted->empty()) candidates.push_back({"shifted", shifted});
     candidates.push_back({"fit", &fitted});
     for (const StageTwoCandidate& c : candidates) record.candidates.push_back(c.name);
-    GaussianCloud kept = chooseStageTwoModel(validation, candidates, sameGaussians, record.choice);
+    GaussianCloud kept = validation.regionMix(candidates, sameGaussians, record.choice);
     if (!perGaussian || !sameGaussians || kept.size() != startModel.size()) return kept;
-    return chooseEachGaussian(validation, candidates, std::move(kept), record.perGaussian.emplace());
+    return validation.perGaussian(candidates, std::move(kept), record.perGaussian.emplace());
 }
 
 /// The Gaussians the kept model gained and lost: the curve split's and, unless --keep validated went
@@ -313,13 +289,6 @@ void recordGaussianCounts(const ColdStart& cold, const DensifyCounts& counts, co
     if (o.densify.split || o.densify.pruneBelow > 0)
         progress(msg("Stage II: ", counts.split, " Gaussians added by splits, ", counts.pruned, " pruned", fitKept ? "" : " (not kept)",
                      ": ", kept.size(), " Gaussians"));
-}
-
-/// How many steps stageTwo() starts besides Stage II's iterations (for StepProgress).
-int refineStepCount(const DeformRest& rest, const DeformJobOptions& o)
-{
-    const bool validation = o.keepValidated, judge = rest.judge.has_value();
-    return 1 + 2 * judge + o.curveSplit + (validation && o.validatedSplit) + (validation && o.curveShift != 0.0) + validation;
 }
 
 /// Warp a copy of the rest samples (the rest samples stay untouched for the next frame).
@@ -358,81 +327,190 @@ struct EvalCurve {
     }
 };
 
-/// Stage II on a warped copy of the rest samples, with the held-out errors; returns the fitted model.
+/// One frame's refine as its steps see it: what they read, and the state they change in the order
+/// the steps of refineSteps() fill it.
+struct Refine {
+    DeformRest& rest;
+    const Deformation& deformation;
+    const StageOneResult& stage1;
+    const DeformJobOptions& o;
+    const StageTwoStart& start;
+    FrameReport& report;
+    Stopwatch setupClock;               ///< times the judge's set-up, part of "evaluate"
+    const FrameErrors errors;           ///< the judge's and the training lattice's (none without --eval)
+    double judgeSetupMs = 0;
+    std::optional<Selector> validation; ///< --keep validated or regions: the selector's validation points
+    SampleSet samples;                  ///< warp: the rest samples moved by the deformation
+    ColdStart cold;                     ///< Stage I's model, then with the splits and shift before Stage II
+    GaussianCloud fitted;               ///< stage2's fit, then the keep's choice
+    GaussianCloud startModel;           ///< Stage II's start, a candidate of the keep
+    EvalCurve curve{errors};            ///< --eval-every
+    DensifyCounts counts;               ///< Stage II's split and prune
+    std::optional<double> rejectedStart; ///< the warm start's energy when the frame went back to the cold start
+    double rejectedMs = 0;
+    bool warm = false;
+    std::string keptName; ///< the keep's choice ("" without a keep)
+
+    Refine(DeformRest& r, const Deformation& d, const StageOneResult& s1, const DeformJobOptions& options,
+           const StageTwoStart& st, FrameReport& rep)
+        : rest(r), deformation(d), stage1(s1), o(options), start(st), report(rep), errors(r, d, options),
+          cold{s1.deformed, {}, s1.moving, r.grid->gaussianCell(), {}, 0}
+    {
+        judgeSetupMs = setupClock.ms();
+        if (o.keepValidated) validation.emplace(rest.model, *rest.validation, deformation, o.grid.threaded);
+    }
+    const Selector* validating() const { return validation ? &*validation : nullptr; }
+    bool shifts() const { return validation && o.curveShift != 0.0; }
+};
+
+/// A step of the refine: it runs when `runs` says so, in the order of refineSteps(); `phase` names
+/// it in the progress a driver sees (nullptr: a step within another's phase).
+struct RefineStep {
+    const char* name; ///< as a recipe names the step where it is one (job/Recipe.h)
+    const char* phase;
+    bool (*runs)(const Refine&);
+    void (*run)(Refine&);
+};
+
+void warpStep(Refine& f)
+{
+    f.samples = warpedSamples(f.rest, f.deformation, f.o, f.report);
+}
+
+void judgeStageOneStep(Refine& f)
+{
+    Stopwatch clock;
+    f.report.stage1Errors = f.errors.record(f.stage1.deformed, "Stage I");
+    f.report.timingsMs["evaluate"] = f.rest.heldOutMs + f.judgeSetupMs + clock.ms();
+}
+
+void curveSplitStep(Refine& f)
+{
+    f.cold.curve = splitBent(f.rest, f.deformation, f.stage1, f.o, f.errors, f.validating(), f.cold, f.report);
+}
+
+/// Without the curve split, the curve shift still needs phi's second-order offsets of the start.
+void curveOffsetsStep(Refine& f)
+{
+    f.cold.curve = stageOneBendingOf(f.rest.model, f.rest.rig, f.rest.graph, f.deformation.transforms,
+                                     f.stage1.deformed, f.stage1.moving, f.o.stage1).curve;
+}
+
+void validatedSplitStep(Refine& f)
+{
+    splitByValidation(f.rest, f.deformation, f.stage1, f.o, *f.validation, f.cold, f.report);
+}
+
+void curveShiftStep(Refine& f)
+{
+    f.cold.shifted = curveShiftOf(f.cold.model, f.cold.curve, f.o, f.errors, f.validating(), f.report);
+}
+
+/// Stage II from the cold start (or animate's warm start, sent back cold when it rejects the fit).
+void stageTwoStep(Refine& f)
+{
+    f.cold.curve = std::vector<float>(); // not needed past the shift: free it before Stage II
+    checkCancelled();
+    const DeformJobOptions& o = f.o;
+    f.fitted = f.cold.model;
+    if (f.start.change) { // a warm start corrects each Stage I Gaussian: a split start stays cold
+        GaussianCloud warm = f.stage1.deformed;
+        f.start.change(f.stage1, warm);
+        if (f.cold.added == 0) f.fitted = std::move(warm);
+    }
+    f.warm = f.start.change && f.cold.added == 0;
+    if (o.keepValidated) f.startModel = f.fitted;
+    StageTwoOptions s2 = o.stage2;
+    s2.device = f.rest.device;
+    DensifyJobOptions densify = o.densify; // Stage II's split spends what the splits before it left
+    if (o.maxGaussians) densify.maxSplits = splitBudget(o, f.rest.model.size()) - f.cold.added;
+    auto fit = [&] {
+        progress(msg("Stage II: ", o.stage2.iterations, " iterations on ", f.stage1.movingCount + f.cold.added, " moving Gaussians"));
+        f.curve.points.clear();
+        f.counts = DensifyCounts();
+        return fitInRounds(f.fitted, f.samples, f.cold.moving, f.cold.cells, s2, densify, f.curve.onEval(o.evalEvery > 0),
+                           o.evalEvery, f.counts, f.curve.dropAfter());
+    };
+    StageTwoReport r2 = fit();
+    if (f.warm && f.start.rejects && f.start.rejects(r2)) {
+        f.rejectedMs = r2.msTotal;
+        f.rejectedStart = r2.energies.empty() ? 0.0 : r2.energies.front().total;
+        progress(msg("Stage II: the warm start (energy ", *f.rejectedStart, ") is rejected; fitting from the cold start"));
+        f.fitted = f.cold.model;
+        r2 = fit();
+    }
+    StageTwoRecord& record = f.report.stage2.emplace();
+    record.fit = std::move(r2);
+    record.grid = f.rest.grid->stats();
+    record.gridOptions = f.rest.grid->options();
+    record.options = o.stage2;
+    checkCancelled();
+}
+
+void keepStep(Refine& f)
+{
+    KeepRecord& keep = f.report.stage2->keep.emplace();
+    f.fitted = keepValidated(*f.validation, f.rejectedStart ? f.cold.model : f.startModel, &f.cold.shifted,
+                             std::move(f.fitted), f.counts.split == 0 && f.counts.pruned == 0, f.o.keepPerGaussian, keep);
+    f.keptName = keep.choice.kept;
+    f.report.timingsMs["keep"] = keep.ms();
+}
+
+/// What the kept model holds and how it was made (the report's stage2 counts, start and curve).
+void recordStep(Refine& f)
+{
+    StageTwoRecord& record = *f.report.stage2;
+    recordGaussianCounts(f.cold, f.counts, f.o, f.fitted, f.keptName, record);
+    if (f.o.maxGaussians) record.gaussianBudget = f.o.maxGaussians->limit(f.rest.model.size());
+    f.report.timingsMs["stage2"] = record.fit.msTotal + f.rejectedMs + f.counts.ms;
+    if (f.start.change) record.start = f.warm && !f.rejectedStart ? "warm" : "cold";
+    record.warmEnergy = f.rejectedStart;
+    if (f.o.evalEvery > 0) record.evalCurve = std::move(f.curve.points);
+}
+
+void judgeStep(Refine& f)
+{
+    f.report.stage2->errors = f.errors.record(f.fitted, "Stage II");
+}
+
+bool always(const Refine&) { return true; }
+
+/// The refine's steps in run order: the recipe's steps (job/Recipe.h: curveSplit, validatedSplit,
+/// curveShift, stage2 with its split, keep) with the warp and the judge around them. A new step is
+/// a row here, its settings rows in job/DeformSettings.cpp, its record in job/FrameReport.h.
+const std::vector<RefineStep>& refineSteps()
+{
+    static const std::vector<RefineStep> steps = {
+        {"warp", "warp", always, warpStep},
+        {"judgeStageOne", "judge Stage I", [](const Refine& f) { return f.errors.judge.has_value(); }, judgeStageOneStep},
+        {"curveSplit", "curve split", [](const Refine& f) { return f.o.curveSplit; }, curveSplitStep},
+        {"curveOffsets", nullptr, [](const Refine& f) { return !f.o.curveSplit && f.shifts(); }, curveOffsetsStep},
+        {"validatedSplit", "validated split", [](const Refine& f) { return f.validation && f.o.validatedSplit; },
+         validatedSplitStep},
+        {"curveShift", "curve shift", [](const Refine& f) { return f.shifts(); }, curveShiftStep},
+        {"stage2", nullptr, always, stageTwoStep},
+        {"keep", "keep", [](const Refine& f) { return f.validation.has_value(); }, keepStep},
+        {"record", nullptr, always, recordStep},
+        {"judge", "judge", [](const Refine& f) { return f.errors.judge.has_value(); }, judgeStep},
+    };
+    return steps;
+}
+
+/// Stage II and the steps around it on a posed frame; returns the model kept.
 GaussianCloud stageTwo(DeformRest& rest, const Deformation& deformation, const StageOneResult& stage1,
                        const DeformJobOptions& o, const StageTwoStart& start, FrameReport& report)
 {
     if (rigidMotionOf(deformation)) return skipStageTwo(rest, deformation, stage1, o, report);
-    StepProgress steps(refineStepCount(rest, o));
-    steps.start("warp");
-    const SampleSet samples = warpedSamples(rest, deformation, o, report);
-
-    Stopwatch clock;
-    if (rest.judge) steps.start("judge Stage I");
-    const FrameErrors errors(rest, deformation, o);
-    if (errors.judge) {
-        report.stage1Errors = errors.record(stage1.deformed, "Stage I");
-        report.timingsMs["evaluate"] = rest.heldOutMs + clock.ms();
+    Refine f(rest, deformation, stage1, o, start, report);
+    int phases = 0;
+    for (const RefineStep& step : refineSteps()) phases += step.phase && step.runs(f);
+    StepProgress steps(phases);
+    for (const RefineStep& step : refineSteps()) {
+        if (!step.runs(f)) continue;
+        if (step.phase) steps.start(step.phase);
+        step.run(f);
     }
-
-    std::optional<Judge> validation; // --keep validated: the judge's rule with another seed
-    if (o.keepValidated) validation.emplace(rest.model, *rest.validation, deformation, o.grid.threaded);
-    const ColdStart cold = coldStart(rest, deformation, stage1, o, errors, validation ? &*validation : nullptr, report, steps);
-    GaussianCloud fitted = cold.model;
-    if (start.change) { // a warm start corrects each Stage I Gaussian: a split start stays cold
-        GaussianCloud warm = stage1.deformed;
-        start.change(stage1, warm);
-        if (cold.added == 0) fitted = std::move(warm);
-    }
-    const bool warm = start.change && cold.added == 0;
-    const GaussianCloud startModel = o.keepValidated ? fitted : GaussianCloud();
-    EvalCurve curve{errors};
-    StageTwoOptions s2 = o.stage2;
-    s2.device = rest.device;
-    DensifyJobOptions densify = o.densify; // Stage II's split spends what the splits before it left
-    if (o.maxGaussians) densify.maxSplits = splitBudget(o, rest.model.size()) - cold.added;
-    DensifyCounts counts;
-    auto fit = [&] {
-        progress(msg("Stage II: ", o.stage2.iterations, " iterations on ", stage1.movingCount + cold.added, " moving Gaussians"));
-        curve.points.clear();
-        counts = DensifyCounts();
-        return fitInRounds(fitted, samples, cold.moving, cold.cells, s2, densify, curve.onEval(o.evalEvery > 0), o.evalEvery,
-                           counts, curve.dropAfter());
-    };
-    StageTwoReport r2 = fit();
-    std::optional<double> rejectedStart; // the warm start's energy when the frame went back to the cold start
-    double rejectedMs = 0;
-    if (warm && start.rejects && start.rejects(r2)) {
-        rejectedMs = r2.msTotal;
-        rejectedStart = r2.energies.empty() ? 0.0 : r2.energies.front().total;
-        progress(msg("Stage II: the warm start (energy ", *rejectedStart, ") is rejected; fitting from the cold start"));
-        fitted = cold.model;
-        r2 = fit();
-    }
-    StageTwoRecord& record = report.stage2.emplace();
-    record.fit = std::move(r2);
-    record.grid = rest.grid->stats();
-    record.gridOptions = rest.grid->options();
-    record.options = o.stage2;
-    checkCancelled();
-    std::string keptName; // the keep's choice, passed on as a value
-    if (o.keepValidated) {
-        steps.start("keep");
-        KeepRecord& keep = record.keep.emplace();
-        fitted = keepValidated(*validation, rejectedStart ? cold.model : startModel, &cold.shifted, std::move(fitted),
-                               counts.split == 0 && counts.pruned == 0, o.keepPerGaussian, keep);
-        keptName = keep.choice.kept;
-        report.timingsMs["keep"] = keep.ms();
-    }
-    recordGaussianCounts(cold, counts, o, fitted, keptName, record);
-    if (o.maxGaussians) record.gaussianBudget = o.maxGaussians->limit(rest.model.size());
-    report.timingsMs["stage2"] = record.fit.msTotal + rejectedMs + counts.ms;
-    if (start.change) record.start = warm && !rejectedStart ? "warm" : "cold";
-    record.warmEnergy = rejectedStart;
-    if (o.evalEvery > 0) record.evalCurve = std::move(curve.points);
-    if (errors.judge) steps.start("judge");
-    record.errors = errors.record(fitted, "Stage II");
-    return fitted;
+    return std::move(f.fitted);
 }
 
 /// Host bytes Stage II adds per sample (positions, static and gradient features, energies, pair

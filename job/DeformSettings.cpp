@@ -228,6 +228,7 @@ std::vector<Setting> gridSettings()
     };
 }
 
+/// Stage II's own split (--split) between two rounds.
 std::vector<Setting> splitSettings()
 {
     return {
@@ -246,6 +247,13 @@ std::vector<Setting> splitSettings()
                       "With --split auto: the children sit at the mean +- this x sigma along the longest axis (their "
                       "sigma there is sqrt(1 - offset^2) x the parent's)",
                       [](DeformJobOptions& o) -> float& { return o.densify.splitOffset; }, {0.05, double(kMaxSplitOffset)}),
+    };
+}
+
+/// The steps around Stage II that add or choose Gaussians, and the prune.
+std::vector<Setting> candidateSettings()
+{
+    return {
         onOff("--curve-split", "curveSplit",
               "auto: before Stage II, split each Gaussian that the deformation bends more than one affine map can "
               "follow into three along the bent axis, in the rest pose, and move the children with Stage I again "
@@ -398,7 +406,7 @@ const std::vector<Setting>& deformSettings()
 {
     static const std::vector<Setting> table = [] {
         std::vector<Setting> all;
-        for (auto part : {stageOneSettings, gridSettings, splitSettings, stageTwoSettings, outputSettings})
+        for (auto part : {stageOneSettings, gridSettings, splitSettings, candidateSettings, stageTwoSettings, outputSettings})
             for (Setting& s : part()) all.push_back(std::move(s));
         return all;
     }();
