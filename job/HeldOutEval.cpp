@@ -9,6 +9,7 @@
 #include "deform/WarpDevice.h"
 #include "field/PreparedGaussian.h"
 #include "sh/SphericalHarmonics.h"
+#include "stage2/BlockFeatures.h"
 
 namespace splatwarp {
 
@@ -201,9 +202,20 @@ FieldErrorTarget heldOutTarget(const GaussianCloud& rest, const HeldOutPoints& p
 FieldErrorReport evaluateHeldOut(const FieldErrorTarget& target, const GaussianCloud& deformed,
                                  const HeldOutPoints& points)
 {
+    return fieldErrorOf(target, heldOutPointErrors(target, deformed, points));
+}
+
+FieldPointErrors heldOutPointErrors(const FieldErrorTarget& target, const GaussianCloud& deformed,
+                                    const HeldOutPoints& points)
+{
     if (target.size() != points.size())
         throw InputError(msg("held-out evaluation: a rest side of ", target.size(), " points for ", points.size(), " points"));
-    return fieldError(target, deformed, points.warped.data(), points.features);
+    if (target.shDegree != deformed.shDegree)
+        throw InputError(msg("field error: rest SH degree ", target.shDegree, " differs from deformed ", deformed.shDegree));
+    const int stride = deformed.shStride();
+    std::vector<float> f(points.size() * std::size_t(stride)), o(points.size());
+    evaluatePointsOn(deformed, points.warped.data(), points.size(), points.features, f.data(), o.data());
+    return fieldPointErrors(target, f.data(), o.data(), stride);
 }
 
 FieldErrorReport evaluateHeldOut(const GaussianCloud& rest, const GaussianCloud& deformed, const HeldOutPoints& points)

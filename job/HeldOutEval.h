@@ -88,6 +88,12 @@ FieldErrorTarget rotatedTarget(const FieldErrorTarget& unrotated, const HeldOutP
 FieldErrorReport evaluateHeldOut(const FieldErrorTarget& target, const GaussianCloud& deformed,
                                  const HeldOutPoints& points);
 
+/// @brief The per-point terms of evaluateHeldOut() (the validation score's, job/Judge.h). The
+///        deformed model is evaluated at the warped points by the block engine on the CPU
+///        (stage2/BlockFeatures.h evaluatePointsOn(): the same bits as point by point).
+FieldPointErrors heldOutPointErrors(const FieldErrorTarget& target, const GaussianCloud& deformed,
+                                    const HeldOutPoints& points);
+
 /// @brief JSON of a report: opacity, color, points, inside{...}, outside{...}.
 nlohmann::json fieldErrorJson(const FieldErrorReport& report);
 

@@ -156,7 +156,7 @@ FieldErrorReport Judge::fieldError(const GaussianCloud& deformed) const
 
 std::vector<double> Judge::pointScores(const GaussianCloud& deformed) const
 {
-    const FieldPointErrors e = fieldPointErrors(mTarget, deformed, mPoints.warped.data(), mPoints.features);
+    const FieldPointErrors e = heldOutPointErrors(mTarget, deformed, mPoints);
     const double o = mTarget.sumOpacity > 0 ? 1.0 / mTarget.sumOpacity : 0.0;
     const double c = mTarget.sumFeatures > 0 ? 1.0 / mTarget.sumFeatures : 0.0;
     std::vector<double> scores(e.opacity.size());

@@ -46,13 +46,19 @@ FieldPointErrors fieldPointErrors(const FieldErrorTarget& t, const GaussianCloud
     const int stride = deformed.shStride();
     std::vector<float> fDef(p * std::size_t(stride)), oDef(p);
     evaluateFeaturesOn(deformed, warpedPoints, p, options, fDef.data(), oDef.data());
+    return fieldPointErrors(t, fDef.data(), oDef.data(), stride);
+}
+
+FieldPointErrors fieldPointErrors(const FieldErrorTarget& t, const float* fDef, const float* oDef, int stride)
+{
+    const std::size_t p = t.size();
     FieldPointErrors e;
     e.opacity.resize(p);
     e.color.assign(p, 0.0);
     for (std::size_t j = 0; j < p; ++j) {
         const double* target = t.features.data() + j * std::size_t(stride);
         e.opacity[j] = std::fabs(double(oDef[j]) - double(t.opacity[j]));
-        const float* fd = fDef.data() + j * std::size_t(stride);
+        const float* fd = fDef + j * std::size_t(stride);
         for (int s = 0; s < stride; ++s) e.color[j] += std::fabs(double(fd[s]) - target[s]);
         if (!t.weight.empty()) {
             e.opacity[j] *= double(t.weight[j]);
@@ -65,7 +71,11 @@ FieldPointErrors fieldPointErrors(const FieldErrorTarget& t, const GaussianCloud
 FieldErrorReport fieldError(const FieldErrorTarget& t, const GaussianCloud& deformed, const float* warpedPoints,
                             const FeatureOptions& options)
 {
-    const FieldPointErrors e = fieldPointErrors(t, deformed, warpedPoints, options);
+    return fieldErrorOf(t, fieldPointErrors(t, deformed, warpedPoints, options));
+}
+
+FieldErrorReport fieldErrorOf(const FieldErrorTarget& t, const FieldPointErrors& e)
+{
     FieldErrorReport r;
     r.points = t.size();
     double dO[2] = {0, 0}, dF[2] = {0, 0};

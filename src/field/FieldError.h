@@ -57,6 +57,13 @@ struct FieldPointErrors {
 FieldPointErrors fieldPointErrors(const FieldErrorTarget& target, const GaussianCloud& deformed,
                                   const float* warpedPoints, const FeatureOptions& options = {});
 
+/// @brief The per-point terms from the deformed model's features at the points, evaluated by the
+///        caller: fDef [P,stride], oDef [P] (stride: the model's SH stride).
+FieldPointErrors fieldPointErrors(const FieldErrorTarget& target, const float* fDef, const float* oDef, int stride);
+
+/// @brief fieldError() from its per-point terms.
+FieldErrorReport fieldErrorOf(const FieldErrorTarget& target, const FieldPointErrors& errors);
+
 /// @brief Held-out field error of a deformed model.
 /// @param rest, deformed  models (same SH degree)
 /// @param restPoints      [P,3] X

@@ -1,8 +1,12 @@
 #include "stage2/BlockFeatures.h"
 
+#include <algorithm>
 #include <cmath>
+#include <limits>
+#include <numeric>
 
 #include "core/ParallelFor.h"
+#include "field/FeatureDevice.h"
 #include "stage2/BlockLoops.h"
 #include "stage2/SampleBlocks.h"
 
@@ -30,6 +34,63 @@ CoverageSlabs preparedSlabs(const GaussianCloud& cloud, std::size_t i, const Pre
     }
     return s;
 }
+
+/// 10 bits per axis interleaved: the point's cell of a 1024^3 lattice over [lo, hi].
+std::uint64_t mortonKey(const float* p, const float* lo, const float* scale)
+{
+    std::uint64_t key = 0;
+    std::uint32_t c[3];
+    for (int a = 0; a < 3; ++a) c[a] = std::uint32_t(std::clamp((double(p[a]) - lo[a]) * scale[a], 0.0, 1023.0));
+    for (int bit = 9; bit >= 0; --bit)
+        for (int a = 0; a < 3; ++a) key = (key << 1) | ((c[a] >> bit) & 1u);
+    return key;
+}
+
+/// Points in Morton order with their block cell: the coarsest level of the Morton lattice whose
+/// cells hold at least kPointsPerCell points on average (SampleBlocks cuts longer runs).
+struct MortonBlocks {
+    static constexpr std::size_t kPointsPerCell = 32;
+    std::vector<std::uint32_t> order; ///< sorted position -> point
+    std::vector<float> points;        ///< [m,3] in sorted order
+    std::vector<std::int32_t> cell;   ///< [m] in sorted order
+
+    MortonBlocks(const float* x, std::size_t m)
+    {
+        float lo[3], hi[3], scale[3];
+        for (int a = 0; a < 3; ++a) lo[a] = hi[a] = x[a];
+        for (std::size_t j = 0; j < m; ++j)
+            for (int a = 0; a < 3; ++a) {
+                lo[a] = std::min(lo[a], x[3 * j + a]);
+                hi[a] = std::max(hi[a], x[3 * j + a]);
+            }
+        for (int a = 0; a < 3; ++a) scale[a] = hi[a] > lo[a] ? float(1023.999 / (double(hi[a]) - lo[a])) : 0.0f;
+        std::vector<std::uint64_t> key(m);
+        for (std::size_t j = 0; j < m; ++j) key[j] = mortonKey(x + 3 * j, lo, scale);
+        order.resize(m);
+        std::iota(order.begin(), order.end(), 0u);
+        std::sort(order.begin(), order.end(), [&](std::uint32_t a, std::uint32_t b) { return key[a] < key[b] || (key[a] == key[b] && a < b); });
+        int shift = 0; // bits dropped: cells of 2^(shift/3) finest cells a side
+        for (; shift < 30; shift += 3)
+            if (m >= kPointsPerCell * distinct(key, shift)) break;
+        points.resize(3 * m);
+        cell.resize(m);
+        std::int32_t c = -1;
+        for (std::size_t j = 0; j < m; ++j) {
+            const std::uint32_t i = order[j];
+            if (j == 0 || key[i] >> shift != key[order[j - 1]] >> shift) ++c;
+            cell[j] = c;
+            for (int a = 0; a < 3; ++a) points[3 * j + a] = x[3 * i + a];
+        }
+    }
+
+private:
+    std::size_t distinct(const std::vector<std::uint64_t>& key, int shift) const
+    {
+        std::size_t n = 0;
+        for (std::size_t j = 0; j < order.size(); ++j) n += j == 0 || key[order[j]] >> shift != key[order[j - 1]] >> shift;
+        return n;
+    }
+};
 
 } // namespace
 
@@ -76,6 +137,41 @@ FeatureStats evaluateBlockFeatures(const GaussianCloud& cloud, const float* poin
     }
     stats.binEntries = coverage.pairCount();
     return stats;
+}
+
+FeatureStats evaluatePointFeatures(const GaussianCloud& cloud, const float* points, std::size_t m,
+                                   const FeatureOptions& options, float* features, float* opacity)
+{
+    for (std::size_t j = 0; j < 3 * m; ++j)
+        if (!std::isfinite(points[j])) { // no box holds it: the per-point evaluation decides
+            FeatureStats s;
+            evaluateFeatures(cloud, points, m, options, features, opacity, &s);
+            return s;
+        }
+    if (m == 0 || m > std::size_t(std::numeric_limits<std::int32_t>::max())) {
+        FeatureStats s;
+        evaluateFeatures(cloud, points, m, options, features, opacity, &s);
+        return s;
+    }
+    const MortonBlocks sorted(points, m);
+    const std::size_t stride = std::size_t(cloud.shStride());
+    std::vector<float> f(features ? m * stride : 0), o(opacity ? m : 0);
+    const FeatureStats s = evaluateBlockFeatures(cloud, sorted.points.data(), sorted.cell.data(), m, options,
+                                                 features ? f.data() : nullptr, opacity ? o.data() : nullptr);
+    parallelFor(m, 4096, options.threaded, [&](std::size_t j) {
+        const std::size_t i = sorted.order[j];
+        if (opacity) opacity[i] = o[j];
+        if (features) std::copy(&f[j * stride], &f[j * stride] + stride, &features[i * stride]);
+    });
+    return s;
+}
+
+Device evaluatePointsOn(const GaussianCloud& cloud, const float* points, std::size_t m, const FeatureOptions& options,
+                        float* features, float* opacity)
+{
+    if (options.device.cuda()) return evaluateFeaturesOn(cloud, points, m, options, features, opacity);
+    evaluatePointFeatures(cloud, points, m, options, features, opacity);
+    return Device::Cpu;
 }
 
 } // namespace splatwarp

@@ -8,6 +8,7 @@
 #include <cstdint>
 
 #include "core/GaussianCloud.h"
+#include "core/Device.h"
 #include "field/FeatureField.h"
 
 namespace splatwarp {
@@ -17,5 +18,18 @@ namespace splatwarp {
 /// @return pairsTested counts (block point, Gaussian) lanes tested; pairsContributing those >= cutoff
 FeatureStats evaluateBlockFeatures(const GaussianCloud& cloud, const float* points, const std::int32_t* cell, std::size_t m,
                                    const FeatureOptions& options, float* features, float* opacity);
+
+/// @brief F and O at any points (held-out and validation points: not grouped by cell), with the
+///        block engine: the points are put in Morton order over their bounds, cut into blocks of
+///        at most kMaxBlockSamples within one cell of the coarsest lattice that holds about 32
+///        points a cell, evaluated as evaluateBlockFeatures() does and put back in their order.
+///        Same bits as evaluateFeatures() (the same sums in the same order per point).
+FeatureStats evaluatePointFeatures(const GaussianCloud& cloud, const float* points, std::size_t m,
+                                   const FeatureOptions& options, float* features, float* opacity);
+
+/// @brief evaluatePointFeatures() on the CPU, evaluateFeaturesOn() (field/FeatureDevice.h) where
+///        options.device is CUDA. @return the device that ran
+Device evaluatePointsOn(const GaussianCloud& cloud, const float* points, std::size_t m, const FeatureOptions& options,
+                        float* features, float* opacity);
 
 } // namespace splatwarp

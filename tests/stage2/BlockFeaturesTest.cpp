@@ -2,7 +2,9 @@
 // same contributing pairs, summed in the same order, so the same bits.
 #include <gtest/gtest.h>
 
+#include <cmath>
 #include <cstring>
+#include <random>
 
 #include "field/FieldTestModels.h"
 #include "stage2/BlockFeatures.h"
@@ -32,4 +34,35 @@ TEST(BlockFeatures, SameBitsAsThePerPointEvaluation)
             EXPECT_EQ(std::memcmp(fa.data(), fb.data(), fa.size() * sizeof(float)), 0) << "degree " << degree << " n " << n;
             EXPECT_EQ(std::memcmp(oa.data(), ob.data(), oa.size() * sizeof(float)), 0) << "degree " << degree << " n " << n;
         }
+}
+
+// Points in no cell order (held-out and validation points): Morton-ordered into blocks and put
+// back, the same bits as the per-point evaluation; also for a cluster with far outliers (long
+// blocks), one point, and a point that is not finite.
+TEST(BlockFeatures, AnyPointsInMortonBlocksGiveTheSameBitsAsThePerPointEvaluation)
+{
+    for (int degree : {0, 3}) {
+        GaussianCloud cloud = randomCloud(120, degree, 5u + std::uint32_t(degree), 0.45f, 0.01f, 0.12f);
+        std::mt19937 rng(11);
+        std::uniform_real_distribution<float> u(-0.6f, 0.6f);
+        std::vector<float> points;
+        for (int j = 0; j < 3000; ++j)
+            for (int a = 0; a < 3; ++a) points.push_back(u(rng));
+        for (float far : {40.0f, -75.0f}) points.insert(points.end(), {far, 0.1f, far});
+        FeatureOptions fo;
+        fo.filterVariance = 1e-3f;
+        const int stride = cloud.shStride();
+        for (std::size_t m : {points.size() / 3, std::size_t(1)}) {
+            std::vector<float> fa(m * std::size_t(stride)), oa(m), fb(fa.size(), -1.0f), ob(m, -1.0f);
+            evaluateFeatures(cloud, points.data(), m, fo, fa.data(), oa.data());
+            evaluatePointFeatures(cloud, points.data(), m, fo, fb.data(), ob.data());
+            EXPECT_EQ(std::memcmp(fa.data(), fb.data(), fa.size() * sizeof(float)), 0) << "degree " << degree << " m " << m;
+            EXPECT_EQ(std::memcmp(oa.data(), ob.data(), oa.size() * sizeof(float)), 0) << "degree " << degree << " m " << m;
+        }
+        points[4] = std::nanf("");
+        std::vector<float> oa(points.size() / 3), ob(oa.size());
+        evaluateFeatures(cloud, points.data(), oa.size(), fo, nullptr, oa.data());
+        evaluatePointFeatures(cloud, points.data(), ob.size(), fo, nullptr, ob.data());
+        EXPECT_EQ(std::memcmp(oa.data(), ob.data(), oa.size() * sizeof(float)), 0);
+    }
 }
