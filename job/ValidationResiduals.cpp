@@ -4,7 +4,7 @@
 #include <cmath>
 #include <numeric>
 
-#include "field/FeatureDevice.h"
+#include "stage2/BlockFeatures.h"
 #include "field/PreparedGaussian.h"
 
 namespace splatwarp {
@@ -77,7 +77,7 @@ ValidationResiduals::ValidationResiduals(const Judge& validation, const Gaussian
     const FieldErrorTarget& t = validation.target();
     const std::size_t p = t.size();
     std::vector<float> f(p * std::size_t(mStride)), o(p);
-    evaluateFeaturesOn(model, mX.data(), p, mOptions, f.data(), o.data());
+    evaluatePointsOn(model, mX.data(), p, mOptions, f.data(), o.data()); // the block engine on the CPU: same bits
     mO.resize(p);
     mF.resize(f.size());
     for (std::size_t j = 0; j < p; ++j) mO[j] = double(o[j]) - double(t.opacity[j]);

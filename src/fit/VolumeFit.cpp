@@ -9,6 +9,7 @@
 #include "core/Progress.h"
 #include "field/FeatureField.h"
 #include "stage2/Densify.h"
+#include "stage2/BlockFeatures.h"
 #include "stage2/Rounds.h"
 
 namespace splatwarp {
@@ -33,7 +34,7 @@ std::vector<float> opacityResidual(const GaussianCloud& cloud, const SampleSet& 
     f.cutoff = o.cutoff;
     f.filterVariance = o.lowPassFilter ? o.lambdaLpf * samples.spacing * samples.spacing : 0.0f;
     std::vector<float> opacity(samples.sampleCount());
-    evaluateFeatures(cloud, samples.restPositions.data(), samples.sampleCount(), f, nullptr, opacity.data());
+    evaluatePointFeatures(cloud, samples.restPositions.data(), samples.sampleCount(), f, nullptr, opacity.data());
     for (std::size_t j = 0; j < opacity.size(); ++j) opacity[j] = std::fabs(samples.targetO[j] - opacity[j]);
     return opacity;
 }
