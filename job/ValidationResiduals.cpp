@@ -32,18 +32,17 @@ PointBuckets::PointBuckets(const std::vector<float>& x, int cellsAlong)
         mLo[a] = lattice.lo[a];
         mCount[a] = n ? std::int64_t(std::floor((lattice.hi[a] - mLo[a]) / mCell)) + 1 : 1;
     }
+    // A counting sort: dense buckets (at most cellsAlong^3), points in index order within one.
     std::vector<std::int64_t> keys(n);
-    for (std::size_t j = 0; j < n; ++j)
+    mStart.assign(std::size_t(mCount[0] * mCount[1] * mCount[2]) + 1, 0);
+    for (std::size_t j = 0; j < n; ++j) {
         keys[j] = key(cellOf(x[3 * j], 0), cellOf(x[3 * j + 1], 1), cellOf(x[3 * j + 2], 2));
-    mOrder.resize(n);
-    std::iota(mOrder.begin(), mOrder.end(), std::size_t(0));
-    std::stable_sort(mOrder.begin(), mOrder.end(), [&](std::size_t a, std::size_t b) { return keys[a] < keys[b]; });
-    for (std::size_t k = 0; k < n;) {
-        std::size_t e = k;
-        while (e < n && keys[mOrder[e]] == keys[mOrder[k]]) ++e;
-        mRanges[keys[mOrder[k]]] = {k, e};
-        k = e;
+        ++mStart[std::size_t(keys[j]) + 1];
     }
+    std::partial_sum(mStart.begin(), mStart.end(), mStart.begin());
+    std::vector<std::size_t> next(mStart.begin(), mStart.end() - 1);
+    mOrder.resize(n);
+    for (std::size_t j = 0; j < n; ++j) mOrder[next[std::size_t(keys[j])]++] = j;
 }
 
 std::int64_t PointBuckets::cellOf(double x, int a) const
@@ -64,9 +63,8 @@ void PointBuckets::forEachNear(const float* lo, const float* hi, F&& f) const
     for (std::int64_t i = c0[0]; i <= c1[0]; ++i)
         for (std::int64_t j = c0[1]; j <= c1[1]; ++j)
             for (std::int64_t k = c0[2]; k <= c1[2]; ++k) {
-                const auto it = mRanges.find(key(i, j, k));
-                if (it == mRanges.end()) continue;
-                for (std::size_t r = it->second.first; r < it->second.second; ++r) f(mOrder[r]);
+                const std::size_t b = std::size_t(key(i, j, k));
+                for (std::size_t r = mStart[b]; r < mStart[b + 1]; ++r) f(mOrder[r]);
             }
 }
 

@@ -6,7 +6,6 @@
 ///        Gaussians, so a swap changes only the points the old and new cutoff boxes reach.
 #include <cstddef>
 #include <cstdint>
-#include <unordered_map>
 #include <utility>
 #include <vector>
 
@@ -45,8 +44,8 @@ private:
     double mLo[3] = {0, 0, 0};
     double mCell = 0.0;
     std::int64_t mCount[3] = {1, 1, 1};
-    std::vector<std::size_t> mOrder; ///< point indices by bucket
-    std::unordered_map<std::int64_t, std::pair<std::size_t, std::size_t>> mRanges;
+    std::vector<std::size_t> mOrder; ///< point indices by bucket (in index order within one)
+    std::vector<std::size_t> mStart; ///< [buckets + 1]: bucket b holds mOrder[mStart[b], mStart[b + 1])
 };
 
 /// @brief See the file comment.
