@@ -99,7 +99,13 @@ struct FrameErrors {
     std::optional<HeldOutPoints> lattice;
     std::optional<FieldErrorTarget> latticeTarget;
 
+    FrameErrors() = default;
     FrameErrors(const DeformRest& rest, const Deformation& deformation, const DeformJobOptions& o)
+    {
+        prepare(rest, deformation, o);
+    }
+    /// The judge's points warped and the training lattice's target (nothing without a judge).
+    void prepare(const DeformRest& rest, const Deformation& deformation, const DeformJobOptions& o)
     {
         if (!rest.judge) return;
         judge.emplace(rest.model, *rest.judge, deformation, o.grid.threaded);
@@ -336,10 +342,8 @@ struct Refine {
     const DeformJobOptions& o;
     const StageTwoStart& start;
     FrameReport& report;
-    Stopwatch setupClock;               ///< times the judge's set-up, part of "evaluate"
-    const FrameErrors errors;           ///< the judge's and the training lattice's (none without --eval)
-    double judgeSetupMs = 0;
-    std::optional<Selector> validation; ///< --keep validated or regions: the selector's validation points
+    FrameErrors errors;                 ///< judgeStageOne: the judge's and the training lattice's (none without --eval)
+    std::optional<Selector> validation; ///< validation: for --keep validated or regions
     SampleSet samples;                  ///< warp: the rest samples moved by the deformation
     ColdStart cold;                     ///< Stage I's model, then with the splits and shift before Stage II
     GaussianCloud fitted;               ///< stage2's fit, then the keep's choice
@@ -353,14 +357,15 @@ struct Refine {
 
     Refine(DeformRest& r, const Deformation& d, const StageOneResult& s1, const DeformJobOptions& options,
            const StageTwoStart& st, FrameReport& rep)
-        : rest(r), deformation(d), stage1(s1), o(options), start(st), report(rep), errors(r, d, options),
+        : rest(r), deformation(d), stage1(s1), o(options), start(st), report(rep),
           cold{s1.deformed, {}, s1.moving, r.grid->gaussianCell(), {}, 0}
     {
-        judgeSetupMs = setupClock.ms();
-        if (o.keepValidated) validation.emplace(rest.model, *rest.validation, deformation, o.grid.threaded);
     }
     const Selector* validating() const { return validation ? &*validation : nullptr; }
-    bool shifts() const { return validation && o.curveShift != 0.0; }
+    // What runs, from the options alone (the phases are counted before any step runs).
+    bool judged() const { return rest.judge.has_value(); }
+    bool validates() const { return o.keepValidated; }
+    bool shifts() const { return validates() && o.curveShift != 0.0; }
 };
 
 /// A step of the refine: it runs when `runs` says so, in the order of refineSteps(); `phase` names
@@ -380,8 +385,15 @@ void warpStep(Refine& f)
 void judgeStageOneStep(Refine& f)
 {
     Stopwatch clock;
+    f.errors.prepare(f.rest, f.deformation, f.o);
     f.report.stage1Errors = f.errors.record(f.stage1.deformed, "Stage I");
-    f.report.timingsMs["evaluate"] = f.rest.heldOutMs + f.judgeSetupMs + clock.ms();
+    f.report.timingsMs["evaluate"] = f.rest.heldOutMs + clock.ms();
+}
+
+/// The selector's validation points warped (the judge's rule with another seed).
+void validationStep(Refine& f)
+{
+    f.validation.emplace(f.rest.model, *f.rest.validation, f.deformation, f.o.grid.threaded);
 }
 
 void curveSplitStep(Refine& f)
@@ -482,16 +494,17 @@ const std::vector<RefineStep>& refineSteps()
 {
     static const std::vector<RefineStep> steps = {
         {"warp", "warp", always, warpStep},
-        {"judgeStageOne", "judge Stage I", [](const Refine& f) { return f.errors.judge.has_value(); }, judgeStageOneStep},
+        {"judgeStageOne", "judge Stage I", [](const Refine& f) { return f.judged(); }, judgeStageOneStep},
+        {"validation", nullptr, [](const Refine& f) { return f.validates(); }, validationStep},
         {"curveSplit", "curve split", [](const Refine& f) { return f.o.curveSplit; }, curveSplitStep},
         {"curveOffsets", nullptr, [](const Refine& f) { return !f.o.curveSplit && f.shifts(); }, curveOffsetsStep},
-        {"validatedSplit", "validated split", [](const Refine& f) { return f.validation && f.o.validatedSplit; },
+        {"validatedSplit", "validated split", [](const Refine& f) { return f.validates() && f.o.validatedSplit; },
          validatedSplitStep},
         {"curveShift", "curve shift", [](const Refine& f) { return f.shifts(); }, curveShiftStep},
         {"stage2", nullptr, always, stageTwoStep},
-        {"keep", "keep", [](const Refine& f) { return f.validation.has_value(); }, keepStep},
+        {"keep", "keep", [](const Refine& f) { return f.validates(); }, keepStep},
         {"record", nullptr, always, recordStep},
-        {"judge", "judge", [](const Refine& f) { return f.errors.judge.has_value(); }, judgeStep},
+        {"judge", "judge", [](const Refine& f) { return f.judged(); }, judgeStep},
     };
     return steps;
 }
