@@ -2,8 +2,10 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdint>
 #include <cstdlib>
 #include <iomanip>
+#include <limits>
 #include <sstream>
 #include <stdexcept>
 #include <type_traits>
@@ -46,7 +48,8 @@ struct Bounds {
     bool open = false;
     std::string text() const
     {
-        if (open && lo == 0) return "a number > 0";
+        const std::string upTo = hi == HUGE_VAL ? "" : " and <= " + numberText(hi);
+        if (open) return "a number > " + numberText(lo) + upTo;
         if (hi == HUGE_VAL) return "a number >= " + numberText(lo);
         return "a number from " + numberText(lo) + " to " + numberText(hi);
     }
@@ -68,6 +71,14 @@ double parseNumber(const std::string& flag, const std::string& text, const Bound
     return v;
 }
 
+/// `b` within what T holds (a whole number past an int's range is refused, not wrapped).
+template <class T>
+Bounds within(Bounds b)
+{
+    if constexpr (std::is_integral_v<T>) b.hi = std::min(b.hi, double(std::numeric_limits<T>::max()));
+    return b;
+}
+
 /// A setting that is one number of the options.
 template <class T>
 Setting number(const char* flag, const char* key, Level level, std::string help, Field<T> field, Bounds bounds,
@@ -75,7 +86,9 @@ Setting number(const char* flag, const char* key, Level level, std::string help,
 {
     constexpr bool whole = std::is_integral_v<T>;
     Setting s{flag, whole ? "INT" : "FLOAT", level, std::move(help), {}, {}, {}};
-    s.set = [=](DeformJobOptions& o, const std::string& text) { field(o) = T(parseNumber(flag, text, bounds, whole)); };
+    s.set = [=](DeformJobOptions& o, const std::string& text) {
+        field(o) = T(parseNumber(flag, text, within<T>(bounds), whole));
+    };
     s.write = [=](const DeformJobOptions& o, json& out) { out[key] = valueOf(field, o); };
     s.text = [=](const DeformJobOptions& o) {
         return showDefault ? numberText(double(valueOf(field, o)), std::is_same_v<T, float>) : std::string();
@@ -85,11 +98,13 @@ Setting number(const char* flag, const char* key, Level level, std::string help,
 
 /// A graph setting that overrides the spec's when given (-1 in the record: the spec's).
 template <class T>
-Setting graphOverride(const char* flag, const char* key, std::string help, std::optional<T>& (*field)(DeformJobOptions&),
-                 Bounds bounds)
+Setting graphOverride(const char* flag, const char* key, std::string help,
+                      std::optional<T>& (*field)(DeformJobOptions&), Bounds bounds)
 {
     Setting s{flag, "INT", Expert, std::move(help), {}, {}, {}};
-    s.set = [=](DeformJobOptions& o, const std::string& text) { field(o) = T(parseNumber(flag, text, bounds, true)); };
+    s.set = [=](DeformJobOptions& o, const std::string& text) {
+        field(o) = T(parseNumber(flag, text, within<T>(bounds), true));
+    };
     s.write = [=](const DeformJobOptions& o, json& out) {
         const std::optional<T>& v = field(const_cast<DeformJobOptions&>(o));
         out[key] = v ? std::int64_t(*v) : std::int64_t(-1);

@@ -45,6 +45,17 @@ TEST(DeformSettings, FlagsAreUniqueAndABadValueNamesItsFlag)
     }
 }
 
+// A whole number past what its field holds is refused, not wrapped (--cells 1e10 would wrap an int).
+TEST(DeformSettings, AWholeNumberPastItsFieldIsRefused)
+{
+    for (const char* flag : {"--cells", "--nodes", "--eval-every", "--coverage-steps"}) {
+        DeformJobOptions o = deformDefaults();
+        EXPECT_THROW(deformSetting(flag).set(o, "1e10"), UsageError) << flag;
+        EXPECT_THROW(deformSetting(flag).set(o, "2147483648"), UsageError) << flag;
+        EXPECT_NO_THROW(deformSetting(flag).set(o, "7")) << flag;
+    }
+}
+
 TEST(DeformSettings, EverySwitchChangesTheRecordAndEveryFlagARecipeSetsIsARow)
 {
     const DeformJobOptions defaults = deformDefaults();
