@@ -71,11 +71,12 @@ double parseNumber(const std::string& flag, const std::string& text, const Bound
     return v;
 }
 
-/// `b` within what T holds (a whole number past an int's range is refused, not wrapped).
+/// `b` within what T holds (a whole number past an int's range is refused, not wrapped; a float
+/// past FLT_MAX, not made infinite).
 template <class T>
 Bounds within(Bounds b)
 {
-    if constexpr (std::is_integral_v<T>) b.hi = std::min(b.hi, double(std::numeric_limits<T>::max()));
+    b.hi = std::min(b.hi, double(std::numeric_limits<T>::max()));
     return b;
 }
 

@@ -45,8 +45,9 @@ TEST(DeformSettings, FlagsAreUniqueAndABadValueNamesItsFlag)
     }
 }
 
-// A whole number past what its field holds is refused, not wrapped (--cells 1e10 would wrap an int).
-TEST(DeformSettings, AWholeNumberPastItsFieldIsRefused)
+// A number past what its field holds is refused, not wrapped (--cells 1e10 would wrap an int) or
+// made infinite (a float's 1e300).
+TEST(DeformSettings, ANumberPastItsFieldIsRefused)
 {
     for (const char* flag : {"--cells", "--nodes", "--eval-every", "--coverage-steps"}) {
         DeformJobOptions o = deformDefaults();
@@ -54,6 +55,9 @@ TEST(DeformSettings, AWholeNumberPastItsFieldIsRefused)
         EXPECT_THROW(deformSetting(flag).set(o, "2147483648"), UsageError) << flag;
         EXPECT_NO_THROW(deformSetting(flag).set(o, "7")) << flag;
     }
+    DeformJobOptions o = deformDefaults(); // a float flag: not made infinite
+    EXPECT_THROW(deformSetting("--boundary-weight").set(o, "1e300"), UsageError);
+    EXPECT_NO_THROW(deformSetting("--boundary-weight").set(o, "1e30"));
 }
 
 TEST(DeformSettings, EverySwitchChangesTheRecordAndEveryFlagARecipeSetsIsARow)
