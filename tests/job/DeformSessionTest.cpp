@@ -116,7 +116,7 @@ TEST(DeformSession, RefineAfterAnotherPoseEqualsDeform)
     control.onProgress = [&](const std::string& phase, int done, int total) {
         if (phase != "Stage II") {
             EXPECT_EQ(done, int(steps.size())) << phase;
-            EXPECT_EQ(total, 7) << phase; // refineStepCount() counts the steps that start
+            EXPECT_EQ(total, 7) << phase; // stageTwo() counts the phases of refineSteps() that run
             steps.push_back(phase);
             return;
         }
