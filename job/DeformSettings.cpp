@@ -143,6 +143,26 @@ Setting word(const char* flag, const std::vector<std::string>& words, Level leve
     return s;
 }
 
+/// `--iterations auto|N`: auto sets the cap and the stall stop (StageTwoOptions::setAutoIterations()).
+void setIterations(StageTwoOptions& stageTwo, const std::string& word)
+{
+    if (word == "auto") {
+        stageTwo.setAutoIterations();
+        return;
+    }
+    stageTwo.iterations = int(parseNumber("--iterations", word, {0, 1000000}, true, "auto"));
+    stageTwo.scheduleIterations = 0;
+}
+
+/// A word setting whose record is its word under `key`.
+Setting recordedWord(const char* flag, const char* key, const std::vector<std::string>& words, std::string help,
+                     std::function<void(DeformJobOptions&, const std::string&)> set,
+                     std::function<std::string(const DeformJobOptions&)> text)
+{
+    return word(flag, words, Expert, std::move(help), std::move(set), text,
+                [=](const DeformJobOptions& o, json& out) { out[key] = text(o); });
+}
+
 /// auto|off settings that turn a step on (auto) or off.
 Setting onOff(const char* flag, const char* key, std::string help, Field<bool> field, bool writeWhenOn = true)
 {
@@ -170,17 +190,14 @@ std::vector<Setting> stageOneSettings()
                       [](DeformJobOptions& o) -> std::optional<int>& { return o.k; }, {1, 64}),
         graphOverride<std::uint32_t>("--seed", "seed", "Seed of the farthest-point sampling (overrides graph.seed)",
                                 [](DeformJobOptions& o) -> std::optional<std::uint32_t>& { return o.seed; }, {0, 4294967295.0}),
-        word("--stage1-shape", {"affine", "polar"}, Expert,
+        recordedWord("--stage1-shape", "stage1Shape", {"affine", "polar"},
              "How Stage I shapes a moving Gaussian from the affine map M fitted to its skinned endpoints: affine "
              "(covariance M Sigma M^T, so shear and a flat Gaussian's turning normal follow) or polar (the paper: "
              "M's rotation, each axis scaled by M's stretch along it)",
              [](DeformJobOptions& o, const std::string& w) {
                  o.stage1.shape = w == "polar" ? StageOneShape::Polar : StageOneShape::Affine;
              },
-             [](const DeformJobOptions& o) { return o.stage1.shape == StageOneShape::Polar ? "polar" : "affine"; },
-             [](const DeformJobOptions& o, json& out) {
-                 out["stage1Shape"] = o.stage1.shape == StageOneShape::Affine ? "affine" : "polar";
-             }),
+             [](const DeformJobOptions& o) { return o.stage1.shape == StageOneShape::Polar ? "polar" : "affine"; }),
         number<double>("--endpoint-sigmas", "endpointSigmas", Expert,
                        "Stage I fits M to the skinned endpoints at +-this many standard deviations along each Gaussian "
                        "axis (the paper: 2)",
@@ -346,14 +363,8 @@ std::vector<Setting> stageTwoSettings()
         Setting{"--iterations", "auto|N", User, msg("Stage II Adam iterations, or auto: up to ", StageTwoOptions::kAutoIterations,
                     ", stopping once the energy fell by less than a fraction ", StageTwoOptions::kAutoStallTolerance, " over ",
                     StageTwoOptions().stallWindow, " iterations (--stall-tolerance sets that fraction)"),
-                [](DeformJobOptions& o, const std::string& w) {
-                    if (w == "auto") { // --stall-tolerance, a later row, may then refine the stop
-                        o.stage2.setAutoIterations();
-                        return;
-                    }
-                    o.stage2.iterations = int(parseNumber("--iterations", w, {0, 1000000}, true, "auto"));
-                    o.stage2.scheduleIterations = 0;
-                },
+                // --stall-tolerance, a later row, may then refine auto's stop
+                [](DeformJobOptions& o, const std::string& w) { setIterations(o.stage2, w); },
                 [](const DeformJobOptions& o, json& out) {
                     out["iterations"] = o.stage2.iterations;
                     out["scheduleIterations"] = o.stage2.scheduleIterations;
@@ -391,12 +402,11 @@ std::vector<Setting> outputSettings()
                             [](DeformJobOptions& o) -> std::size_t& { return o.heldOut.points; }, {1, 1e12}),
         toggle("--no-eval", "evaluate", Expert, "Skip the held-out field errors",
                [](DeformJobOptions& o) -> bool& { return o.evaluate; }, false),
-        word("--device", {"auto", "cpu", "cuda"}, Expert,
+        recordedWord("--device", "device", {"auto", "cpu", "cuda"},
              deviceHelp("the computing stages run (Stage I update, field targets, sample and held-out warping, held-out "
                         "evaluation, Stage II, --render)"),
              [](DeformJobOptions& o, const std::string& w) { o.device = parseDevice(w); },
-             [](const DeformJobOptions& o) { return deviceName(o.device); },
-             [](const DeformJobOptions& o, json& out) { out["device"] = deviceName(o.device); }),
+             [](const DeformJobOptions& o) { return deviceName(o.device); }),
         toggle("--vdb", "vdb", User,
                "Also write the Stage II model's sampled field (as `to-vdb`): deform's field.vdb; animate's "
                "vdb/field.0000.vdb ... (the sequence naming Houdini and Blender read)",

@@ -1,10 +1,8 @@
 #pragma once
 /// @file SharedArgs.h
-/// @brief Flags that several commands take, each declared once (their help is the deform settings
-///        table's, job/DeformSettings.h): `--device` (every command that
-///        computes on a device), `--iterations`, `--max-mean-step` and the coverage flags (every
-///        command that runs Stage II).
-#include <sstream>
+/// @brief Flags that several commands take besides deform's (whose flags are its settings table,
+///        job/DeformSettings.h, where their help comes from): `--device` (every command that
+///        computes on a device), `--max-mean-step` and the coverage flags (from-vdb's Stage II).
 #include <string>
 
 #include "Command.h"
@@ -25,29 +23,6 @@ inline void addDeviceOption(CLI::App* sub, Device& device, const std::string& wh
            deviceHelp(what))
         ->default_str("auto")
         ->check(CLI::IsMember({"auto", "cpu", "cuda"}));
-}
-
-/// @brief `--iterations N|auto` into the Stage II options (default: theirs). `auto` sets the cap
-///        and the stall stop (StageTwoOptions::setAutoIterations()); a `--stall-tolerance` given
-///        too keeps its value. Anything but auto or a whole number in [0, 1000000] is a usage error.
-inline void addIterationsOption(CLI::App* sub, StageTwoOptions& stageTwo)
-{
-    sub->add_option_function<std::string>(
-           "--iterations",
-           [sub, &stageTwo](const std::string& word) {
-               long n = 0;
-               if (word != "auto" && parseWholeNumber(word, 0, 1000000, n)) {
-                   stageTwo.iterations = int(n);
-                   stageTwo.scheduleIterations = 0;
-                   return;
-               }
-               const float tolerance = stageTwo.stallTolerance;
-               stageTwo.setAutoIterations();
-               if (sub->count("--stall-tolerance")) stageTwo.stallTolerance = tolerance;
-           },
-           deformSetting("--iterations").help)
-        ->default_str(std::to_string(stageTwo.iterations))
-        ->check(autoOrWholeNumber(0, 1000000, "auto|N"));
 }
 
 /// @brief `--max-mean-step` into the Stage II options (default: the options' value).

@@ -34,7 +34,11 @@ std::vector<float> opacityResidual(const GaussianCloud& cloud, const SampleSet& 
     f.cutoff = o.cutoff;
     f.filterVariance = o.lowPassFilter ? o.lambdaLpf * samples.spacing * samples.spacing : 0.0f;
     std::vector<float> opacity(samples.sampleCount());
-    evaluatePointFeatures(cloud, samples.restPositions.data(), samples.sampleCount(), f, nullptr, opacity.data());
+    if (samples.sampleCell.size() == samples.sampleCount()) // a volume's samples come in runs of one cell
+        evaluateBlockFeatures(cloud, samples.restPositions.data(), samples.sampleCell.data(), samples.sampleCount(), f,
+                              nullptr, opacity.data());
+    else
+        evaluatePointFeatures(cloud, samples.restPositions.data(), samples.sampleCount(), f, nullptr, opacity.data());
     for (std::size_t j = 0; j < opacity.size(); ++j) opacity[j] = std::fabs(samples.targetO[j] - opacity[j]);
     return opacity;
 }
