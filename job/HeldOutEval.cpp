@@ -210,12 +210,9 @@ FieldPointErrors heldOutPointErrors(const FieldErrorTarget& target, const Gaussi
 {
     if (target.size() != points.size())
         throw InputError(msg("held-out evaluation: a rest side of ", target.size(), " points for ", points.size(), " points"));
-    if (target.shDegree != deformed.shDegree)
-        throw InputError(msg("field error: rest SH degree ", target.shDegree, " differs from deformed ", deformed.shDegree));
-    const int stride = deformed.shStride();
-    std::vector<float> f(points.size() * std::size_t(stride)), o(points.size());
+    std::vector<float> f(points.size() * std::size_t(deformed.shStride())), o(points.size());
     evaluatePointsOn(deformed, points.warped.data(), points.size(), points.features, f.data(), o.data());
-    return fieldPointErrors(target, f.data(), o.data(), stride);
+    return fieldPointErrors(target, deformed, f.data(), o.data());
 }
 
 FieldErrorReport evaluateHeldOut(const GaussianCloud& rest, const GaussianCloud& deformed, const HeldOutPoints& points)

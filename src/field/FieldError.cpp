@@ -40,18 +40,19 @@ FieldErrorTarget fieldErrorTarget(const GaussianCloud& rest, const float* restPo
 FieldPointErrors fieldPointErrors(const FieldErrorTarget& t, const GaussianCloud& deformed, const float* warpedPoints,
                                   const FeatureOptions& options)
 {
+    const std::size_t p = t.size();
+    std::vector<float> fDef(p * std::size_t(deformed.shStride())), oDef(p);
+    evaluateFeaturesOn(deformed, warpedPoints, p, options, fDef.data(), oDef.data());
+    return fieldPointErrors(t, deformed, fDef.data(), oDef.data());
+}
+
+FieldPointErrors fieldPointErrors(const FieldErrorTarget& t, const GaussianCloud& deformed, const float* fDef,
+                                  const float* oDef)
+{
     if (t.shDegree != deformed.shDegree)
         throw InputError(msg("field error: rest SH degree ", t.shDegree, " differs from deformed ", deformed.shDegree));
     const std::size_t p = t.size();
     const int stride = deformed.shStride();
-    std::vector<float> fDef(p * std::size_t(stride)), oDef(p);
-    evaluateFeaturesOn(deformed, warpedPoints, p, options, fDef.data(), oDef.data());
-    return fieldPointErrors(t, fDef.data(), oDef.data(), stride);
-}
-
-FieldPointErrors fieldPointErrors(const FieldErrorTarget& t, const float* fDef, const float* oDef, int stride)
-{
-    const std::size_t p = t.size();
     FieldPointErrors e;
     e.opacity.resize(p);
     e.color.assign(p, 0.0);

@@ -58,8 +58,9 @@ FieldPointErrors fieldPointErrors(const FieldErrorTarget& target, const Gaussian
                                   const float* warpedPoints, const FeatureOptions& options = {});
 
 /// @brief The per-point terms from the deformed model's features at the points, evaluated by the
-///        caller: fDef [P,stride], oDef [P] (stride: the model's SH stride).
-FieldPointErrors fieldPointErrors(const FieldErrorTarget& target, const float* fDef, const float* oDef, int stride);
+///        caller: fDef [P, deformed.shStride()], oDef [P]. @throws InputError when the SH degrees differ
+FieldPointErrors fieldPointErrors(const FieldErrorTarget& target, const GaussianCloud& deformed, const float* fDef,
+                                  const float* oDef);
 
 /// @brief fieldError() from its per-point terms.
 FieldErrorReport fieldErrorOf(const FieldErrorTarget& target, const FieldPointErrors& errors);
