@@ -26,6 +26,25 @@ std::vector<std::size_t> heaviestFirst(const std::vector<StageTwoCandidate>& can
     return order;
 }
 
+/// The candidate whose version of Gaussian i lowers the score most, or none when none lowers it.
+const GaussianCloud* bestFor(const ValidationResiduals& residuals, const std::vector<StageTwoCandidate>& candidates,
+                             const GaussianCloud& kept, std::size_t i)
+{
+    std::vector<GaussianRef> ins;
+    for (const StageTwoCandidate& c : candidates)
+        if (!kept.sameGaussian(i, *c.model, i)) ins.push_back({c.model, i});
+    std::vector<double> change(ins.size());
+    residuals.changes({&kept, i}, ins, change.data());
+    const GaussianCloud* best = nullptr;
+    double bestChange = 0.0;
+    for (std::size_t c = 0; c < ins.size(); ++c)
+        if (change[c] < bestChange) {
+            bestChange = change[c];
+            best = ins[c].cloud;
+        }
+    return best;
+}
+
 } // namespace
 
 GaussianCloud chooseEachGaussian(const Judge& validation, const std::vector<StageTwoCandidate>& candidates,
@@ -37,16 +56,7 @@ GaussianCloud chooseEachGaussian(const Judge& validation, const std::vector<Stag
     const std::vector<std::size_t> order = heaviestFirst(candidates, kept);
     report.tried = order.size();
     for (std::size_t i : order) {
-        const GaussianCloud* best = nullptr;
-        double bestChange = 0.0;
-        for (const StageTwoCandidate& c : candidates) {
-            if (kept.sameGaussian(i, *c.model, i)) continue;
-            const double d = residuals.change({{&kept, i}}, {{c.model, i}});
-            if (d < bestChange) {
-                bestChange = d;
-                best = c.model;
-            }
-        }
+        const GaussianCloud* best = bestFor(residuals, candidates, kept, i);
         if (!best) continue;
         residuals.apply({{&kept, i}}, {{best, i}});
         kept.assign(i, *best, i);

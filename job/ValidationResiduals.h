@@ -29,13 +29,29 @@ struct PointLattice {
     double cell = 0.0;
 };
 
+/// @brief A box of buckets [lo, hi] per axis (empty: lo > hi on some axis).
+struct BucketRange {
+    std::int64_t lo[3] = {0, 0, 0}, hi[3] = {-1, -1, -1};
+    bool contains(std::int64_t i, std::int64_t j, std::int64_t k) const
+    {
+        return i >= lo[0] && i <= hi[0] && j >= lo[1] && j <= hi[1] && k >= lo[2] && k <= hi[2];
+    }
+};
+
 /// @brief The validation points bucketed in a uniform grid, to visit the ones near a box.
 class PointBuckets {
 public:
     PointBuckets(const std::vector<float>& points, int cellsAlong);
-    /// Calls f(j) for each point j in the buckets overlapping [lo, hi] (the caller tests the box).
+    /// The buckets overlapping [lo, hi] (empty when the box misses the grid or is NaN).
+    BucketRange rangeOf(const float* lo, const float* hi) const;
+    /// The point at a slot: slots number the points bucket by bucket, in index order within one.
+    std::size_t pointAt(std::size_t slot) const { return mOrder[slot]; }
+    /// Calls f(slot) for each point in the buckets overlapping [lo, hi] (the caller tests the box).
     template <typename F>
     void forEachNear(const float* lo, const float* hi, F&& f) const;
+    /// Calls f(i, j, k, slot) for each point in the buckets of r, buckets in (i, j, k) order.
+    template <typename F>
+    void forEachIn(const BucketRange& r, F&& f) const;
 
 private:
     std::int64_t cellOf(double x, int a) const;
@@ -58,17 +74,21 @@ public:
     double change(const std::vector<GaussianRef>& out, const std::vector<GaussianRef>& in) const;
     /// Record that swap.
     void apply(const std::vector<GaussianRef>& out, const std::vector<GaussianRef>& in);
+    /// change({out}, {ins[c]}) for each c into result[c], the same bits, in one visit of the
+    /// points (out's weights are computed once).
+    void changes(GaussianRef out, const std::vector<GaussianRef>& ins, double* result) const;
 
 private:
     template <typename F>
     void visit(const std::vector<GaussianRef>& out, const std::vector<GaussianRef>& in, F&& f) const;
 
-    const std::vector<float>& mX;
+    std::vector<float> mX; ///< [P,3] by slot (PointBuckets::pointAt), as every array below
     FeatureOptions mOptions;
     int mStride;
     PointBuckets mBuckets;
     std::vector<double> mO, mF; ///< [P], [P,stride]
     std::vector<double> mWeight; ///< [P] each point's weight (the target's) over the normalising sums
+    std::vector<std::size_t> mSlotOf; ///< [P] each point's slot
     double mWeightO = 0, mWeightF = 0;
 };
 

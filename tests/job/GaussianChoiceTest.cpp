@@ -143,3 +143,54 @@ TEST(ValidatedSplit, SplitsOnlyWhatTheValidationPointsMeasureToPay)
         EXPECT_LT(r.after, r.before);
     }
 }
+
+// The per-Gaussian step (one visit of the points for all candidates) keeps the same Gaussians, to
+// the bit, as the rule written plainly: heaviest first, each candidate scored by change(), the
+// best applied at once.
+TEST(GaussianChoice, OneVisitForAllCandidatesMatchesTheRuleWrittenPlainly)
+{
+    const ChoiceFixture fx;
+    // Three candidates that differ from the kept model in overlapping Gaussians.
+    GaussianCloud moved = fx.stage1, bright = fx.stage1;
+    for (std::size_t i = 0; i < moved.size(); i += 3) {
+        const Vec3f m = moved.mean(i);
+        moved.setMean(i, Vec3f{m.x + 0.5f * moved.scale(i).x, m.y, m.z});
+    }
+    for (std::size_t i = 0; i < bright.size(); i += 2) bright.opacities[i] += 0.7f;
+    const GaussianCloud blank = blankedParity(fx.stage1, 1);
+    const std::vector<StageTwoCandidate> candidates{{"moved", &moved}, {"bright", &bright}, {"blank", &blank}};
+    const GaussianCloud start = blankedParity(fx.stage1, 0);
+
+    GaussianCloud plain = start;
+    ValidationResiduals r(*fx.validation, plain);
+    std::vector<std::pair<double, std::size_t>> order;
+    for (std::size_t i = 0; i < plain.size(); ++i) {
+        bool differs = false;
+        for (const StageTwoCandidate& c : candidates) differs = differs || !plain.sameGaussian(i, *c.model, i);
+        const Vec3f s = plain.scale(i);
+        if (differs) order.push_back({-double(plain.alpha(i)) * double(s.x) * double(s.y) * double(s.z), i});
+    }
+    std::stable_sort(order.begin(), order.end(), [](const auto& a, const auto& b) { return a.first < b.first; });
+    std::size_t swapped = 0;
+    for (const auto& [mass, i] : order) {
+        const GaussianCloud* best = nullptr;
+        double bestChange = 0.0;
+        for (const StageTwoCandidate& c : candidates) {
+            if (plain.sameGaussian(i, *c.model, i)) continue;
+            const double d = r.change({{&plain, i}}, {{c.model, i}});
+            if (d < bestChange) bestChange = d, best = c.model;
+        }
+        if (!best) continue;
+        r.apply({{&plain, i}}, {{best, i}});
+        plain.assign(i, *best, i);
+        ++swapped;
+    }
+    ASSERT_GT(swapped, plain.size() / 10);
+    GaussianChoiceReport report;
+    const GaussianCloud kept = chooseEachGaussian(*fx.validation, candidates, start, report);
+    EXPECT_EQ(report.swapped, swapped);
+    EXPECT_EQ(report.tried, order.size());
+    EXPECT_EQ(report.after, r.score());
+    EXPECT_EQ(kept.means, plain.means);
+    EXPECT_EQ(kept.opacities, plain.opacities);
+}
