@@ -42,15 +42,18 @@ std::vector<Camera> comparisonCameras(const GaussianCloud& rest, const GaussianC
     return orbitCameras(both, orbit);
 }
 
-/// stretched.png: a close-up of the most stretched region (StretchedView.h); the report's
-/// "stretched" says where it is. The rest samples are warped again: only this output needs their gradients here.
-void writeStretchedView(const DeformRest& rest, const Deformation& deformation, const GaussianCloud& stage1,
+/// The most stretched region of the deformation, from its warped samples (render only).
+std::optional<StretchedRegion> stretchedRegionOf(const SampleSet& warped, const DeformJobOptions& o)
+{
+    return o.render ? mostStretchedRegion(warped) : std::nullopt;
+}
+
+/// stretched.png: a close-up of the most stretched region (StretchedView.h, found by the refine
+/// from its warped samples); the report's "stretched" says where it is.
+void writeStretchedView(const DeformRest& rest, const std::optional<StretchedRegion>& region, const GaussianCloud& stage1,
                         const GaussianCloud& fitted, const DeformJobOptions& o, const std::string& path,
                         FrameReport& report)
 {
-    SampleSet samples = rest.grid->samples();
-    warpSamplesOn(samples, deformation, {rest.device, o.grid.threaded});
-    const std::optional<StretchedRegion> region = mostStretchedRegion(samples);
     if (!region) {
         progress("stretched.png: no cell with matter to show; not written");
         return;
@@ -63,7 +66,7 @@ void writeStretchedView(const DeformRest& rest, const Deformation& deformation, 
 }
 
 /// The optional outputs of Stage II's result: field.vdb, compare.png and stretched.png.
-void writeExtras(const DeformRest& rest, const Deformation& deformation, const GaussianCloud& stage1,
+void writeExtras(const DeformRest& rest, const std::optional<StretchedRegion>& stretched, const GaussianCloud& stage1,
                  const GaussianCloud& fitted, const DeformJobOptions& o, const FrameOutputs& out, FrameReport& report)
 {
     Stopwatch clock;
@@ -87,7 +90,7 @@ void writeExtras(const DeformRest& rest, const Deformation& deformation, const G
                                                   comparisonCameras(rest.model, fitted, o), sheetOptions);
         writePng(out.compare, sheet);
         report.outputs["compare"] = out.compare;
-        if (!out.stretched.empty()) writeStretchedView(rest, deformation, stage1, fitted, o, out.stretched, report);
+        if (!out.stretched.empty()) writeStretchedView(rest, stretched, stage1, fitted, o, out.stretched, report);
         report.timingsMs["render"] = clock.ms();
     }
 }
@@ -133,7 +136,7 @@ struct FrameErrors {
 /// the Stage I model's and Stage II has nothing to fit (run anyway, it only adds noise: at best
 /// its first steps are all rejected). Returns the Stage I model with both stages judged.
 GaussianCloud skipStageTwo(DeformRest& rest, const Deformation& deformation, const StageOneResult& stage1,
-                           const DeformJobOptions& o, FrameReport& report)
+                           const DeformJobOptions& o, FrameReport& report, std::optional<StretchedRegion>& stretched)
 {
     progress("Stage II: skipped (a rigid spec: the Stage I model is the fitted one)");
     StageTwoRecord& s2 = report.stage2.emplace();
@@ -145,6 +148,11 @@ GaussianCloud skipStageTwo(DeformRest& rest, const Deformation& deformation, con
     if (errors.judge) { // one model, judged once for both stages
         report.stage1Errors = s2.errors = errors.record(stage1.deformed, "Stage I");
         report.timingsMs["evaluate"] = rest.heldOutMs + clock.ms();
+    }
+    if (o.render) { // stretched.png: the samples are warped for it alone
+        SampleSet samples = rest.grid->samples();
+        warpSamplesOn(samples, deformation, {rest.device, o.grid.threaded});
+        stretched = stretchedRegionOf(samples, o);
     }
     return stage1.deformed;
 }
@@ -511,9 +519,10 @@ const std::vector<RefineStep>& refineSteps()
 
 /// Stage II and the steps around it on a posed frame; returns the model kept.
 GaussianCloud stageTwo(DeformRest& rest, const Deformation& deformation, const StageOneResult& stage1,
-                       const DeformJobOptions& o, const StageTwoStart& start, FrameReport& report)
+                       const DeformJobOptions& o, const StageTwoStart& start, FrameReport& report,
+                       std::optional<StretchedRegion>& stretched)
 {
-    if (rigidMotionOf(deformation)) return skipStageTwo(rest, deformation, stage1, o, report);
+    if (rigidMotionOf(deformation)) return skipStageTwo(rest, deformation, stage1, o, report, stretched);
     Refine f(rest, deformation, stage1, o, start, report);
     int phases = 0;
     for (const RefineStep& step : refineSteps()) phases += step.phase && step.runs(f);
@@ -523,6 +532,7 @@ GaussianCloud stageTwo(DeformRest& rest, const Deformation& deformation, const S
         if (step.phase) steps.start(step.phase);
         step.run(f);
     }
+    stretched = stretchedRegionOf(f.samples, o);
     return std::move(f.fitted);
 }
 
@@ -623,7 +633,7 @@ std::unique_ptr<DeformRest> prepareDeformRest(const DeformJobOptions& o, const G
 FrameResult poseFrame(DeformRest& rest, const DeformSpec& spec, const DeformJobOptions& o)
 {
     Stopwatch clock;
-    FrameResult f{solveDeformation(rest.graph, rest.model, spec, o.ed), {}, std::nullopt, {}, 0.0};
+    FrameResult f{solveDeformation(rest.graph, rest.model, spec, o.ed), {}, std::nullopt, std::nullopt, {}, 0.0};
     f.deformation.report.graphMs = rest.graphMs;
     f.stage1 = rest.stageOne->apply(f.deformation.transforms, f.deformation.nodeMoving);
     f.stage1.timings.rigMs = rest.rigMs;
@@ -649,7 +659,8 @@ void refineFrame(DeformRest& rest, const DeformJobOptions& o, FrameResult& f, co
     if (!rest.grid) throw UsageError("Stage II needs the rest side prepared without --stage1-only");
     Stopwatch clock;
     f.report.timingsMs["sampleGrid"] = rest.sampleGridMs;
-    f.fitted = runStage("Stage II", [&] { return stageTwo(rest, f.deformation, f.stage1, o, start, f.report); });
+    f.fitted =
+        runStage("Stage II", [&] { return stageTwo(rest, f.deformation, f.stage1, o, start, f.report, f.stretched); });
     f.ms += clock.ms();
 }
 
@@ -670,7 +681,7 @@ FrameReport writeFrame(const DeformRest& rest, const DeformJobOptions& o, const 
             writeMs += clock.ms();
             report.outputs["deformed"] = out.deformed;
         }
-        writeExtras(rest, f.deformation, f.stage1.deformed, *f.fitted, o, out, report);
+        writeExtras(rest, f.stretched, f.stage1.deformed, *f.fitted, o, out, report);
     }
     report.timingsMs["write"] = writeMs;
     report.timingsMs["total"] = f.ms + clock.ms();

@@ -13,6 +13,7 @@
 #include <nlohmann/json.hpp>
 
 #include "job/FrameReport.h"
+#include "job/StretchedView.h"
 #include "job/Judge.h"
 #include "vdb/SampleGrid.h"
 #include "core/Device.h"
@@ -127,6 +128,7 @@ struct FrameResult {
     Deformation deformation;
     StageOneResult stage1;
     std::optional<GaussianCloud> fitted; ///< none before refineFrame() (or with stage1Only)
+    std::optional<StretchedRegion> stretched; ///< refineFrame() with render: the most stretched region (stretched.png)
     FrameReport report;                  ///< what each step did so far
     double ms = 0;                       ///< time spent on the frame so far
 };

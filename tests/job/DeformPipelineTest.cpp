@@ -5,6 +5,7 @@
 #include <nlohmann/json.hpp>
 
 #include "job/DeformPipeline.h"
+#include "deform/WarpDevice.h"
 #include "io/GaussianIO.h"
 #include "demo/DemoModels.h"
 #include "support/TestSupport.h"
@@ -271,4 +272,34 @@ TEST(DeformPipeline, SplitAndPruneFromTheCommandLine)
     EXPECT_EQ(r["stage2"]["energies"].back()["iteration"].get<int>(), 6);
     for (const std::string bad : {"--split sometimes", "--split-stretch 0.5", "--prune-below 1.5", "--split-after -0.1", "--split-offset 0.9"})
         EXPECT_EQ(runCli(base + bad + " -o " + dir.file("bad")), 2) << bad;
+}
+
+// With render on, the refine keeps the most stretched region of the samples it warped for Stage
+// II: the very region a fresh warp of the rest samples gives (stretched.png needs no second warp).
+TEST(DeformPipeline, TheStretchedRegionComesFromTheRefinesWarp)
+{
+    TempDir dir;
+    DeformJobOptions o = smallJob(dir, "bend.json", 3);
+    o.render = true;
+    o.evaluate = false;
+    const DeformSpec spec = loadDeformSpec(o.specPath);
+    std::unique_ptr<DeformRest> rest = prepareDeformRest(o, graphOptionsOf(spec, o));
+    FrameResult f = poseFrame(*rest, spec, o);
+    EXPECT_FALSE(f.stretched);
+    refineFrame(*rest, o, f);
+    ASSERT_TRUE(f.stretched);
+    SampleSet fresh = rest->grid->samples();
+    warpSamplesOn(fresh, f.deformation, {rest->device, o.grid.threaded});
+    const std::optional<StretchedRegion> expected = mostStretchedRegion(fresh);
+    ASSERT_TRUE(expected);
+    EXPECT_GT(expected->stretch, 1.05);
+    EXPECT_EQ(f.stretched->cell, expected->cell);
+    EXPECT_EQ(f.stretched->stretch, expected->stretch);
+    EXPECT_EQ(f.stretched->warpedCentre.x, expected->warpedCentre.x);
+    EXPECT_EQ(f.stretched->radius, expected->radius);
+    // Without render nothing is looked for.
+    o.render = false;
+    FrameResult g = poseFrame(*rest, spec, o);
+    refineFrame(*rest, o, g);
+    EXPECT_FALSE(g.stretched);
 }
