@@ -108,7 +108,7 @@ FeatureStats evaluateBlockFeatures(const GaussianCloud& cloud, const float* poin
         preparedBox(prepared[i], &lo[3 * i], &hi[3 * i]);
         slabs[i] = preparedSlabs(cloud, i, prepared[i], double(options.filterVariance));
     });
-    const SampleBlocks blocks = SampleBlocks::build(points, cell, m);
+    const SampleBlocks blocks = SampleBlocks::build(points, cell, m, options.threaded);
     BlockCoverage coverage(blocks);
     coverage.build(lo.data(), hi.data(), slabs.data(), n, options.threaded);
     const int stride = cloud.shStride();

@@ -30,19 +30,21 @@ private:
 };
 
 /// Rows of `stride` floats per used sample (rowOf(j)) in the block layout: [stride][lanes] per
-/// block, padding lanes 0.
+/// block, padding lanes 0. Every float is written once, blocks in parallel (first touches included).
 template <typename RowOf>
-BigVector<float> toSlots(const SampleBlocks& blocks, std::size_t stride, const RowOf& rowOf)
+BigVector<float> toSlots(const SampleBlocks& blocks, std::size_t stride, bool threaded, const RowOf& rowOf)
 {
-    BigVector<float> out(blocks.slots() * stride, 0.0f);
-    for (std::size_t b = 0; b < blocks.count(); ++b) {
-        const std::size_t lanes = std::size_t(blocks.lanesOf(b));
+    BigVector<float> out;
+    out.resize(blocks.slots() * stride);
+    parallelFor(blocks.count(), 256, threaded, [&](std::size_t b) {
+        const std::size_t lanes = std::size_t(blocks.lanesOf(b)), samples = std::size_t(blocks.samplesOf(b));
         float* dst = out.data() + std::size_t(blocks.slot[b]) * stride;
-        for (std::size_t t = 0; t < std::size_t(blocks.samplesOf(b)); ++t) {
+        for (std::size_t t = 0; t < samples; ++t) {
             const float* src = rowOf(blocks.first[b] + t);
             for (std::size_t c = 0; c < stride; ++c) dst[c * lanes + t] = src[c];
         }
-    }
+        for (std::size_t c = 0; c < stride; ++c) std::fill(dst + c * lanes + samples, dst + (c + 1) * lanes, 0.0f);
+    });
     return out;
 }
 
@@ -133,7 +135,7 @@ CpuSolver::CpuSolver(const GaussianCloud& cloud, const SampleSet& samples, const
     mG = mSetup.moving.size();
     std::vector<std::int32_t> cells(mS);
     for (std::size_t j = 0; j < mS; ++j) cells[j] = samples.sampleCell[mSetup.used[j]];
-    mBlocks = SampleBlocks::build(mSetup.x.data(), cells.data(), mS);
+    mBlocks = SampleBlocks::build(mSetup.x.data(), cells.data(), mS, mOptions.threaded);
     mCoverage = BlockCoverage(mBlocks);
     const std::size_t n = mG * std::size_t(mPerG);
     mParams.resize(n);
@@ -149,8 +151,8 @@ CpuSolver::CpuSolver(const GaussianCloud& cloud, const SampleSet& samples, const
     mHolds.resize(mG);
     const std::size_t stride = std::size_t(mStride);
     evaluateStatic(cloud, moving);
-    mTargetF = toSlots(mBlocks, stride, [&](std::size_t j) { return &samples.targetF[mSetup.used[j] * stride]; });
-    mTargetO = toSlots(mBlocks, 1, [&](std::size_t j) { return &samples.targetO[mSetup.used[j]]; });
+    mTargetF = toSlots(mBlocks, stride, mOptions.threaded, [&](std::size_t j) { return &samples.targetF[mSetup.used[j] * stride]; });
+    mTargetO = toSlots(mBlocks, 1, mOptions.threaded, [&](std::size_t j) { return &samples.targetO[mSetup.used[j]]; });
     mBlockEnergy.assign(3 * mBlocks.count(), 0.0);
     mBlockPairs.resize(mBlocks.count());
     mSetupMs = watch.ms();
@@ -181,17 +183,19 @@ void CpuSolver::evaluateStatic(const GaussianCloud& cloud, const std::vector<std
     });
     BlockCoverage coverage(mBlocks);
     coverage.build(lo.data(), hi.data(), slabs.data(), n, mOptions.threaded);
-    mStaticF.assign(mBlocks.slots() * stride, 0.0f);
-    mStaticO.assign(mBlocks.slots(), 0.0f);
+    resizeDiscarding(mStaticF, mBlocks.slots() * stride); // zeroed block by block below (first touches in parallel)
+    resizeDiscarding(mStaticO, mBlocks.slots());
     mStaticBlock.assign(nb, 0);
     parallelFor(nb, 16, mOptions.threaded, [&](std::size_t b) {
+        const std::size_t s0 = mBlocks.slot[b], lanes = std::size_t(mBlocks.lanesOf(b));
+        float* f = &mStaticF[s0 * stride];
+        float* o = &mStaticO[s0];
+        std::fill(f, f + lanes * stride, 0.0f);
+        std::fill(o, o + lanes, 0.0f);
         const std::uint64_t e0 = coverage.blockOffsets()[b];
         const BlockGaussians gs{coverage.blockItems().data() + e0, std::size_t(coverage.blockOffsets()[b + 1] - e0),
                                 prepared.data(), bounds.data(), cloud.sh.data(), stride};
         if (gs.n == 0) return;
-        const std::size_t s0 = mBlocks.slot[b];
-        float* f = &mStaticF[s0 * stride];
-        float* o = &mStaticO[s0];
         mStaticBlock[b] = blockFeatures(gs, pointsOf(b), mOptions.cutoff, mStride, f, o) > 0;
     });
 }

@@ -11,29 +11,28 @@
 namespace splatwarp {
 namespace {
 
-void appendBlock(SampleBlocks& b, const float* x, std::size_t begin, std::size_t end)
+/// Block b's slots (samples first[b] .. first[b+1]-1 of x, padding repeating the last), bounds
+/// and chunk rows, into arrays sized by build().
+void fillBlock(SampleBlocks& b, const float* x, std::size_t k)
 {
-    b.first.push_back(std::uint32_t(end));
-    const std::size_t lanes = (end - begin + kSimdLanes - 1) / kSimdLanes * kSimdLanes;
+    const std::size_t begin = b.first[k], end = b.first[k + 1], s0 = b.slot[k], lanes = b.slot[k + 1] - s0;
     float lo[3] = {x[3 * begin], x[3 * begin + 1], x[3 * begin + 2]}, hi[3] = {lo[0], lo[1], lo[2]};
     for (std::size_t t = 0; t < lanes; ++t) {
         const std::size_t j = std::min(begin + t, end - 1); // padding repeats the last sample
-        b.px.push_back(x[3 * j]);
-        b.py.push_back(x[3 * j + 1]);
-        b.pz.push_back(x[3 * j + 2]);
+        b.px[s0 + t] = x[3 * j];
+        b.py[s0 + t] = x[3 * j + 1];
+        b.pz[s0 + t] = x[3 * j + 2];
         for (int a = 0; a < 3; ++a) {
             lo[a] = std::min(lo[a], x[3 * j + std::size_t(a)]);
             hi[a] = std::max(hi[a], x[3 * j + std::size_t(a)]);
         }
     }
-    b.slot.push_back(std::uint32_t(b.px.size()));
-    float chunks[6][kChunkSlots];
+    float* chunks = b.chunks.data() + k * 6 * kChunkSlots; // [6][kChunkSlots]
     for (int c = 0; c < kChunkSlots; ++c)
         for (int a = 0; a < 3; ++a) {
-            chunks[a][c] = std::numeric_limits<float>::quiet_NaN(); // never meets a Gaussian
-            chunks[3 + a][c] = 0.0f;
+            chunks[a * kChunkSlots + c] = std::numeric_limits<float>::quiet_NaN(); // never meets a Gaussian
+            chunks[(3 + a) * kChunkSlots + c] = 0.0f;
         }
-    const std::size_t s0 = b.px.size() - lanes;
     for (std::size_t c = 0; c < lanes / kSimdLanes; ++c) {
         const float* axes[3] = {b.px.data() + s0 + c * kSimdLanes, b.py.data() + s0 + c * kSimdLanes,
                                 b.pz.data() + s0 + c * kSimdLanes};
@@ -42,28 +41,38 @@ void appendBlock(SampleBlocks& b, const float* x, std::size_t begin, std::size_t
             const float ch = *std::max_element(axes[a], axes[a] + kSimdLanes);
             // Rounded outwards: centre +- half holds [cl, ch].
             const float centre = 0.5f * (cl + ch);
-            chunks[a][c] = centre;
-            chunks[3 + a][c] = std::nextafter(std::max(ch - centre, centre - cl), std::numeric_limits<float>::infinity());
+            chunks[a * kChunkSlots + c] = centre;
+            chunks[(3 + a) * kChunkSlots + c] =
+                std::nextafter(std::max(ch - centre, centre - cl), std::numeric_limits<float>::infinity());
         }
     }
-    b.chunks.insert(b.chunks.end(), &chunks[0][0], &chunks[0][0] + 6 * kChunkSlots);
-    b.lo.insert(b.lo.end(), lo, lo + 3);
-    b.hi.insert(b.hi.end(), hi, hi + 3);
+    std::copy(lo, lo + 3, b.lo.begin() + std::ptrdiff_t(3 * k));
+    std::copy(hi, hi + 3, b.hi.begin() + std::ptrdiff_t(3 * k));
 }
 
 } // namespace
 
-SampleBlocks SampleBlocks::build(const float* x, const std::int32_t* cell, std::size_t s)
+SampleBlocks SampleBlocks::build(const float* x, const std::int32_t* cell, std::size_t s, bool threaded)
 {
+    // The cuts first (runs of equal cell, split every kMaxBlockSamples), then the blocks filled in parallel.
     SampleBlocks b;
     b.first.push_back(0);
     b.slot.push_back(0);
     std::size_t begin = 0;
     for (std::size_t j = 1; j <= s; ++j)
         if (j == s || cell[j] != cell[begin] || j - begin == std::size_t(kMaxBlockSamples)) {
-            appendBlock(b, x, begin, j);
+            b.first.push_back(std::uint32_t(j));
+            b.slot.push_back(b.slot.back() + std::uint32_t((j - begin + kSimdLanes - 1) / kSimdLanes * kSimdLanes));
             begin = j;
         }
+    const std::size_t nb = b.count();
+    b.px.resize(b.slot.back());
+    b.py.resize(b.slot.back());
+    b.pz.resize(b.slot.back());
+    b.chunks.resize(nb * 6 * kChunkSlots);
+    b.lo.resize(3 * nb);
+    b.hi.resize(3 * nb);
+    parallelFor(nb, 256, threaded, [&](std::size_t k) { fillBlock(b, x, k); });
     return b;
 }
 

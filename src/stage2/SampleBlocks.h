@@ -40,7 +40,7 @@ struct SampleBlocks {
 
     /// @brief Blocks of s samples at positions x [s,3] whose cells are cell [s] (runs of equal
     ///        cell in this order, split every kMaxBlockSamples).
-    static SampleBlocks build(const float* x, const std::int32_t* cell, std::size_t s);
+    static SampleBlocks build(const float* x, const std::int32_t* cell, std::size_t s, bool threaded = true);
 };
 
 /// @brief The blocks of a SampleBlocks binned by their centres, for finding the blocks a box meets.
