@@ -137,6 +137,74 @@ void DeformationGraph::buildIndex()
     mIndex = std::move(index);
 }
 
+namespace {
+
+/// Points looked up together: neighbours in a point list (a sample cell's samples) share their
+/// nearest nodes, so each run's candidates are found once.
+constexpr std::size_t kRun = 64;
+
+/// The nodes that may be among the `query` nearest of any point of a run: those within
+/// d_query(c) + 2 r of the run's centre c, r the farthest point's distance from c (each point's
+/// query nearest lie within d_query(c) + r of it, so within that of c). Ascending node order.
+/// Empty when the list would not be much shorter than the tree's search (spread runs).
+std::vector<std::int32_t> runCandidates(const detail::NodeIndex& index, const float* points, std::size_t r0,
+                                        std::size_t r1, std::size_t query)
+{
+    const std::size_t j = index.cloud.kdtree_get_point_count();
+    double lo[3], hi[3];
+    for (int a = 0; a < 3; ++a) lo[a] = hi[a] = double(points[3 * r0 + std::size_t(a)]);
+    for (std::size_t p = r0; p < r1; ++p)
+        for (int a = 0; a < 3; ++a) {
+            lo[a] = std::min(lo[a], double(points[3 * p + std::size_t(a)]));
+            hi[a] = std::max(hi[a], double(points[3 * p + std::size_t(a)]));
+        }
+    const double c[3] = {0.5 * (lo[0] + hi[0]), 0.5 * (lo[1] + hi[1]), 0.5 * (lo[2] + hi[2])};
+    double r2 = 0;
+    for (std::size_t p = r0; p < r1; ++p) {
+        double d = 0;
+        for (int a = 0; a < 3; ++a) d += (double(points[3 * p + std::size_t(a)]) - c[a]) * (double(points[3 * p + std::size_t(a)]) - c[a]);
+        r2 = std::max(r2, d);
+    }
+    std::vector<std::int32_t> idx(query);
+    std::vector<double> d2(query);
+    if (!(index.nearest(c, query, idx.data(), d2.data()) == query)) return {};
+    // A relative allowance far above the rounding of these distances.
+    const double reach = (std::sqrt(d2[query - 1]) + 2.0 * std::sqrt(r2)) * (1.0 + 1e-6) + 1e-12;
+    std::vector<std::int32_t> out;
+    for (std::size_t n = 0; n < j; ++n) {
+        double d = 0;
+        for (int a = 0; a < 3; ++a) d += (index.cloud.xyz[3 * n + std::size_t(a)] - c[a]) * (index.cloud.xyz[3 * n + std::size_t(a)] - c[a]);
+        if (d <= reach * reach) out.push_back(std::int32_t(n));
+        if (out.size() > std::max<std::size_t>(8 * query, j / 4)) return {};
+    }
+    return out;
+}
+
+/// The `query` nearest of the candidate nodes to q, nearest first (ties: lower node first), with
+/// the tree's distance arithmetic ((dx^2 + dy^2) + dz^2 in double).
+void nearestAmong(const std::vector<double>& xyz, const std::vector<std::int32_t>& candidates, const double* q,
+                  std::size_t query, std::int32_t* idx, double* d2)
+{
+    std::size_t found = 0;
+    for (const std::int32_t n : candidates) {
+        const double dx = q[0] - xyz[3 * std::size_t(n)], dy = q[1] - xyz[3 * std::size_t(n) + 1],
+                     dz = q[2] - xyz[3 * std::size_t(n) + 2];
+        const double d = dx * dx + dy * dy + dz * dz;
+        if (found == query && !(d < d2[query - 1])) continue;
+        std::size_t at = found < query ? found : query - 1;
+        while (at > 0 && d < d2[at - 1]) {
+            d2[at] = d2[at - 1];
+            idx[at] = idx[at - 1];
+            --at;
+        }
+        d2[at] = d;
+        idx[at] = n;
+        if (found < query) ++found;
+    }
+}
+
+} // namespace
+
 SkinWeights DeformationGraph::skinWeights(const float* points, std::size_t count, bool threaded) const
 {
     SkinWeights w;
@@ -146,18 +214,20 @@ SkinWeights DeformationGraph::skinWeights(const float* points, std::size_t count
     w.nodes.resize(count * k);
     w.weights.resize(count * k);
     const std::size_t query = std::min(k + 1, j);
-    parallelForRange(count, 1024, threaded, [&](std::size_t begin, std::size_t end) {
-        // Scratch per range (not per point): neighbour indices, squared distances, weights.
+    // Fixed runs (not the threads' ranges), so each point's search is the same for any thread count.
+    parallelFor((count + kRun - 1) / kRun, 4, threaded, [&](std::size_t run) {
+        const std::size_t r0 = run * kRun, r1 = std::min(count, r0 + kRun);
+        const std::vector<std::int32_t> candidates = runCandidates(*mIndex, points, r0, r1, query);
         std::vector<std::int32_t> idx(query);
         std::vector<double> d2(query), wt(k);
-        std::int32_t* ip = idx.data();
-        double* dp = d2.data();
-        double* wp = wt.data();
-        for (std::size_t p = begin; p != end; ++p) {
+        for (std::size_t p = r0; p != r1; ++p) {
             const double q[3] = {points[3 * p], points[3 * p + 1], points[3 * p + 2]};
-            mIndex->nearest(q, query, ip, dp);
-            skinWeightsFromDistances(dp, query, k, wp, &w.weights[p * k]);
-            for (std::size_t i = 0; i < k; ++i) w.nodes[p * k + i] = ip[i];
+            if (candidates.empty())
+                mIndex->nearest(q, query, idx.data(), d2.data());
+            else
+                nearestAmong(mIndex->cloud.xyz, candidates, q, query, idx.data(), d2.data());
+            skinWeightsFromDistances(d2.data(), query, k, wt.data(), &w.weights[p * k]);
+            for (std::size_t i = 0; i < k; ++i) w.nodes[p * k + i] = idx[i];
         }
     });
     return w;

@@ -50,6 +50,32 @@ TEST(SkinWeightMath, BruteForceMatchesNanoflann)
     }
 }
 
+// Points in runs of neighbours (a sample cell's samples, as warpSamples() passes them), where
+// skinWeights() searches only the nodes near each run, and runs spread over the model, where it
+// searches the tree: both give the brute force's nodes and weights exactly.
+TEST(SkinWeightMath, RunsOfNeighboursMatchTheBruteForce)
+{
+    const GaussianCloud rest = makeDemoModel("stripes", DemoModelOptions{4000, 2});
+    std::mt19937 rng(5);
+    std::uniform_real_distribution<float> u(-2.0f, 2.0f), cell(0.0f, 0.08f);
+    std::vector<float> points;
+    for (int c = 0; c < 60; ++c) { // 60 cells of 100 samples, then 700 scattered points
+        const float x = u(rng), y = u(rng) * 0.3f, z = u(rng) * 0.3f;
+        for (int s = 0; s < 100; ++s) points.insert(points.end(), {x + cell(rng), y + cell(rng), z + cell(rng)});
+    }
+    for (int s = 0; s < 700; ++s) points.insert(points.end(), {u(rng), u(rng), u(rng)});
+    for (int k : {1, 4, 8}) {
+        const DeformationGraph graph = DeformationGraph::build(rest, GraphOptions{256, k, 0});
+        const SkinWeights got = graph.skinWeights(points.data(), points.size() / 3);
+        const SkinWeights serial = graph.skinWeights(points.data(), points.size() / 3, false);
+        const SkinWeights ref = bruteWeights(graph, points);
+        EXPECT_EQ(got.nodes, ref.nodes) << "k " << k;
+        EXPECT_EQ(got.weights, ref.weights) << "k " << k;
+        EXPECT_EQ(serial.nodes, got.nodes);
+        EXPECT_EQ(serial.weights, got.weights);
+    }
+}
+
 TEST(SkinWeightMath, DegenerateCasesAndTies)
 {
     // Two nodes, k 8: d_{k+1} is twice the farther node's distance (the documented fallback).
