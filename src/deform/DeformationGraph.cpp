@@ -189,17 +189,7 @@ void nearestAmong(const std::vector<double>& xyz, const std::vector<std::int32_t
     for (const std::int32_t n : candidates) {
         const double dx = q[0] - xyz[3 * std::size_t(n)], dy = q[1] - xyz[3 * std::size_t(n) + 1],
                      dz = q[2] - xyz[3 * std::size_t(n) + 2];
-        const double d = dx * dx + dy * dy + dz * dz;
-        if (found == query && !(d < d2[query - 1])) continue;
-        std::size_t at = found < query ? found : query - 1;
-        while (at > 0 && d < d2[at - 1]) {
-            d2[at] = d2[at - 1];
-            idx[at] = idx[at - 1];
-            --at;
-        }
-        d2[at] = d;
-        idx[at] = n;
-        if (found < query) ++found;
+        insertNearest(dx * dx + dy * dy + dz * dz, n, query, found, idx, d2);
     }
 }
 

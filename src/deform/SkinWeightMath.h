@@ -34,6 +34,24 @@ SPLATWARP_HOST_DEVICE void skinWeightsFromDistances(const double* d2, std::size_
     for (std::size_t i = 0; i < k; ++i) weights[i] = float(uniform ? 1.0 / double(k) : scratch[i] / sum);
 }
 
+/// @brief Node n at squared distance d into the `found` nearest so far (idx, d2 sorted, nearest
+///        first, at most `query`): shifted in after the strictly nearer ones, so an equal distance
+///        keeps the node inserted earlier first; dropped when not nearer than the farthest of a full list.
+SPLATWARP_HOST_DEVICE void insertNearest(double d, std::int32_t n, std::size_t query, std::size_t& found,
+                                         std::int32_t* idx, double* d2)
+{
+    if (found == query && !(d < d2[query - 1])) return;
+    std::size_t at = found < query ? found : query - 1;
+    while (at > 0 && d < d2[at - 1]) {
+        d2[at] = d2[at - 1];
+        idx[at] = idx[at - 1];
+        --at;
+    }
+    d2[at] = d;
+    idx[at] = n;
+    if (found < query) ++found;
+}
+
 /// @brief The `query` nearest of J nodes [J,3] to q, nearest first, by brute force (insertion into
 ///        a sorted list). Exact ties in distance go to the lower node index (nanoflann, on the
 ///        CPU, may order exact ties differently). query <= J and query <= kMaxSkinK + 1.
@@ -43,18 +61,7 @@ SPLATWARP_HOST_DEVICE void nearestNodesBrute(const double* nodes, std::size_t j,
     std::size_t found = 0;
     for (std::size_t n = 0; n < j; ++n) {
         const double dx = nodes[3 * n] - q[0], dy = nodes[3 * n + 1] - q[1], dz = nodes[3 * n + 2] - q[2];
-        const double d = dx * dx + dy * dy + dz * dz;
-        if (found == query && !(d < d2[query - 1])) continue; // not nearer than the farthest kept
-        // Shift the farther ones up (strictly farther: an equal distance keeps its lower index first).
-        std::size_t at = found < query ? found : query - 1;
-        while (at > 0 && d < d2[at - 1]) {
-            d2[at] = d2[at - 1];
-            idx[at] = idx[at - 1];
-            --at;
-        }
-        d2[at] = d;
-        idx[at] = std::int32_t(n);
-        if (found < query) ++found;
+        insertNearest(dx * dx + dy * dy + dz * dz, std::int32_t(n), query, found, idx, d2);
     }
 }
 
