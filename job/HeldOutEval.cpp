@@ -174,9 +174,22 @@ HeldOutPoints makeHeldOutPoints(const SampleGrid& grid, const Deformation& defor
     return out;
 }
 
+namespace {
+
+/// The rest side at the points' rest positions on the block engine (the same bits as
+/// fieldErrorTarget()'s per-point evaluation), SH rotated by `rotations` when given.
+FieldErrorTarget restTarget(const GaussianCloud& rest, const HeldOutPoints& points, const float* rotations)
+{
+    std::vector<float> f(points.size() * std::size_t(rest.shStride())), o(points.size());
+    evaluatePointsOn(rest, points.rest.data(), points.size(), points.features, f.data(), o.data());
+    return fieldErrorTarget(rest, f.data(), std::move(o), rotations);
+}
+
+} // namespace
+
 FieldErrorTarget unrotatedTarget(const GaussianCloud& rest, const HeldOutPoints& points)
 {
-    return fieldErrorTarget(rest, points.rest.data(), nullptr, points.size(), points.features);
+    return restTarget(rest, points, nullptr);
 }
 
 FieldErrorTarget rotatedTarget(const FieldErrorTarget& unrotated, const HeldOutPoints& points)
@@ -196,7 +209,7 @@ FieldErrorTarget rotatedTarget(const FieldErrorTarget& unrotated, const HeldOutP
 
 FieldErrorTarget heldOutTarget(const GaussianCloud& rest, const HeldOutPoints& points)
 {
-    return fieldErrorTarget(rest, points.rest.data(), points.rotations.data(), points.size(), points.features);
+    return restTarget(rest, points, points.rotations.data());
 }
 
 FieldErrorReport evaluateHeldOut(const FieldErrorTarget& target, const GaussianCloud& deformed,

@@ -12,15 +12,22 @@ namespace splatwarp {
 FieldErrorTarget fieldErrorTarget(const GaussianCloud& rest, const float* restPoints, const float* rotations,
                                   std::size_t p, const FeatureOptions& options)
 {
+    std::vector<float> fRest(p * std::size_t(rest.shStride())), oRest(p);
+    evaluateFeaturesOn(rest, restPoints, p, options, fRest.data(), oRest.data());
+    return fieldErrorTarget(rest, fRest.data(), std::move(oRest), rotations);
+}
+
+FieldErrorTarget fieldErrorTarget(const GaussianCloud& rest, const float* fRest, std::vector<float> oRest,
+                                  const float* rotations)
+{
     const int stride = rest.shStride();
+    const std::size_t p = oRest.size();
     FieldErrorTarget t;
     t.shDegree = rest.shDegree;
-    std::vector<float> fRest(p * std::size_t(stride));
-    t.opacity.resize(p);
-    evaluateFeaturesOn(rest, restPoints, p, options, fRest.data(), t.opacity.data());
+    t.opacity = std::move(oRest);
     t.features.resize(p * std::size_t(stride));
     for (std::size_t j = 0; j < p; ++j) {
-        const float* fr = fRest.data() + j * std::size_t(stride);
+        const float* fr = fRest + j * std::size_t(stride);
         double* target = t.features.data() + j * std::size_t(stride);
         for (int s = 0; s < stride; ++s) {
             target[s] = fr[s];

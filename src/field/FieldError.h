@@ -42,6 +42,11 @@ struct FieldErrorTarget {
 FieldErrorTarget fieldErrorTarget(const GaussianCloud& rest, const float* restPoints, const float* rotations,
                                   std::size_t p, const FeatureOptions& options = {});
 
+/// @brief The same from the rest model's features at X, already evaluated: fRest [P,stride] and
+///        oRest [P] (any evaluator with the same bits, e.g. the Stage II block engine).
+FieldErrorTarget fieldErrorTarget(const GaussianCloud& rest, const float* fRest, std::vector<float> oRest,
+                                  const float* rotations);
+
 /// @brief Held-out field error of a deformed model against a precomputed rest side.
 /// @param warpedPoints [P,3] x = phi(X), P = target.size()
 FieldErrorReport fieldError(const FieldErrorTarget& target, const GaussianCloud& deformed, const float* warpedPoints,

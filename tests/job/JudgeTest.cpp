@@ -90,6 +90,27 @@ TEST(Judge, PointsDependOnTheRestModelAndSeedOnlyAndUseNoFilter)
     EXPECT_GT(e.outsidePoints, 500u);
 }
 
+// The rest side, evaluated on the Stage II block engine, is the per-point evaluation's to the bit
+// (SH degree 2, so the rotated target rotates real coefficients).
+TEST(Judge, TheRestSideOnTheBlockEngineIsThePerPointOnes)
+{
+    const GaussianCloud rest = test::randomCloud(300, 2, 5);
+    const DeformSpec spec = loadDeformSpec(kSpecs + "twist.json");
+    const DeformationGraph graph = DeformationGraph::build(rest, spec.graph);
+    const Deformation d = solveDeformation(graph, rest, spec);
+    JudgeRest jr = prepareJudgeRest(rest, HeldOutOptions{4000, 3, {}});
+    warpHeldOutPoints(jr.points, d, true);
+    for (const bool rotated : {false, true}) {
+        const float* rot = rotated ? jr.points.rotations.data() : nullptr;
+        const FieldErrorTarget plain = fieldErrorTarget(rest, jr.points.rest.data(), rot, jr.points.size(), jr.points.features);
+        const FieldErrorTarget got = rotated ? heldOutTarget(rest, jr.points) : unrotatedTarget(rest, jr.points);
+        EXPECT_EQ(got.opacity, plain.opacity);
+        EXPECT_EQ(got.features, plain.features);
+        EXPECT_EQ(got.sumOpacity, plain.sumOpacity);
+        EXPECT_GT(plain.sumOpacity, 0.0);
+    }
+}
+
 TEST(Judge, RigidSpecsAreRecognisedWithTheirMotion)
 {
     const GaussianCloud rest = smallStripes();
