@@ -30,7 +30,7 @@ namespace {
 /// freed. glibc's default threshold rises to the size of each mapped block freed (up to 32 MiB),
 /// after which such blocks come from the heap and stay resident once freed: on 2 MiB pages that
 /// raised guitar's peak RSS by 10%.
-const bool kMappedLargeBlocks = mallopt(M_MMAP_THRESHOLD, 4 << 20) == 1;
+[[maybe_unused]] const bool kMappedLargeBlocks = mallopt(M_MMAP_THRESHOLD, 4 << 20) == 1;
 
 } // namespace
 #endif
