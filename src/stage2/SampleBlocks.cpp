@@ -6,7 +6,6 @@
 
 #include "core/Error.h"
 #include "core/ParallelFor.h"
-#include "field/GaussianBins.h"
 
 namespace splatwarp {
 namespace {
@@ -117,27 +116,73 @@ BlockIndex::BlockIndex(const SampleBlocks& blocks)
 {
     const std::size_t nb = blocks.count();
     largestHalf(blocks, mGrow);
-    // Centres binned as points, each block in one bin; bins about two median blocks wide, so a
-    // Gaussian's query visits a few bins of a few blocks each.
-    std::vector<float> centre(3 * nb), edges;
+    // Centres in cells about two median blocks wide (coarser while the grid would hold more than
+    // 8 cells a block), so a Gaussian's query visits a few cells of a few blocks each.
+    std::vector<float> edges;
+    std::vector<std::uint8_t> finite(nb);
+    double lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
     for (std::size_t b = 0; b < nb; ++b) {
         const float* bl = blocks.lo.data() + 3 * b;
         const float* bh = blocks.hi.data() + 3 * b;
-        const bool finite = finiteBox(bl, bh);
-        for (std::size_t a = 0; a < 3; ++a) // NaN: never binned (as a block with no finite bounds never met a Gaussian)
-            centre[3 * b + a] = finite ? 0.5f * (bl[a] + bh[a]) : std::numeric_limits<float>::quiet_NaN();
-        if (finite) edges.push_back(std::max({bh[0] - bl[0], bh[1] - bl[1], bh[2] - bl[2]}));
+        finite[b] = finiteBox(bl, bh); // not listed otherwise: a block with no finite bounds never meets a Gaussian
+        if (!finite[b]) continue;
+        edges.push_back(std::max({bh[0] - bl[0], bh[1] - bl[1], bh[2] - bl[2]}));
+        for (int a = 0; a < 3; ++a) {
+            const double c = double(0.5f * (bl[a] + bh[a]));
+            lo[a] = std::min(lo[a], c);
+            hi[a] = std::max(hi[a], c);
+        }
     }
-    float cell = 1.0f;
-    if (!edges.empty()) {
-        std::nth_element(edges.begin(), edges.begin() + std::ptrdiff_t(edges.size() / 2), edges.end());
-        cell = 2.0f * edges[edges.size() / 2];
+    if (edges.empty()) return;
+    std::nth_element(edges.begin(), edges.begin() + std::ptrdiff_t(edges.size() / 2), edges.end());
+    mCell = 2.0 * double(edges[edges.size() / 2]);
+    if (!(mCell > 0.0) || !std::isfinite(mCell)) mCell = 1.0;
+    const double limit = std::max(8.0 * double(nb), 4096.0);
+    for (;;) {
+        double cells = 1;
+        for (int a = 0; a < 3; ++a) cells *= std::floor((hi[a] - lo[a]) / mCell) + 1;
+        if (cells <= limit) break;
+        mCell *= 2.0;
     }
-    mBins.build(centre.data(), centre.data(), nb, cell > 0.0f && std::isfinite(cell) ? cell : 1.0f, false);
+    for (int a = 0; a < 3; ++a) {
+        mLo[a] = lo[a];
+        mCount[a] = std::int64_t(std::floor((hi[a] - lo[a]) / mCell)) + 1;
+    }
+    // A counting sort: blocks in ascending order within a cell.
+    std::vector<std::uint32_t> key(nb, 0);
+    mStart.assign(std::size_t(mCount[0] * mCount[1] * mCount[2]) + 1, 0);
+    for (std::size_t b = 0; b < nb; ++b) {
+        if (!finite[b]) continue;
+        std::int64_t c = 0;
+        for (int a = 0; a < 3; ++a) {
+            const double x = double(0.5f * (blocks.lo[3 * b + std::size_t(a)] + blocks.hi[3 * b + std::size_t(a)]));
+            c = c * mCount[a] + std::min<std::int64_t>(std::int64_t(std::floor((x - mLo[a]) / mCell)), mCount[a] - 1);
+        }
+        key[b] = std::uint32_t(c);
+        ++mStart[std::size_t(c) + 1];
+    }
+    for (std::size_t c = 1; c < mStart.size(); ++c) mStart[c] += mStart[c - 1];
+    std::vector<std::uint32_t> next(mStart.begin(), mStart.end() - 1);
+    mItems.resize(mStart.back());
+    for (std::size_t b = 0; b < nb; ++b)
+        if (finite[b]) mItems[next[key[b]]++] = std::uint32_t(b);
+}
+
+bool BlockIndex::cellRange(const float* lo, const float* hi, std::int64_t* c0, std::int64_t* c1) const
+{
+    if (mItems.empty()) return false;
+    for (int a = 0; a < 3; ++a) {
+        if (!std::isfinite(lo[a]) || !std::isfinite(hi[a])) return false; // a non-finite box lists nothing
+        const double l = std::floor((double(lo[a]) - mLo[a]) / mCell), h = std::floor((double(hi[a]) - mLo[a]) / mCell);
+        if (!(h >= 0 && l <= double(mCount[a] - 1))) return false;
+        c0[a] = l < 0 ? 0 : std::int64_t(l);
+        c1[a] = h > double(mCount[a] - 1) ? mCount[a] - 1 : std::int64_t(h);
+    }
+    return true;
 }
 
 void BlockIndex::blocksMeeting(const SampleBlocks& blocks, const float* lo, const float* hi, const CoverageSlabs* slabs,
-                               std::vector<std::uint32_t>& candidates, std::vector<std::uint32_t>& out) const
+                               std::vector<std::uint32_t>& out) const
 {
     out.clear();
     if (!(hi[0] >= lo[0] && hi[1] >= lo[1] && hi[2] >= lo[2])) return; // empty (or NaN): never counts
@@ -148,15 +193,20 @@ void BlockIndex::blocksMeeting(const SampleBlocks& blocks, const float* lo, cons
         glo[a] = lo[a] - pad;
         ghi[a] = hi[a] + pad;
     }
-    candidates.clear();
-    mBins.candidatesInBox(glo, ghi, candidates); // a non-finite box lists nothing, as before
-    for (const std::uint32_t b : candidates) {
-        const float* bl = blocks.lo.data() + 3 * std::size_t(b);
-        const float* bh = blocks.hi.data() + 3 * std::size_t(b);
-        if (bh[0] < lo[0] || bl[0] > hi[0] || bh[1] < lo[1] || bl[1] > hi[1] || bh[2] < lo[2] || bl[2] > hi[2]) continue;
-        if (slabs && !boxMeetsSlabs(bl, bh, *slabs)) continue;
-        out.push_back(b);
-    }
+    std::int64_t c0[3], c1[3];
+    if (!cellRange(glo, ghi, c0, c1)) return;
+    for (std::int64_t i = c0[0]; i <= c1[0]; ++i)
+        for (std::int64_t j = c0[1]; j <= c1[1]; ++j) {
+            const std::size_t row = std::size_t((i * mCount[1] + j) * mCount[2]);
+            for (std::uint32_t e = mStart[row + std::size_t(c0[2])]; e < mStart[row + std::size_t(c1[2]) + 1]; ++e) {
+                const std::uint32_t b = mItems[e];
+                const float* bl = blocks.lo.data() + 3 * std::size_t(b);
+                const float* bh = blocks.hi.data() + 3 * std::size_t(b);
+                if (bh[0] < lo[0] || bl[0] > hi[0] || bh[1] < lo[1] || bl[1] > hi[1] || bh[2] < lo[2] || bl[2] > hi[2]) continue;
+                if (slabs && !boxMeetsSlabs(bl, bh, *slabs)) continue;
+                out.push_back(b);
+            }
+        }
 }
 
 void BlockCoverage::build(const float* lo, const float* hi, const CoverageSlabs* slabs, std::size_t g, bool threaded,
@@ -172,10 +222,10 @@ void BlockCoverage::build(const float* lo, const float* hi, const CoverageSlabs*
     parallelForRange(g, 64, threaded, [&](std::size_t k0, std::size_t k1) {
         // Found into scratch, then copied: one allocation of the right size per Gaussian (growing
         // 42k lists by push_back cost the donut's first build ~10 reallocations each).
-        std::vector<std::uint32_t> candidates, found;
+        std::vector<std::uint32_t> found;
         for (std::size_t k = k0; k < k1; ++k) {
             if (keep && keep[k]) continue;
-            mIndex.blocksMeeting(blocks, lo + 3 * k, hi + 3 * k, slabs ? slabs + k : nullptr, candidates, found);
+            mIndex.blocksMeeting(blocks, lo + 3 * k, hi + 3 * k, slabs ? slabs + k : nullptr, found);
             std::sort(found.begin(), found.end());
             mPerGaussian[k].assign(found.begin(), found.end());
         }

@@ -11,7 +11,6 @@
 
 #include "core/Memory.h"
 #include "core/Simd.h"
-#include "field/GaussianBins.h"
 #include "stage2/Coverage.h"
 
 namespace splatwarp {
@@ -50,12 +49,20 @@ public:
     explicit BlockIndex(const SampleBlocks& blocks);
 
     /// @brief The blocks whose bounds meet the box [lo, hi] and (when given) the slabs, into out
-    ///        (in no particular order); `candidates` is scratch. An empty box meets none.
+    ///        (in no particular order). An empty or non-finite box meets none.
     void blocksMeeting(const SampleBlocks& blocks, const float* lo, const float* hi, const CoverageSlabs* slabs,
-                       std::vector<std::uint32_t>& candidates, std::vector<std::uint32_t>& out) const;
+                       std::vector<std::uint32_t>& out) const;
 
 private:
-    GaussianBins mBins;      ///< block centres as points
+    /// Cells along axis a holding [lo, hi] (empty when it misses the grid or is not finite).
+    bool cellRange(const float* lo, const float* hi, std::int64_t* c0, std::int64_t* c1) const;
+
+    // Block centres in a dense grid of cells (no search per cell, unlike sparse bins: a small
+    // Gaussian's query visits a few cells); cell (i, j, k) holds mItems[mStart[c], mStart[c + 1]).
+    double mLo[3] = {0, 0, 0};
+    double mCell = 1.0;
+    std::int64_t mCount[3] = {0, 0, 0};
+    std::vector<std::uint32_t> mStart, mItems;
     float mGrow[3] = {0, 0, 0}; ///< largest block half size per axis
 };
 

@@ -177,6 +177,53 @@ TEST(SampleBlocks, RunsOfOneCellPaddedToLanes)
         }
 }
 
+// The block index lists exactly the blocks whose bounds meet a box (the brute force over every
+// block), for small, large, empty and non-finite boxes, with a far outlier block in the grid.
+TEST(SampleBlocks, TheIndexFindsEveryBlockABoxMeets)
+{
+    std::mt19937 rng(3);
+    std::uniform_real_distribution<float> u(-1.0f, 1.0f);
+    std::vector<float> x;
+    std::vector<std::int32_t> cell;
+    for (int c = 0; c < 400; ++c) { // cells of 10 samples around random centres, one far away
+        const float cx = c == 7 ? 900.0f : u(rng), cy = u(rng), cz = u(rng);
+        for (int s = 0; s < 10; ++s) {
+            x.insert(x.end(), {cx + 0.05f * u(rng), cy + 0.05f * u(rng), cz + 0.05f * u(rng)});
+            cell.push_back(c);
+        }
+    }
+    const SampleBlocks b = SampleBlocks::build(x.data(), cell.data(), cell.size());
+    const BlockIndex index(b);
+    std::vector<std::uint32_t> found;
+    int met = 0;
+    for (int q = 0; q < 300; ++q) {
+        const float half = q % 3 == 0 ? 0.01f : q % 3 == 1 ? 0.2f : 3.0f;
+        float lo[3], hi[3];
+        for (int a = 0; a < 3; ++a) {
+            const float c = u(rng);
+            lo[a] = c - half;
+            hi[a] = c + half;
+        }
+        if (q == 5) lo[0] = hi[0] + 1.0f;      // empty
+        if (q == 6) hi[1] = INFINITY;          // not finite: meets none
+        if (q == 8) lo[2] = NAN;
+        if (q == 9) hi[0] = 901.0f;            // reaches the far block
+        index.blocksMeeting(b, lo, hi, nullptr, found);
+        std::sort(found.begin(), found.end());
+        std::vector<std::uint32_t> expected;
+        const bool usable = q != 6 && q != 8;
+        for (std::uint32_t k = 0; usable && k < b.count(); ++k) {
+            const float* bl = &b.lo[3 * k];
+            const float* bh = &b.hi[3 * k];
+            if (!(bh[0] < lo[0] || bl[0] > hi[0] || bh[1] < lo[1] || bl[1] > hi[1] || bh[2] < lo[2] || bl[2] > hi[2]))
+                expected.push_back(k);
+        }
+        EXPECT_EQ(found, expected) << "query " << q;
+        met += !expected.empty();
+    }
+    EXPECT_GT(met, 150);
+}
+
 TEST(SampleBlocks, BoxMeetsSlabsIsASuperset)
 {
     // Random slabs and boxes: whenever a random point of the box lies in all slabs, the box must meet them.
