@@ -2,9 +2,9 @@
 /// @brief The executable's `operator new`: blocks of 4 MiB and more come from allocateLarge()
 ///        (core/Memory.h: 2 MiB pages where the kernel allows), every other block from malloc, as
 ///        the default one does; the default `operator delete` (free) releases both. Most of the
-///        time of a sample grid and of a sample warp was first touches of fresh 4 KiB pages of their
-///        std::vector arrays (each a fault of microseconds on a virtualised machine); on 2 MiB pages
-///        there are 512 times fewer. Only this executable: the Python module and the test binaries
+///        sample grid's time was first touches of fresh 4 KiB pages of its std::vector arrays (each
+///        a fault of microseconds on a virtualised machine); on 2 MiB pages there are 512 times
+///        fewer (docs/benchmarks.md, "Outside Stage II"). Only this executable: the Python module and the test binaries
 ///        keep the default; sanitizer builds too (their allocator must see new and delete pair).
 #include <malloc.h>
 

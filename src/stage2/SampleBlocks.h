@@ -54,7 +54,8 @@ public:
                        std::vector<std::uint32_t>& out) const;
 
 private:
-    /// Cells along axis a holding [lo, hi] (empty when it misses the grid or is not finite).
+    /// The cells c0[a]..c1[a] along each axis a that [lo, hi] overlaps; false when it misses the
+    /// grid or is not finite.
     bool cellRange(const float* lo, const float* hi, std::int64_t* c0, std::int64_t* c1) const;
 
     // Block centres in a dense grid of cells (no search per cell, unlike sparse bins: a small
