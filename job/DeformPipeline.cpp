@@ -152,7 +152,7 @@ GaussianCloud skipStageTwo(DeformRest& rest, const Deformation& deformation, con
     if (o.render) { // stretched.png: the samples are warped for it alone
         SampleSet samples = rest.grid->samples();
         warpSamplesOn(samples, deformation, {rest.device, o.grid.threaded});
-        stretched = stretchedRegionOf(samples, o);
+        stretched = mostStretchedRegion(samples);
     }
     return stage1.deformed;
 }

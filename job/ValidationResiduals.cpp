@@ -180,7 +180,6 @@ double ValidationResiduals::change(const std::vector<GaussianRef>& out, const st
     return o * mWeightO + c * mWeightF;
 }
 
-
 void ValidationResiduals::changes(GaussianRef out, const std::vector<GaussianRef>& ins, double* result) const
 {
     // Each candidate reads the buckets of its own pair's box, as change() would: the same points

@@ -143,6 +143,14 @@ namespace {
 /// nearest nodes, so each run's candidates are found once.
 constexpr std::size_t kRun = 64;
 
+/// |p - c|^2 in double for a float point p.
+double squaredDistance(const float* p, const double* c)
+{
+    double d = 0;
+    for (int a = 0; a < 3; ++a) d += (double(p[a]) - c[a]) * (double(p[a]) - c[a]);
+    return d;
+}
+
 /// The nodes that may be among the `query` nearest of any point of a run: those within
 /// d_query(c) + 2 r of the run's centre c, r the farthest point's distance from c (each point's
 /// query nearest lie within d_query(c) + r of it, so within that of c). Ascending node order.
@@ -160,11 +168,7 @@ std::vector<std::int32_t> runCandidates(const detail::NodeIndex& index, const fl
         }
     const double c[3] = {0.5 * (lo[0] + hi[0]), 0.5 * (lo[1] + hi[1]), 0.5 * (lo[2] + hi[2])};
     double r2 = 0;
-    for (std::size_t p = r0; p < r1; ++p) {
-        double d = 0;
-        for (int a = 0; a < 3; ++a) d += (double(points[3 * p + std::size_t(a)]) - c[a]) * (double(points[3 * p + std::size_t(a)]) - c[a]);
-        r2 = std::max(r2, d);
-    }
+    for (std::size_t p = r0; p < r1; ++p) r2 = std::max(r2, squaredDistance(points + 3 * p, c));
     std::vector<std::int32_t> idx(query);
     std::vector<double> d2(query);
     if (!(index.nearest(c, query, idx.data(), d2.data()) == query)) return {};
@@ -172,8 +176,9 @@ std::vector<std::int32_t> runCandidates(const detail::NodeIndex& index, const fl
     const double reach = (std::sqrt(d2[query - 1]) + 2.0 * std::sqrt(r2)) * (1.0 + 1e-6) + 1e-12;
     std::vector<std::int32_t> out;
     for (std::size_t n = 0; n < j; ++n) {
-        double d = 0;
-        for (int a = 0; a < 3; ++a) d += (index.cloud.xyz[3 * n + std::size_t(a)] - c[a]) * (index.cloud.xyz[3 * n + std::size_t(a)] - c[a]);
+        const double* node = index.cloud.xyz.data() + 3 * n;
+        const double d = (node[0] - c[0]) * (node[0] - c[0]) + (node[1] - c[1]) * (node[1] - c[1]) +
+                         (node[2] - c[2]) * (node[2] - c[2]);
         if (d <= reach * reach) out.push_back(std::int32_t(n));
         if (out.size() > std::max<std::size_t>(8 * query, j / 4)) return {};
     }

@@ -103,6 +103,12 @@ void largestHalf(const SampleBlocks& blocks, float* half)
         }
 }
 
+/// Block b's centre on axis a, as the index keys and bounds it.
+double centreOf(const SampleBlocks& blocks, std::size_t b, int a)
+{
+    return double(0.5f * (blocks.lo[3 * b + std::size_t(a)] + blocks.hi[3 * b + std::size_t(a)]));
+}
+
 bool finiteBox(const float* lo, const float* hi)
 {
     for (int a = 0; a < 3; ++a)
@@ -128,9 +134,8 @@ BlockIndex::BlockIndex(const SampleBlocks& blocks)
         if (!finite[b]) continue;
         edges.push_back(std::max({bh[0] - bl[0], bh[1] - bl[1], bh[2] - bl[2]}));
         for (int a = 0; a < 3; ++a) {
-            const double c = double(0.5f * (bl[a] + bh[a]));
-            lo[a] = std::min(lo[a], c);
-            hi[a] = std::max(hi[a], c);
+            lo[a] = std::min(lo[a], centreOf(blocks, b, a));
+            hi[a] = std::max(hi[a], centreOf(blocks, b, a));
         }
     }
     if (edges.empty()) return;
@@ -154,10 +159,9 @@ BlockIndex::BlockIndex(const SampleBlocks& blocks)
     for (std::size_t b = 0; b < nb; ++b) {
         if (!finite[b]) continue;
         std::int64_t c = 0;
-        for (int a = 0; a < 3; ++a) {
-            const double x = double(0.5f * (blocks.lo[3 * b + std::size_t(a)] + blocks.hi[3 * b + std::size_t(a)]));
-            c = c * mCount[a] + std::min<std::int64_t>(std::int64_t(std::floor((x - mLo[a]) / mCell)), mCount[a] - 1);
-        }
+        for (int a = 0; a < 3; ++a)
+            c = c * mCount[a] +
+                std::min<std::int64_t>(std::int64_t(std::floor((centreOf(blocks, b, a) - mLo[a]) / mCell)), mCount[a] - 1);
         key[b] = std::uint32_t(c);
         ++mStart[std::size_t(c) + 1];
     }
