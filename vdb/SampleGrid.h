@@ -23,11 +23,13 @@ namespace splatwarp {
 constexpr int kAutoSamplesPerAxis = 0;
 /// The n that "auto" chooses from: at least the paper's 4, at most 8.
 constexpr int kAutoSamplesMin = 4, kAutoSamplesMax = 8;
-/// Samples "auto" may spend: 2^22. Denser samples fit the field the judge sees (finer lattice,
-/// smaller rest filter): train-1000 bend 0.595 -> 0.577 of Stage I from n = 4 to 8 (mean of 16
-/// judge seeds), guitar bend 0.468 -> 0.453 from 4 to 6; Stage II's time grows with the samples,
-/// so models whose 4^3 lattice already holds this many keep n = 4 (docs/lab/fidelity-study.md).
-constexpr std::size_t kAutoSampleBudget = std::size_t(1) << 22;
+/// Samples "auto" may spend: 2^20. Denser samples fit the field the judge sees a little better
+/// (train-1000 bend 0.595 -> 0.577 of Stage I from n = 4 to 8, mean of 16 judge seeds), and Stage
+/// II's time and memory grow with them: from 2^22 to 2^20 guitar (n 6 -> 4) lost 1.8-2.6% on the
+/// field judge for 2.5x less CPU time, train-1000 (8 -> 5) 0-4.6% for 2.2x, the demo (6 -> 4) 1%
+/// (16.3 -> 10.1 s), and the stripes mesh (5 -> 4) kept its PSNR to 0.02 dB
+/// (docs/lab/sample-budget.md). Models whose 4^3 lattice already holds this many keep n = 4.
+constexpr std::size_t kAutoSampleBudget = std::size_t(1) << 20;
 
 /// @brief Parameters of the sample grid (one options struct for the CLI, specs and tests).
 struct SampleGridOptions {
