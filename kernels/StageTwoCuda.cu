@@ -10,6 +10,7 @@
 #include <algorithm>
 #include <cmath>
 #include <memory>
+#include <numeric>
 
 #include "kernels/CudaCheck.h"
 #include "kernels/CudaLaunch.cuh"
@@ -440,12 +441,13 @@ __global__ void __launch_bounds__(kBlock) backwardKernel(std::size_t g, const st
 /// compiled with -fmad=false, so no multiply-add is contracted where the CPU has none).
 __global__ void adamKernel(std::size_t g, int perG, float* params /* [G,PER_G] */, const float* grad /* [G,PER_G] */,
                            float* m /* [G,PER_G] */, float* v /* [G,PER_G] */, const double* filter /* [G,9] */,
-                           AdamStep adam, StepRates lr, float maxMeanStep)
+                           AdamStep adam, StepRates lr, float maxMeanStep, double* decrease /* [G] */)
 {
     const std::size_t k = globalIndex();
     if (k >= g) return;
     const std::size_t i = k * std::size_t(perG);
-    adamStepRow(adam, lr, Mat3d::fromRowMajor(filter + 9 * k), maxMeanStep, perG, params + i, m + i, v + i, grad + i);
+    decrease[k] =
+        adamStepRow(adam, lr, Mat3d::fromRowMajor(filter + 9 * k), maxMeanStep, perG, params + i, m + i, v + i, grad + i);
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -559,14 +561,18 @@ public:
         mTimer.end();
     }
 
-    void step(const StageTwoStep& s) override
+    double step(const StageTwoStep& s) override
     {
         mTimer.begin(PhaseTimer::Update);
         const StepRates lr = StepRates::forStep(mOptions, s, mSetup.sceneExtent);
         launch("adamKernel", adamKernel, mG, stream(), mG, mPerG, mParams.data(), (const float*)mGrad.data(),
                mAdamM.data(), mAdamV.data(), (const double*)mFilter.data(), AdamStep::at(mOptions, s.adamStep), lr,
-               mOptions.maxMeanStep);
+               mOptions.maxMeanStep, mRowDecrease.data());
+        // Summed on the host in row order, as the CPU solver does: the step rule's decision is
+        // the same on both devices.
+        const std::vector<double> rows = mRowDecrease.download(stream());
         mTimer.end();
+        return std::accumulate(rows.begin(), rows.end(), 0.0);
     }
 
     void saveIterate() override
@@ -671,7 +677,7 @@ private:
         mBoxLo{"coverage boxes"}, mBoxHi{"coverage boxes"}, mKeptParams{"kept-iterate parameters"},
         mKeptM{"kept-iterate Adam moments"}, mKeptV{"kept-iterate Adam moments"};
     DeviceBuffer<CoverageSlabs> mSlabs{"coverage slabs"};
-    DeviceBuffer<double> mFilter{"low-pass filters"};
+    DeviceBuffer<double> mFilter{"low-pass filters"}, mRowDecrease{"step decreases"};
     DeviceBuffer<PreparedGaussian> mPrepared{"prepared Gaussians"};
     BoxBins mBins;
     DeviceBuffer<unsigned long long> mSampleCount{"coverage counts"};
@@ -716,6 +722,7 @@ void Solver::upload(const GaussianCloud& cloud, const SampleSet& samples)
     mGrad.resize(mG * std::size_t(mPerG));
     mAdamM.resize(mG * std::size_t(mPerG));
     mAdamV.resize(mG * std::size_t(mPerG));
+    mRowDecrease.resize(mG);
     mGF.resize(mS * std::size_t(mStride));
     mGO.resize(mS);
     mEnergy.resize(3 * mS);

@@ -4,6 +4,7 @@
 #include <atomic>
 #include <chrono>
 #include <cstring>
+#include <numeric>
 
 #include "core/Error.h"
 #include "core/Memory.h"
@@ -61,7 +62,7 @@ public:
     std::uint64_t coveragePairs() const override { return mCoverage.pairCount(); }
     StageTwoEnergy forward(int iteration, std::uint64_t& pairs) override;
     void backward() override;
-    void step(const StageTwoStep& s) override;
+    double step(const StageTwoStep& s) override;
     void saveIterate() override
     {
         mKeptParams = mParams;
@@ -103,6 +104,7 @@ private:
     BlockCoverage mCoverage;
     std::vector<float> mParams, mGrad, mAdamM, mAdamV;      // [G, PER_G]
     std::vector<float> mKeptParams, mKeptM, mKeptV;       // saveIterate()
+    std::vector<double> mRowDecrease;                         // [G] step(): each row's first-order decrease
     std::vector<PreparedGaussian> mPrepared;                  // [G]
     std::vector<ChunkBound> mBounds;                          // [G]
     std::vector<float> mBoxLo, mBoxHi;                        // [G,3]
@@ -376,16 +378,18 @@ void CpuSolver::backward()
     parallelFor(mG, 8, mOptions.threaded, [&](std::size_t k) { backwardGaussian(k); });
 }
 
-void CpuSolver::step(const StageTwoStep& s)
+double CpuSolver::step(const StageTwoStep& s)
 {
     PhaseClock clock(mTimes.update);
     const AdamStep adam = AdamStep::at(mOptions, s.adamStep);
     const StepRates rates = StepRates::forStep(mOptions, s, mSetup.sceneExtent);
+    mRowDecrease.resize(mG);
     parallelFor(mG, 1024, mOptions.threaded, [&](std::size_t k) {
         const std::size_t i = k * std::size_t(mPerG);
-        adamStepRow(adam, rates, mSetup.filter[mSetup.moving[k]], mOptions.maxMeanStep, mPerG, &mParams[i], &mAdamM[i],
-                    &mAdamV[i], &mGrad[i]);
+        mRowDecrease[k] = adamStepRow(adam, rates, mSetup.filter[mSetup.moving[k]], mOptions.maxMeanStep, mPerG,
+                                      &mParams[i], &mAdamM[i], &mAdamV[i], &mGrad[i]);
     });
+    return std::accumulate(mRowDecrease.begin(), mRowDecrease.end(), 0.0); // in row order, as the GPU's
 }
 
 void CpuSolver::writeTo(GaussianCloud& cloud) const

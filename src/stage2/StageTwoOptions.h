@@ -61,14 +61,15 @@ struct StageTwoOptions {
     float epsilon = 1e-15f;
 
     /// Step rejection: a step that raises the training energy above the last accepted iterate's
-    /// is undone (parameters and Adam moments) and taken again from that iterate at half the
-    /// learning rates, which grow back by a quarter per accepted step, up to the schedule's. Adam
+    /// is undone (parameters and Adam moments) and taken again from that iterate shorter, the
+    /// rates' scale following each step's fall against its first-order decrease (at most x1.25
+    /// per accepted step, up to the schedule's; StageTwoLoop.cpp, IterateKeeper). Adam
     /// on an L1 loss moves every parameter with any gradient by about its rate, so from a Stage I
     /// model close to the target its first steps climb (demo: energy 31178 -> 136626 in one plain
     /// step, 40262 after 10; a rigid spec: 1.16 -> 17004); with this the held energy never rises.
     bool rejectSteps = true;
-    /// Stop after this many steps rejected in a row (the rates are then 2^-stallStop of the
-    /// schedule's): rigid specs, where Stage I is already exact, and converged runs end early.
+    /// Stop after this many steps rejected in a row (the rates are then at most 2^-stallStop of
+    /// the schedule's): rigid specs, where Stage I is already exact, and converged runs end early.
     /// Twice this many before the first accepted step. 0: never stop early.
     int stallStop = 6;
     /// Also stop when the held energy fell by less than this fraction over the last stallWindow

@@ -58,7 +58,7 @@ SPLATWARP_HOST_DEVICE void packGradient(const GaussianParamGrad<T>& g, float* ou
 
 /// @brief One step of the loop: the schedule's iteration (0-based; sets the position rate),
 ///        Adam's step count t (1-based: accepted steps so far plus one) and a factor on every
-///        learning rate (step rejection halves it, StageTwoOptions::rejectSteps).
+///        learning rate (step rejection shortens it, StageTwoOptions::rejectSteps).
 struct StageTwoStep {
     int iteration = 0;
     int adamStep = 1;
@@ -104,19 +104,16 @@ struct AdamStep {
         const double mHat = double(m) / corr1, vHat = double(v) / corr2;
         return double(rate) * mHat / (std::sqrt(vHat) + double(epsilon));
     }
-    /// @brief One Adam update of a parameter with gradient g.
-    SPLATWARP_HOST_DEVICE void update(float& param, float& m, float& v, float g, float rate) const
-    {
-        param -= float(delta(m, v, g, rate));
-    }
 };
 
 /// @brief One Adam step of a packed row. The mean's step is shortened to a Mahalanobis length of
 ///        at most maxMeanStep in the Gaussian's filtered covariance (0: no bound): Adam moves every
 ///        coordinate by about its rate whatever the gradient's size, and one scene-wide position
 ///        rate is several times the thickness of a flat Gaussian (StageTwoOptions::maxMeanStep).
-SPLATWARP_HOST_DEVICE void adamStepRow(const AdamStep& adam, const StepRates& rates, const Mat3d& filter,
-                                       float maxMeanStep, int perG, float* p, float* m, float* v, const float* g)
+///        Returns the step's first-order energy decrease on the row, the sum of gradient times
+///        step (the step rule compares the energy's actual decrease with it).
+SPLATWARP_HOST_DEVICE double adamStepRow(const AdamStep& adam, const StepRates& rates, const Mat3d& filter,
+                                         float maxMeanStep, int perG, float* p, float* m, float* v, const float* g)
 {
     Vec3d d;
     for (int a = 0; a < 3; ++a) d[a] = adam.delta(m[a], v[a], g[a], rates.position);
@@ -127,8 +124,17 @@ SPLATWARP_HOST_DEVICE void adamStepRow(const AdamStep& adam, const StepRates& ra
         const double cap = double(maxMeanStep);
         if (len2 > cap * cap) d *= cap / std::sqrt(len2);
     }
-    for (int a = 0; a < 3; ++a) p[kParamMean + a] -= float(d[a]);
-    for (int c = kParamRotation; c < perG; ++c) adam.update(p[c], m[c], v[c], g[c], rates.of(c));
+    double decrease = 0;
+    for (int a = 0; a < 3; ++a) {
+        p[kParamMean + a] -= float(d[a]);
+        decrease += double(g[a]) * d[a];
+    }
+    for (int c = kParamRotation; c < perG; ++c) {
+        const double step = adam.delta(m[c], v[c], g[c], rates.of(c));
+        p[c] -= float(step);
+        decrease += double(g[c]) * step;
+    }
+    return decrease;
 }
 
 /// @brief Copy Gaussian i of a cloud into a packed row.

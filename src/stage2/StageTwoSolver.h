@@ -39,8 +39,9 @@ public:
     virtual StageTwoEnergy forward(int iteration, std::uint64_t& pairs) = 0;
     /// @brief Backward pass into the packed parameter gradients.
     virtual void backward() = 0;
-    /// @brief One Adam step from the current parameters with the gradient of the last backward().
-    virtual void step(const StageTwoStep& s) = 0;
+    /// @brief One Adam step from the current parameters with the gradient of the last backward();
+    ///        returns its first-order energy decrease (gradient . step, summed in row order).
+    virtual double step(const StageTwoStep& s) = 0;
     /// @brief Keep a copy of the current parameters and Adam moments / put that copy back (the
     ///        gradient is left alone, so a step can be taken again from the kept iterate).
     virtual void saveIterate() = 0;

@@ -62,12 +62,14 @@ TEST(GaussianBudget, DeformHonoursTheBudgetAndOneTimesKeepsTheCount)
     EXPECT_EQ(r["stage2"]["gaussianBudget"].get<std::size_t>(), 2300u);
     EXPECT_EQ(r["stage2"]["gaussians"].get<std::size_t>(), bounded);
     EXPECT_EQ(r["stage2"]["gaussiansAdded"].get<std::size_t>() - r["stage2"]["gaussiansRemoved"].get<std::size_t>(), bounded - 2000);
-    // 1x: no step adds a Gaussian, Stage II's own split included.
-    ASSERT_EQ(runCli(common + "-o " + dir.file("one") + " --max-gaussians 1x --split auto --split-stretch 1.01"), 0);
+    // 1x: no step adds a Gaussian, Stage II's own split included (its fit kept, so a split would show).
+    ASSERT_EQ(runCli(common + "-o " + dir.file("one") + " --max-gaussians 1x --split auto --split-stretch 1.01 --keep fit"), 0);
     EXPECT_EQ(countOf(dir.file("one/deformed.ply")), 2000u);
     EXPECT_EQ(reportOf(dir.file("one"))["stage2"]["gaussiansAdded"].get<std::size_t>(), 0u);
     // Without the budget that split does add Gaussians (so the line above tests the budget).
-    ASSERT_EQ(runCli(common + "-o " + dir.file("split") + " --curve-split off --validated-split off --split auto --split-stretch 1.01"), 0);
+    ASSERT_EQ(runCli(common + "-o " + dir.file("split") +
+                     " --curve-split off --validated-split off --split auto --split-stretch 1.01 --keep fit"),
+              0);
     EXPECT_GT(countOf(dir.file("split/deformed.ply")), 2000u);
 }
 

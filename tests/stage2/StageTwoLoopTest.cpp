@@ -33,10 +33,12 @@ public:
         return e;
     }
     void backward() override {}
-    void step(const StageTwoStep& st) override
+    /// The step's first-order decrease is slope x its rate scale (0: none known, the rule's fallback).
+    double step(const StageTwoStep& st) override
     {
         steps.push_back(st);
         mState = ++mNext; // every step reaches a new scripted energy, also one taken again
+        return slope * double(st.rateScale);
     }
     void saveIterate() override { mKept = mState; }
     void restoreIterate() override { mState = mKept; }
@@ -46,6 +48,7 @@ public:
     std::vector<int> rebuilds;
     std::vector<StageTwoStep> steps;
     bool holds = true;
+    double slope = 0;
 
 private:
     std::vector<double> mEnergies;
@@ -68,6 +71,21 @@ StageTwoOptions rejecting(int iterations, int stallStop = 6)
     o.rejectSteps = true;
     o.stallStop = stallStop;
     return o;
+}
+
+/// A run with step rejection over scripted energies whose steps promise slope x their scale.
+struct SlopedRun {
+    ScriptedSolver solver;
+    StageTwoReport report;
+};
+
+SlopedRun runSloped(std::vector<double> energies, double slope, int iterations)
+{
+    SlopedRun run{ScriptedSolver(std::move(energies)), {}};
+    run.solver.slope = slope;
+    GaussianCloud cloud;
+    run.report = runStageTwoLoop(run.solver, cloud, rejecting(iterations));
+    return run;
 }
 
 } // namespace
@@ -131,8 +149,57 @@ TEST(StageTwoLoop, DivergenceStopsWithTheBestIterate)
     EXPECT_THROW(runStageTwoLoop(t, cloud, plain), Error);
 }
 
+TEST(StageTwoLoop, ARejectedStepIsTakenAgainAtTheParabolasBestLength)
+{
+    // From 100 a step promising 2 reaches 104: r = -4 / 2, so the parabola's best is 1 / (2 (1 + 2)).
+    const SlopedRun run = runSloped({100, 104, 99, 98.5, 98}, 2, 3);
+    const ScriptedSolver& s = run.solver;
+    const StageTwoReport& r = run.report;
+    ASSERT_EQ(s.steps.size(), 3u);
+    EXPECT_EQ(s.steps[0].rateScale, 1.0f);
+    EXPECT_EQ(s.steps[1].rateScale, float(1.0 / 6.0));
+    EXPECT_EQ(s.steps[1].adamStep, s.steps[0].adamStep); // the same Adam step, taken again
+    // 104 -> 99 after a step promising 1/3: r = 3, past the parabola's reach: x1.25.
+    EXPECT_EQ(s.steps[2].rateScale, float(1.0 / 6.0) * 1.25f);
+    EXPECT_EQ(r.rejectedSteps, 1);
+    EXPECT_EQ(r.bestEnergy, 98.5);
+}
+
+TEST(StageTwoLoop, AnAcceptedStepThatFellShortOfItsPromiseShortensTheNext)
+{
+    // Each step promises 2 x its scale. 100 -> 99 at scale 1: r = 0.5, best length 1, aim 1.5: x1.25
+    // (capped at scale 1). 99 -> 98.9 at scale 1: r = 0.05, best 0.526, aim 0.789.
+    const SlopedRun run = runSloped({100, 99, 98.9, 98.8}, 2, 3);
+    ASSERT_EQ(run.solver.steps.size(), 3u);
+    EXPECT_EQ(run.solver.steps[1].rateScale, 1.0f);
+    EXPECT_NEAR(run.solver.steps[2].rateScale, 1.5 / (2.0 * (1.0 - 0.1 / 2.0)), 1e-6);
+    EXPECT_EQ(run.report.rejectedSteps, 0);
+}
+
+TEST(StageTwoLoop, AdamsFirstStepPromisingTooMuchIsTakenAgainShorter)
+{
+    // From 100 the first step promises 10 at scale 1: more than 3% of the energy, so it is undone
+    // and taken again at the scale that promises 3; no forward pass is spent on it.
+    const SlopedRun run = runSloped({100, 150, 90, 89}, 10, 2);
+    const ScriptedSolver& s = run.solver;
+    const StageTwoReport& r = run.report;
+    ASSERT_GE(s.steps.size(), 2u);
+    EXPECT_EQ(s.steps[0].rateScale, 1.0f);
+    EXPECT_EQ(s.steps[1].rateScale, 0.3f);
+    EXPECT_EQ(s.steps[1].adamStep, s.steps[0].adamStep);
+    EXPECT_EQ(r.rejectedSteps, 0); // state 1 (150) was never evaluated
+    EXPECT_EQ(r.bestEnergy, 89.0);
+    // Without step rejection nothing is undone.
+    ScriptedSolver t({100, 150, 90});
+    t.slope = 10;
+    GaussianCloud cloud;
+    runStageTwoLoop(t, cloud, options(2));
+    EXPECT_EQ(t.steps.size(), 2u);
+}
+
 TEST(StageTwoLoop, RejectedStepsAreTakenAgainAtHalfTheRates)
 {
+    // Without a first-order decrease (the scripted solver's slope 0) the rule halves and regrows.
     // State k has energy E[k]; steps lead to states 1, 2, 3, ... in turn. 5 -> 4 accepted,
     // 6 rejected (back to state 1, rates x0.5), 3 accepted (rates back to 1), 2 accepted.
     ScriptedSolver s({5, 4, 6, 3, 2});

@@ -2,9 +2,12 @@
 
 #include <algorithm>
 #include <cstdio>
+#include <cmath>
 #include <cstring>
+#include <memory>
 
 #include "core/Error.h"
+#include "stage2/CpuSolver.h"
 #include "stage2/StageTwo.h"
 #include "stage2/StageTwoTestProblem.h"
 
@@ -71,10 +74,58 @@ TEST(StageTwo, EnergyDecreasesOnSyntheticProblem)
     EXPECT_EQ(r.movingGaussians, cloud.size());
 }
 
-// Started at the optimum (the targets are this very model's field), plain Adam steps climb; with
-// step rejection every step is undone, the run stops after 2 x stallStop of them and the model is
-// returned bit for bit.
-TEST(StageTwo, AtTheOptimumEveryStepIsRejectedAndTheModelKept)
+// The step rule compares the energy's fall with the step's first-order decrease (gradient . step,
+// what adamStepRow returns): for a short step the two agree, so the gradient is the energy's.
+TEST(StageTwo, AShortStepFallsByItsFirstOrderDecrease)
+{
+    StageTwoOptions o;
+    Problem p = makeProblem(o);
+    const std::unique_ptr<StageTwoSolver> solver = makeCpuStageTwoSolver(p.start, p.samples, p.moving, p.cells, o);
+    std::uint64_t pairs = 0;
+    auto energy = [&](int it) {
+        solver->prepare();
+        if (it == 0 || !solver->coverageHolds()) solver->rebuildCoverage(it, it > 0);
+        return solver->forward(it, pairs).total;
+    };
+    const double e0 = energy(0);
+    solver->backward();
+    solver->saveIterate();
+    for (float scale : {1e-3f, 1e-2f}) {
+        solver->restoreIterate();
+        const double predicted = solver->step({0, 1, scale});
+        const double e1 = energy(1);
+        std::printf("  rate scale %g: energy %.6g -> %.6g, fall %.4g, first-order %.4g\n", double(scale), e0, e1, e0 - e1,
+                    predicted);
+        ASSERT_GT(predicted, 0.0);
+        EXPECT_NEAR((e0 - e1) / predicted, 1.0, scale < 5e-3f ? 0.02 : 0.2) << "rate scale " << scale;
+    }
+}
+
+// adamStepRow's return is the sum of each parameter's gradient times how far it moved down.
+TEST(StageTwo, AdamStepRowReturnsGradientTimesStep)
+{
+    StageTwoOptions o;
+    const std::size_t perG = std::size_t(packedParamCount(4));
+    std::vector<float> params(perG, 0.0f), m(perG, 0.0f), v(perG, 0.0f), g(perG, 0.0f);
+    for (std::size_t c = 0; c < perG; ++c) {
+        params[c] = 0.1f * float(c % 5) - 0.2f;
+        g[c] = 0.3f * float((c * 7) % 11) - 1.4f;
+    }
+    params[kParamRotation] = 1.0f; // a unit quaternion, log-scales near 0
+    const std::vector<float> before = params;
+    const double decrease = adamStepRow(AdamStep::at(o, 1), StepRates{1e-2f, 2e-3f, 5e-3f, 5e-2f, 2.5e-3f}, Mat3d(),
+                                        o.maxMeanStep, int(perG), params.data(), m.data(), v.data(), g.data());
+    double expected = 0;
+    for (std::size_t c = 0; c < params.size(); ++c) expected += double(g[c]) * (double(before[c]) - double(params[c]));
+    EXPECT_GT(decrease, 0.0);
+    EXPECT_NEAR(decrease, expected, 1e-5 * std::fabs(expected)); // the parameters move in float
+}
+
+// Started at the optimum (the targets are this very model's field, to float rounding), plain Adam
+// steps climb; with step rejection the held energy never rises and the model stays where it was:
+// Adam's first step is shortened to promise 3% of the start's rounding-level energy, and what is
+// accepted after it moves no parameter by more than a rounding-level amount.
+TEST(StageTwo, AtTheOptimumStepRejectionKeepsTheModel)
 {
     StageTwoOptions o;
     o.iterations = 40;
@@ -82,17 +133,20 @@ TEST(StageTwo, AtTheOptimumEveryStepIsRejectedAndTheModelKept)
     p.start = rigidlyMoved(p.start, quatToMatrix(Quatd{1.0, 0.05, 0.08, -0.03}), Vec3d(0.04, -0.02, 0.03));
     GaussianCloud cloud = p.start;
     const StageTwoReport r = optimiseStageTwo(cloud, p.samples, p.moving, p.cells, o);
-    EXPECT_EQ(r.stoppedAt, 2 * o.stallStop); // twice as many before the first accepted step
-    EXPECT_EQ(r.rejectedSteps, 2 * o.stallStop);
-    EXPECT_EQ(r.bestIteration, 0);
-    EXPECT_TRUE(sameCloud(cloud, p.start));
+    EXPECT_LE(r.bestEnergy, r.energies.front().total);
+    double moved = 0;
+    for (std::size_t i = 0; i < cloud.means.size(); ++i) moved = std::max(moved, double(std::fabs(cloud.means[i] - p.start.means[i])));
+    for (std::size_t i = 0; i < cloud.opacities.size(); ++i)
+        moved = std::max(moved, double(std::fabs(cloud.opacities[i] - p.start.opacities[i])));
     StageTwoOptions plain = o;
     plain.rejectSteps = plain.keepBest = false;
     GaussianCloud climbed = p.start;
     const StageTwoReport q = optimiseStageTwo(climbed, p.samples, p.moving, p.cells, plain);
-    std::printf("  at the optimum: energy %.4g; plain Adam after %d steps %.4g\n", r.bestEnergy, plain.iterations,
-                q.energies.back().total);
-    EXPECT_GT(q.energies.back().total, r.bestEnergy);
+    std::printf("  at the optimum: energy %.4g -> %.4g (%d rejected), largest mean or logit change %.3g; plain Adam after %d "
+                "steps %.4g\n",
+                r.energies.front().total, r.bestEnergy, r.rejectedSteps, moved, plain.iterations, q.energies.back().total);
+    EXPECT_LT(moved, 1e-4);
+    EXPECT_GT(q.energies.back().total, 100 * r.energies.front().total);
 }
 
 TEST(StageTwo, CoverageScheduleNeverChangesResults)

@@ -37,6 +37,14 @@ SampleGridOptions fineOptions(float fineBelow = 1.0f)
     return o;
 }
 
+/// The largest absolute difference of two arrays of one size.
+double largestChange(const std::vector<float>& a, const std::vector<float>& b)
+{
+    double d = 0;
+    for (std::size_t i = 0; i < a.size() && i < b.size(); ++i) d = std::max(d, double(std::fabs(a[i] - b[i])));
+    return a.size() == b.size() ? d : HUGE_VAL;
+}
+
 bool sameBits(const std::vector<float>& a, const std::vector<float>& b)
 {
     return a.size() == b.size() && std::memcmp(a.data(), b.data(), a.size() * sizeof(float)) == 0;
@@ -178,10 +186,12 @@ TEST(FineCells, AtRestTheModelEqualsItsTargets)
     const double e0 = r.energies.front().total, wrong = w.energies.front().total;
     std::printf("  energy at rest %.3g; with the fine filter on the coarse cells' Gaussians too %.3g\n", e0, wrong);
     EXPECT_LT(e0, 1e-4 * wrong);
-    EXPECT_EQ(r.bestIteration, 0);
-    EXPECT_TRUE(sameBits(fitted.means, g.means));
-    EXPECT_TRUE(sameBits(fitted.logScales, g.logScales));
-    EXPECT_TRUE(sameBits(fitted.opacities, g.opacities));
+    // Stage II keeps it: the held energy never rises, and the steps it accepts at this
+    // rounding-level energy move nothing by more than a rounding-level amount.
+    EXPECT_LE(r.bestEnergy, e0);
+    EXPECT_LT(largestChange(fitted.means, g.means), 1e-4);
+    EXPECT_LT(largestChange(fitted.logScales, g.logScales), 1e-4);
+    EXPECT_LT(largestChange(fitted.opacities, g.opacities), 1e-4);
 }
 
 TEST(FineCells, VdbExportRefusesAGridWithFineCells)
