@@ -26,11 +26,12 @@ void* operator new(std::size_t bytes) { return splatwarp::allocateLarge(bytes); 
 
 namespace {
 
-/// A fixed mmap threshold at the large blocks' size: each is mapped on its own and unmapped when
-/// freed. glibc's default threshold rises to the size of each mapped block freed (up to 32 MiB),
-/// after which such blocks come from the heap and stay resident once freed: on 2 MiB pages that
-/// raised guitar's peak RSS by 10%.
-[[maybe_unused]] const bool kMappedLargeBlocks = mallopt(M_MMAP_THRESHOLD, 4 << 20) == 1;
+/// A fixed mmap threshold: blocks of 16 MiB and more are mapped on their own and unmapped when
+/// freed; smaller ones are reused from the heap, so the warp's copy of the samples and the solver's
+/// arrays do not fault on fresh pages again. glibc's default threshold rises to the size of each
+/// mapped block freed (up to 32 MiB): guitar's peak RSS 0.796 -> 1.05-1.32 GB. At 16 MiB it is
+/// 0.84 GB (+5%), and the demo's deform 0.5 s faster than at 4 MiB (docs/benchmarks.md).
+[[maybe_unused]] const bool kMappedLargeBlocks = mallopt(M_MMAP_THRESHOLD, 16 << 20) == 1;
 
 } // namespace
 #endif
