@@ -145,6 +145,7 @@ CpuSolver::CpuSolver(const GaussianCloud& cloud, const SampleSet& samples, const
     mGrad.assign(n, 0.0f);
     mAdamM.assign(n, 0.0f);
     mAdamV.assign(n, 0.0f);
+    mRowDecrease.resize(mG);
     mPrepared.resize(mG);
     mBounds.resize(mG);
     mBoxLo.resize(3 * mG);
@@ -383,7 +384,6 @@ double CpuSolver::step(const StageTwoStep& s)
     PhaseClock clock(mTimes.update);
     const AdamStep adam = AdamStep::at(mOptions, s.adamStep);
     const StepRates rates = StepRates::forStep(mOptions, s, mSetup.sceneExtent);
-    mRowDecrease.resize(mG);
     parallelFor(mG, 1024, mOptions.threaded, [&](std::size_t k) {
         const std::size_t i = k * std::size_t(mPerG);
         mRowDecrease[k] = adamStepRow(adam, rates, mSetup.filter[mSetup.moving[k]], mOptions.maxMeanStep, mPerG,
