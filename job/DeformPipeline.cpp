@@ -442,6 +442,10 @@ void stageTwoStep(Refine& f)
     if (o.keepValidated) f.startModel = f.fitted;
     StageTwoOptions s2 = o.stage2;
     s2.device = f.rest.device;
+    if (f.validation && o.validationStop > 0) { // the keep's points judge when the fit stops improving
+        s2.heldOutStop.score = [&v = *f.validation](const GaussianCloud& m) { return v.score(m); };
+        s2.heldOutStop.every = o.validationStop;
+    }
     DensifyJobOptions densify = o.densify; // Stage II's split spends what the splits before it left
     if (o.maxGaussians) densify.maxSplits = splitBudget(o, f.rest.model.size()) - f.cold.added;
     auto fit = [&] {

@@ -59,6 +59,9 @@ struct DeformJobOptions {
     bool keepValidated = true; ///< keep Stage II's start, fit or their mix by validation points (StageTwoChoice.h)
     bool validatedSplit = true; ///< split what the validation points measure to pay (ValidatedSplit.h)
     bool keepPerGaussian = true; ///< then each Gaussian's version by validation points (GaussianChoice.h)
+    /// With the keep: score Stage II's fit on the validation points every this many iterations and
+    /// stop it once the score rose (StageTwoOptions::heldOutStop; 0: never).
+    int validationStop = 10;
     HeldOutOptions heldOut; ///< points and seed of the judge (and of the training-lattice error)
     bool evaluate = true;   ///< the judge's errors of Stage I and Stage II in the report (and the training-lattice error)
     int evalEvery = 0;      ///< also record the held-out error every K Stage II iterations (0 = off)

@@ -350,6 +350,10 @@ std::vector<Setting> candidateSettings()
                  out["keepValidated"] = o.keepValidated;
                  if (!o.keepPerGaussian) out["keepPerGaussian"] = false; // off its default only (older hashes hold)
              }),
+        number<int>("--validation-stop", "validationStop", Expert,
+                    "With --keep validated or regions: score Stage II's fit on the validation points every K iterations "
+                    "and stop it once the score rose by more than 1% (0: run every iteration)",
+                    [](DeformJobOptions& o) -> int& { return o.validationStop; }, {0, 1000000}),
         number<float>("--prune-below", "pruneBelow", Expert,
                       "Remove the moving Gaussians whose opacity Stage II leaves below this (before the split and at the "
                       "end; 0: keep every Gaussian)",

@@ -63,6 +63,14 @@ json energiesJson(const std::vector<StageTwoEnergy>& energies)
     return j;
 }
 
+/// The validation stop's checks (StageTwoReport::heldOutChecks).
+json checksJson(const std::vector<std::pair<int, double>>& checks)
+{
+    json out = json::array();
+    for (const auto& [iteration, score] : checks) out.push_back({{"iteration", iteration}, {"score", score}});
+    return out;
+}
+
 /// The fit's own part of "stage2": its energies, grid, throughput, stop and settings.
 json fitJson(const StageTwoRecord& s)
 {
@@ -91,6 +99,7 @@ json fitJson(const StageTwoRecord& s)
             {"rejectedSteps", r.rejectedSteps},
             {"stoppedAt", r.stoppedAt},
             {"stopReason", r.stoppedAt >= 0 ? r.stopReason : std::string("ran every iteration")},
+            {"validationChecks", checksJson(r.heldOutChecks)},
             {"device", devicesName(r)},
             {"gpuPeakBytes", r.gpuPeakBytes},
             {"sceneExtent", r.sceneExtent},

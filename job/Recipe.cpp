@@ -44,6 +44,7 @@ const SettingRow kSettings[] = {
     {"stage2", "boundaryWeight", "--boundary-weight"}, {"stage2", "stallTolerance", "--stall-tolerance"},
     {"stage2", "cells", "--cells"},               {"stage2", "samplesPerCell", "--samples-per-cell"},
     {"stage2", "pruneBelow", "--prune-below"},    {"keep", "mode", "--keep"},
+    {"keep", "validationStop", "--validation-stop"},
 };
 
 const SettingRow* settingRow(const std::string& step, const std::string& key)

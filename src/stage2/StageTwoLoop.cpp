@@ -155,6 +155,32 @@ void updateCoverage(StageTwoSolver& solver, const StageTwoOptions& o, int it, St
     if (!scheduled) ++report.coverageForcedRebuilds;
 }
 
+/// StageTwoOptions::heldOutStop: scores the held iterate every `every` iterations (on a copy of
+/// the model, as onEval sees it) and says when the score rose (a non-finite one stops too).
+class HeldOutCheck {
+public:
+    HeldOutCheck(const StageTwoOptions::HeldOutStop& stop, std::unique_ptr<GaussianCloud>& copy) : mStop(stop), mCopy(copy) {}
+
+    /// Whether the run stops at `it` (the solver holds the iterate kept at it).
+    bool stops(int it, const StageTwoSolver& solver, const GaussianCloud& cloud, StageTwoReport& report)
+    {
+        if (!mStop.on() || it == 0 || it % mStop.every != 0) return false;
+        if (!mCopy) mCopy = std::make_unique<GaussianCloud>(cloud);
+        solver.writeTo(*mCopy);
+        const double score = mStop.score(*mCopy);
+        report.heldOutChecks.emplace_back(it, score);
+        progress(msg("Stage II iteration ", it, ": validation score ", score));
+        const bool stop = !(score <= mLast * (1.0 + mStop.rise));
+        mLast = score;
+        return stop;
+    }
+
+private:
+    const StageTwoOptions::HeldOutStop& mStop;
+    std::unique_ptr<GaussianCloud>& mCopy;
+    double mLast = std::numeric_limits<double>::infinity();
+};
+
 /// Whether a non-finite energy ends the run (with the best iterate). At the start it is bad input;
 /// later, with step rejection, just a rejected step; without, the end (keepBest) or an error.
 bool stopsOnNonFinite(const StageTwoEnergy& e, int it, const StageTwoOptions& o)
@@ -208,6 +234,7 @@ StageTwoReport runStageTwoLoop(StageTwoSolver& solver, GaussianCloud& cloud, con
     report.bestEnergy = std::numeric_limits<double>::infinity();
     IterateKeeper keeper(solver, o);
     std::unique_ptr<GaussianCloud> evalCloud; // onEval sees a copy; the caller's cloud is written at the end
+    HeldOutCheck heldOut(o.heldOutStop, evalCloud);
     const int reportEvery = std::max(o.reportEvery, 1);
     int last = o.iterations;
     for (int it = 0; it <= o.iterations; ++it) {
@@ -234,6 +261,13 @@ StageTwoReport runStageTwoLoop(StageTwoSolver& solver, GaussianCloud& cloud, con
             progress(msg("Stage II: stopping at iteration ", it, " (", why, ")"));
             report.stoppedAt = it;
             report.stopReason = why;
+            last = it;
+            break;
+        }
+        if (heldOut.stops(it, solver, cloud, report)) {
+            progress(msg("Stage II: stopping at iteration ", it, " (the validation score rose)"));
+            report.stoppedAt = it;
+            report.stopReason = "the validation score rose";
             last = it;
             break;
         }

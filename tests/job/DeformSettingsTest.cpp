@@ -82,13 +82,15 @@ TEST(DeformSettings, EverySwitchChangesTheRecordAndEveryFlagARecipeSetsIsARow)
 TEST(DeformSettings, TheRecordKeepsTheHashOfEarlierRuns)
 {
     DeformJobOptions o = deformDefaults();
-    EXPECT_EQ(settingsJson(o).size(), 38u);
+    // 39 since --validation-stop: written always, as it changed the default's output (a resume must
+    // not take an earlier default run's frames for this one's).
+    EXPECT_EQ(settingsJson(o).size(), 39u);
     const nlohmann::json before = settingsJson(o);
     for (const auto& [flag, value] : std::initializer_list<std::pair<const char*, const char*>>{
              {"--keep", "regions"}, {"--validated-split", "off"}, {"--max-gaussians", "1.5x"}})
         deformSetting(flag).set(o, value);
     const nlohmann::json after = settingsJson(o);
-    EXPECT_EQ(after.size(), 41u); // three keys written only off their defaults
+    EXPECT_EQ(after.size(), 42u); // three keys written only off their defaults
     EXPECT_EQ(after["keepPerGaussian"], false);
     EXPECT_EQ(after["validatedSplit"], false);
     EXPECT_EQ(after["maxGaussians"], "1.5x");

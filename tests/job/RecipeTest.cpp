@@ -44,9 +44,10 @@ TEST(Recipe, PaperIsPolarStageOneThenStageTwoAndNothingElse)
 TEST(Recipe, FileSettingsComeAfterTheirStepsSwitch)
 {
     const Recipe r = parseRecipe(R"({"recipe":"mine","steps":[{"step":"stage1","shape":"polar"},{"step":"curveShift","share":0.5},
-        {"step":"stage2","iterations":"auto"},{"step":"keep","mode":"regions"}]})", "r.json");
+        {"step":"stage2","iterations":"auto"},{"step":"keep","mode":"regions","validationStop":5}]})", "r.json");
     EXPECT_EQ(r.name, "mine");
     const Flags flags = recipeFlags(r);
+    EXPECT_EQ(flagValue(flags, "--validation-stop"), "5");
     EXPECT_EQ(flagValue(flags, "--curve-shift"), "0.5");
     EXPECT_EQ(flagValue(flags, "--keep"), "regions");
     EXPECT_EQ(flagValue(flags, "--iterations"), "auto");

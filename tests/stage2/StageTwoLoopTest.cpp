@@ -4,6 +4,8 @@
 
 #include <cmath>
 #include <limits>
+#include <string>
+#include <utility>
 #include <vector>
 
 #include "core/Error.h"
@@ -346,4 +348,52 @@ TEST(StageTwoLoop, AutoIterationsKeepTheDefaultRunsPositionSchedule)
     again.iterations = 50;
     again.scheduleIterations = 0;
     EXPECT_EQ(stageTwoPositionRate(again, 49, 2.0f), end);
+}
+
+TEST(StageTwoLoop, StopsWhenTheHeldOutScoreStopsFalling)
+{
+    // Energies fall all the way; the held-out score (here: of the written "parameter", the state)
+    // falls at the check of iteration 2 and rises at iteration 4: the run stops there, holding
+    // iteration 4's iterate, and records each check.
+    ScriptedSolver s({10, 9, 8, 7, 6, 5, 4, 3, 2});
+    GaussianCloud cloud;
+    StageTwoOptions o = rejecting(8);
+    const std::vector<double> scoreOfState = {0, 0, 0.5, 0, 0.7, 0, 0.2, 0, 0.1};
+    int scored = 0;
+    o.heldOutStop = {[&](const GaussianCloud& m) {
+                         ++scored;
+                         return scoreOfState[std::size_t(m.opacities.at(0))];
+                     },
+                     2};
+    const StageTwoReport r = runStageTwoLoop(s, cloud, o);
+    EXPECT_EQ(r.stoppedAt, 4);
+    EXPECT_EQ(r.stopReason, "the validation score rose");
+    EXPECT_EQ(scored, 2);
+    ASSERT_EQ(r.heldOutChecks.size(), 2u);
+    EXPECT_EQ(r.heldOutChecks[0], (std::pair<int, double>{2, 0.5}));
+    EXPECT_EQ(r.heldOutChecks[1], (std::pair<int, double>{4, 0.7}));
+    EXPECT_EQ(cloud.opacities, std::vector<float>{4.0f});
+    EXPECT_EQ(r.bestIteration, 4);
+    // A rise within `rise` (1%) of the last check goes on; the next one past it stops.
+    ScriptedSolver t({10, 9, 8, 7, 6, 5, 4, 3, 2});
+    const std::vector<double> flat = {0, 0, 0.5, 0, 0.5049, 0, 0.51, 0, 0.1};
+    o.heldOutStop.score = [&](const GaussianCloud& m) { return flat[std::size_t(m.opacities.at(0))]; };
+    EXPECT_EQ(runStageTwoLoop(t, cloud, o).stoppedAt, 6);
+}
+
+TEST(StageTwoLoop, AHeldOutScoreThatKeepsFallingRunsEveryIteration)
+{
+    ScriptedSolver s({10, 9, 8, 7, 6, 5, 4});
+    GaussianCloud cloud;
+    StageTwoOptions o = rejecting(6);
+    o.heldOutStop = {[](const GaussianCloud& m) { return 1.0 / (1.0 + m.opacities.at(0)); }, 2};
+    const StageTwoReport r = runStageTwoLoop(s, cloud, o);
+    EXPECT_EQ(r.stoppedAt, -1);
+    EXPECT_EQ(r.heldOutChecks.size(), 2u); // 2 and 4; none at the last iteration, which ends the run anyway
+    EXPECT_EQ(cloud.opacities, std::vector<float>{6.0f});
+    // every = 0 never scores
+    ScriptedSolver t({10, 9, 8, 7});
+    o.iterations = 3;
+    o.heldOutStop = {[](const GaussianCloud&) -> double { throw Error("scored"); }, 0};
+    EXPECT_NO_THROW(runStageTwoLoop(t, cloud, o));
 }
