@@ -584,10 +584,14 @@ void prepareRestOf(DeformRest& rest, const DeformJobOptions& o, const GraphOptio
     rest.grid = runStage("sample grid", [&] { return std::make_unique<SampleGrid>(rest.model, gridOptions); });
     rest.sampleGridMs = clock.ms();
     if (o.keepValidated) {
+        clock.reset();
         HeldOutOptions validation = o.heldOut;
         validation.device = rest.device;
         validation.seed ^= kValidationSeedXor;
         rest.validation = prepareValidationRest(rest.model, validation);
+        rest.validationMs = clock.ms();
+        progress(msg("validation: ", rest.validation->unrotated.size(), " points from ", kValidationDraws, " draws of the judge's rule (",
+                     int(rest.validationMs), " ms)"));
     }
     if (o.evaluate || o.evalEvery > 0) {
         clock.reset();
@@ -663,6 +667,7 @@ void refineFrame(DeformRest& rest, const DeformJobOptions& o, FrameResult& f, co
     if (!rest.grid) throw UsageError("Stage II needs the rest side prepared without --stage1-only");
     Stopwatch clock;
     f.report.timingsMs["sampleGrid"] = rest.sampleGridMs;
+    if (rest.validation) f.report.timingsMs["validation"] = rest.validationMs;
     f.fitted =
         runStage("Stage II", [&] { return stageTwo(rest, f.deformation, f.stage1, o, start, f.report, f.stretched); });
     f.ms += clock.ms();
