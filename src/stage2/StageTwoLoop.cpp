@@ -155,29 +155,27 @@ void updateCoverage(StageTwoSolver& solver, const StageTwoOptions& o, int it, St
     if (!scheduled) ++report.coverageForcedRebuilds;
 }
 
-/// StageTwoOptions::heldOutStop: scores the held iterate every `every` iterations (on a copy of
-/// the model, as onEval sees it) and says when the score rose (a non-finite one stops too).
+/// StageTwoOptions::heldOutStop: scores the held iterate every `every` iterations and says when
+/// the score rose (a non-finite one stops too).
 class HeldOutCheck {
 public:
-    HeldOutCheck(const StageTwoOptions::HeldOutStop& stop, std::unique_ptr<GaussianCloud>& copy) : mStop(stop), mCopy(copy) {}
+    explicit HeldOutCheck(const StageTwoOptions::HeldOutStop& stop) : mStop(stop) {}
 
-    /// Whether the run stops at `it` (the solver holds the iterate kept at it).
-    bool stops(int it, const StageTwoSolver& solver, const GaussianCloud& cloud, StageTwoReport& report)
+    /// Whether iteration `it` is scored.
+    bool due(int it) const { return mStop.on() && it > 0 && it % mStop.every == 0; }
+    /// Score the model held at `it` (a due iteration): whether the score rose.
+    bool rose(int it, const GaussianCloud& held, StageTwoReport& report)
     {
-        if (!mStop.on() || it == 0 || it % mStop.every != 0) return false;
-        if (!mCopy) mCopy = std::make_unique<GaussianCloud>(cloud);
-        solver.writeTo(*mCopy);
-        const double score = mStop.score(*mCopy);
+        const double score = mStop.score(held);
         report.heldOutChecks.emplace_back(it, score);
         progress(msg("Stage II iteration ", it, ": validation score ", score));
-        const bool stop = !(score <= mLast * (1.0 + mStop.rise));
+        const bool rose = !(score <= mLast * (1.0 + mStop.rise));
         mLast = score;
-        return stop;
+        return rose;
     }
 
 private:
     const StageTwoOptions::HeldOutStop& mStop;
-    std::unique_ptr<GaussianCloud>& mCopy;
     double mLast = std::numeric_limits<double>::infinity();
 };
 
@@ -233,8 +231,13 @@ StageTwoReport runStageTwoLoop(StageTwoSolver& solver, GaussianCloud& cloud, con
     solver.describe(report);
     report.bestEnergy = std::numeric_limits<double>::infinity();
     IterateKeeper keeper(solver, o);
-    std::unique_ptr<GaussianCloud> evalCloud; // onEval sees a copy; the caller's cloud is written at the end
-    HeldOutCheck heldOut(o.heldOutStop, evalCloud);
+    std::unique_ptr<GaussianCloud> evalCloud; // onEval and heldOut see a copy; the caller's cloud is written at the end
+    const auto current = [&]() -> const GaussianCloud& {
+        if (!evalCloud) evalCloud = std::make_unique<GaussianCloud>(cloud);
+        solver.writeTo(*evalCloud);
+        return *evalCloud;
+    };
+    HeldOutCheck heldOut(o.heldOutStop);
     const int reportEvery = std::max(o.reportEvery, 1);
     int last = o.iterations;
     for (int it = 0; it <= o.iterations; ++it) {
@@ -257,17 +260,12 @@ StageTwoReport runStageTwoLoop(StageTwoSolver& solver, GaussianCloud& cloud, con
             logEnergy(solver, e, pairs);
         }
         if (it == o.iterations) break; // final energy only
-        if (const char* why = keeper.stalled()) {
+        const char* why = keeper.stalled();
+        if (!why && heldOut.due(it) && heldOut.rose(it, current(), report)) why = "the validation score rose";
+        if (why) {
             progress(msg("Stage II: stopping at iteration ", it, " (", why, ")"));
             report.stoppedAt = it;
             report.stopReason = why;
-            last = it;
-            break;
-        }
-        if (heldOut.stops(it, solver, cloud, report)) {
-            progress(msg("Stage II: stopping at iteration ", it, " (the validation score rose)"));
-            report.stoppedAt = it;
-            report.stopReason = "the validation score rose";
             last = it;
             break;
         }
@@ -275,11 +273,7 @@ StageTwoReport runStageTwoLoop(StageTwoSolver& solver, GaussianCloud& cloud, con
         if (!e.rejected) solver.backward(); // a rejected step is taken again with the kept gradient
         takeStep(solver, keeper, it, report.bestEnergy);
         reportProgress("Stage II", it + 1, o.iterations); // a cancel stops here, within one iteration
-        if (onEval && evalEvery > 0 && (it + 1) % evalEvery == 0) {
-            if (!evalCloud) evalCloud = std::make_unique<GaussianCloud>(cloud);
-            solver.writeTo(*evalCloud);
-            onEval(it + 1, *evalCloud);
-        }
+        if (onEval && evalEvery > 0 && (it + 1) % evalEvery == 0) onEval(it + 1, current());
     }
     keeper.finish(last, report);
     solver.writeTo(cloud);
