@@ -92,23 +92,6 @@ bool boxMeetsSlabs(const float* lo, const float* hi, const CoverageSlabs& slabs)
 
 namespace {
 
-/// Largest half size of any block per axis (blocks with non-finite bounds left out).
-void largestHalf(const SampleBlocks& blocks, float* half)
-{
-    half[0] = half[1] = half[2] = 0.0f;
-    for (std::size_t b = 0; b < blocks.count(); ++b)
-        for (int a = 0; a < 3; ++a) {
-            const float h = 0.5f * (blocks.hi[3 * b + std::size_t(a)] - blocks.lo[3 * b + std::size_t(a)]);
-            if (std::isfinite(h)) half[a] = std::max(half[a], h);
-        }
-}
-
-/// Block b's centre on axis a, as the index keys and bounds it.
-double centreOf(const SampleBlocks& blocks, std::size_t b, int a)
-{
-    return double(0.5f * (blocks.lo[3 * b + std::size_t(a)] + blocks.hi[3 * b + std::size_t(a)]));
-}
-
 bool finiteBox(const float* lo, const float* hi)
 {
     for (int a = 0; a < 3; ++a)
@@ -121,9 +104,10 @@ bool finiteBox(const float* lo, const float* hi)
 BlockIndex::BlockIndex(const SampleBlocks& blocks)
 {
     const std::size_t nb = blocks.count();
-    largestHalf(blocks, mGrow);
-    // Centres in cells about two median blocks wide (coarser while the grid would hold more than
-    // 8 cells a block), so a Gaussian's query visits a few cells of a few blocks each.
+    // Cells about as wide as the median block (coarser while the grid would hold more than 8
+    // cells a block, or the lists more than kEntriesPerBlock entries a block): a query visits the
+    // few cells its own box overlaps, whatever the size of the largest block.
+    constexpr double kEntriesPerBlock = 16.0;
     std::vector<float> edges;
     std::vector<std::uint8_t> finite(nb);
     double lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
@@ -134,53 +118,73 @@ BlockIndex::BlockIndex(const SampleBlocks& blocks)
         if (!finite[b]) continue;
         edges.push_back(std::max({bh[0] - bl[0], bh[1] - bl[1], bh[2] - bl[2]}));
         for (int a = 0; a < 3; ++a) {
-            lo[a] = std::min(lo[a], centreOf(blocks, b, a));
-            hi[a] = std::max(hi[a], centreOf(blocks, b, a));
+            lo[a] = std::min(lo[a], double(bl[a]));
+            hi[a] = std::max(hi[a], double(bh[a]));
         }
     }
     if (edges.empty()) return;
     std::nth_element(edges.begin(), edges.begin() + std::ptrdiff_t(edges.size() / 2), edges.end());
-    mCell = 2.0 * double(edges[edges.size() / 2]);
-    if (!(mCell > 0.0) || !std::isfinite(mCell)) mCell = 1.0;
-    const double limit = std::max(8.0 * double(nb), 4096.0);
+    mCell = double(edges[edges.size() / 2]);
+    if (!(mCell > 0.0) || !std::isfinite(mCell)) mCell = std::max({hi[0] - lo[0], hi[1] - lo[1], hi[2] - lo[2], 1.0});
+    for (int a = 0; a < 3; ++a) mLo[a] = lo[a];
+    const double cellLimit = std::max(8.0 * double(nb), 4096.0), entryLimit = kEntriesPerBlock * double(nb) + 4096.0;
     for (;;) {
         double cells = 1;
         for (int a = 0; a < 3; ++a) cells *= std::floor((hi[a] - lo[a]) / mCell) + 1;
-        if (cells <= limit) break;
+        if (cells <= cellLimit) {
+            for (int a = 0; a < 3; ++a) mCount[a] = std::int64_t(std::floor((hi[a] - lo[a]) / mCell)) + 1;
+            double entries = 0;
+            for (std::size_t b = 0; b < nb; ++b)
+                if (finite[b]) entries += double(cellsOf(blocks, b));
+            if (entries <= entryLimit) break;
+        }
         mCell *= 2.0;
     }
-    for (int a = 0; a < 3; ++a) {
-        mLo[a] = lo[a];
-        mCount[a] = std::int64_t(std::floor((hi[a] - lo[a]) / mCell)) + 1;
-    }
-    // A counting sort: blocks in ascending order within a cell.
-    std::vector<std::uint32_t> key(nb, 0);
-    mStart.assign(std::size_t(mCount[0] * mCount[1] * mCount[2]) + 1, 0);
-    for (std::size_t b = 0; b < nb; ++b) {
-        if (!finite[b]) continue;
-        std::int64_t c = 0;
-        for (int a = 0; a < 3; ++a)
-            c = c * mCount[a] +
-                std::min<std::int64_t>(std::int64_t(std::floor((centreOf(blocks, b, a) - mLo[a]) / mCell)), mCount[a] - 1);
-        key[b] = std::uint32_t(c);
-        ++mStart[std::size_t(c) + 1];
-    }
-    for (std::size_t c = 1; c < mStart.size(); ++c) mStart[c] += mStart[c - 1];
+    // A counting sort: each block in every cell its bounds overlap, ascending within a cell's
+    // group; a cell's groups by which of its axes the block starts on (mask bit a: the block's
+    // lowest cell along a is this one), so a query reads each block once (blocksMeeting()).
+    mStart.assign(std::size_t(mCount[0] * mCount[1] * mCount[2]) * kGroups + 1, 0);
+    const auto forEachCell = [&](std::size_t b, auto&& f) {
+        std::int64_t c0[3], c1[3];
+        cellRange(blocks.lo.data() + 3 * b, blocks.hi.data() + 3 * b, c0, c1);
+        for (std::int64_t i = c0[0]; i <= c1[0]; ++i)
+            for (std::int64_t j = c0[1]; j <= c1[1]; ++j)
+                for (std::int64_t k = c0[2]; k <= c1[2]; ++k) {
+                    const std::size_t mask = std::size_t(i == c0[0]) | std::size_t(j == c0[1]) << 1 | std::size_t(k == c0[2]) << 2;
+                    f(std::size_t((i * mCount[1] + j) * mCount[2] + k) * kGroups + mask);
+                }
+    };
+    for (std::size_t b = 0; b < nb; ++b)
+        if (finite[b]) forEachCell(b, [&](std::size_t g) { ++mStart[g + 1]; });
+    for (std::size_t g = 1; g < mStart.size(); ++g) mStart[g] += mStart[g - 1];
     std::vector<std::uint32_t> next(mStart.begin(), mStart.end() - 1);
     mItems.resize(mStart.back());
     for (std::size_t b = 0; b < nb; ++b)
-        if (finite[b]) mItems[next[key[b]]++] = std::uint32_t(b);
+        if (finite[b]) forEachCell(b, [&](std::size_t g) { mItems[next[g]++] = std::uint32_t(b); });
+}
+
+double BlockIndex::cellsOf(const SampleBlocks& blocks, std::size_t b) const
+{
+    std::int64_t c0[3], c1[3];
+    if (!cellRange(blocks.lo.data() + 3 * b, blocks.hi.data() + 3 * b, c0, c1)) return 0.0;
+    return double(c1[0] - c0[0] + 1) * double(c1[1] - c0[1] + 1) * double(c1[2] - c0[2] + 1);
+}
+
+std::int64_t BlockIndex::cellOf(double x, int a) const
+{
+    const double c = std::floor((x - mLo[a]) / mCell);
+    return c < 0 ? 0 : c > double(mCount[a] - 1) ? mCount[a] - 1 : std::int64_t(c);
 }
 
 bool BlockIndex::cellRange(const float* lo, const float* hi, std::int64_t* c0, std::int64_t* c1) const
 {
-    if (mItems.empty()) return false;
+    if (mCount[0] == 0) return false;
     for (int a = 0; a < 3; ++a) {
         if (!std::isfinite(lo[a]) || !std::isfinite(hi[a])) return false; // a non-finite box lists nothing
         const double l = std::floor((double(lo[a]) - mLo[a]) / mCell), h = std::floor((double(hi[a]) - mLo[a]) / mCell);
         if (!(h >= 0 && l <= double(mCount[a] - 1))) return false;
-        c0[a] = l < 0 ? 0 : std::int64_t(l);
-        c1[a] = h > double(mCount[a] - 1) ? mCount[a] - 1 : std::int64_t(h);
+        c0[a] = cellOf(double(lo[a]), a);
+        c1[a] = cellOf(double(hi[a]), a);
     }
     return true;
 }
@@ -190,27 +194,27 @@ void BlockIndex::blocksMeeting(const SampleBlocks& blocks, const float* lo, cons
 {
     out.clear();
     if (!(hi[0] >= lo[0] && hi[1] >= lo[1] && hi[2] >= lo[2])) return; // empty (or NaN): never counts
-    // Grown by the largest block half size, the box holds the centre of every block it meets.
-    float glo[3], ghi[3];
-    for (std::size_t a = 0; a < 3; ++a) {
-        const float pad = mGrow[a] * (1 + 1e-3f) + 1e-5f * (std::fabs(lo[a]) + std::fabs(hi[a])); // beyond float rounding
-        glo[a] = lo[a] - pad;
-        ghi[a] = hi[a] + pad;
-    }
     std::int64_t c0[3], c1[3];
-    if (!cellRange(glo, ghi, c0, c1)) return;
+    if (mItems.empty() || !cellRange(lo, hi, c0, c1)) return;
     for (std::int64_t i = c0[0]; i <= c1[0]; ++i)
-        for (std::int64_t j = c0[1]; j <= c1[1]; ++j) {
-            const std::size_t row = std::size_t((i * mCount[1] + j) * mCount[2]);
-            for (std::uint32_t e = mStart[row + std::size_t(c0[2])]; e < mStart[row + std::size_t(c1[2]) + 1]; ++e) {
-                const std::uint32_t b = mItems[e];
-                const float* bl = blocks.lo.data() + 3 * std::size_t(b);
-                const float* bh = blocks.hi.data() + 3 * std::size_t(b);
-                if (bh[0] < lo[0] || bl[0] > hi[0] || bh[1] < lo[1] || bl[1] > hi[1] || bh[2] < lo[2] || bl[2] > hi[2]) continue;
-                if (slabs && !boxMeetsSlabs(bl, bh, *slabs)) continue;
-                out.push_back(b);
+        for (std::int64_t j = c0[1]; j <= c1[1]; ++j)
+            for (std::int64_t k = c0[2]; k <= c1[2]; ++k) {
+                // A block meeting the box is read once: in the cell of the overlap's lower corner,
+                // on each axis the later of the box's first cell and the block's (cellOf is
+                // monotone). Past the box's first cell along an axis, that is the block's first
+                // cell: only the groups of blocks starting there along every such axis are read.
+                const std::size_t need = std::size_t(i > c0[0]) | std::size_t(j > c0[1]) << 1 | std::size_t(k > c0[2]) << 2;
+                const std::size_t c = std::size_t((i * mCount[1] + j) * mCount[2] + k) * kGroups;
+                for (std::size_t mask = need; mask < kGroups; mask = (mask + 1) | need)
+                    for (std::uint32_t e = mStart[c + mask]; e < mStart[c + mask + 1]; ++e) {
+                        const std::uint32_t b = mItems[e];
+                        const float* bl = blocks.lo.data() + 3 * std::size_t(b);
+                        const float* bh = blocks.hi.data() + 3 * std::size_t(b);
+                        if (bh[0] < lo[0] || bl[0] > hi[0] || bh[1] < lo[1] || bl[1] > hi[1] || bh[2] < lo[2] || bl[2] > hi[2]) continue;
+                        if (slabs && !boxMeetsSlabs(bl, bh, *slabs)) continue;
+                        out.push_back(b);
+                    }
             }
-        }
 }
 
 void BlockCoverage::build(const float* lo, const float* hi, const CoverageSlabs* slabs, std::size_t g, bool threaded,

@@ -57,14 +57,19 @@ private:
     /// The cells c0[a]..c1[a] along each axis a that [lo, hi] overlaps; false when it misses the
     /// grid or is not finite.
     bool cellRange(const float* lo, const float* hi, std::int64_t* c0, std::int64_t* c1) const;
+    /// The cell along axis a holding x, clamped to the grid (monotone in x).
+    std::int64_t cellOf(double x, int a) const;
+    /// How many cells block b's bounds overlap.
+    double cellsOf(const SampleBlocks& blocks, std::size_t b) const;
 
-    // Block centres in a dense grid of cells (no search per cell, unlike sparse bins: a small
-    // Gaussian's query visits a few cells); cell (i, j, k) holds mItems[mStart[c], mStart[c + 1]).
+    // Each block listed in every cell of a dense grid its bounds overlap (no search per cell,
+    // unlike sparse bins; no padding by the largest block, unlike binning centres): group m of
+    // cell c (i, j, k) holds mItems[mStart[8c + m], mStart[8c + m + 1]).
     double mLo[3] = {0, 0, 0};
     double mCell = 1.0;
     std::int64_t mCount[3] = {0, 0, 0};
+    static constexpr std::size_t kGroups = 8; ///< per cell, by the axes its blocks start on
     std::vector<std::uint32_t> mStart, mItems;
-    float mGrow[3] = {0, 0, 0}; ///< largest block half size per axis
 };
 
 /// @brief Which blocks each moving Gaussian may touch, and the reverse, both lists ascending so

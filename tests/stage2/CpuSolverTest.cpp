@@ -224,6 +224,51 @@ TEST(SampleBlocks, TheIndexFindsEveryBlockABoxMeets)
     EXPECT_GT(met, 150);
 }
 
+// Blocks of very different sizes (most small, a few spanning many index cells): every block a box
+// meets is listed exactly once, however many of the box's cells it overlaps.
+TEST(SampleBlocks, TheIndexListsEachMetBlockOnceWhateverItsSize)
+{
+    std::mt19937 rng(11);
+    std::uniform_real_distribution<float> u(-1.0f, 1.0f);
+    std::vector<float> x;
+    std::vector<std::int32_t> cell;
+    for (int c = 0; c < 600; ++c) {
+        const float spread = c % 50 == 0 ? 0.8f : c % 7 == 0 ? 0.2f : 0.03f;
+        const float cx = u(rng), cy = u(rng), cz = u(rng);
+        for (int s = 0; s < 12; ++s) {
+            x.insert(x.end(), {cx + spread * u(rng), cy + spread * u(rng), cz + spread * u(rng)});
+            cell.push_back(c);
+        }
+    }
+    const SampleBlocks b = SampleBlocks::build(x.data(), cell.data(), cell.size());
+    const BlockIndex index(b);
+    std::vector<std::uint32_t> found;
+    std::size_t listed = 0;
+    for (int q = 0; q < 400; ++q) {
+        const float half = q % 4 == 0 ? 0.005f : q % 4 == 1 ? 0.05f : q % 4 == 2 ? 0.3f : 1.5f;
+        float lo[3], hi[3];
+        for (int a = 0; a < 3; ++a) {
+            const float c = 1.2f * u(rng);
+            lo[a] = c - half * (0.5f + 0.5f * (u(rng) + 1.0f));
+            hi[a] = c + half;
+        }
+        index.blocksMeeting(b, lo, hi, nullptr, found);
+        std::vector<std::uint32_t> sorted = found;
+        std::sort(sorted.begin(), sorted.end());
+        EXPECT_EQ(std::adjacent_find(sorted.begin(), sorted.end()), sorted.end()) << "query " << q << " lists a block twice";
+        std::vector<std::uint32_t> expected;
+        for (std::uint32_t k = 0; k < b.count(); ++k) {
+            const float* bl = &b.lo[3 * k];
+            const float* bh = &b.hi[3 * k];
+            if (!(bh[0] < lo[0] || bl[0] > hi[0] || bh[1] < lo[1] || bl[1] > hi[1] || bh[2] < lo[2] || bl[2] > hi[2]))
+                expected.push_back(k);
+        }
+        EXPECT_EQ(sorted, expected) << "query " << q;
+        listed += expected.size();
+    }
+    EXPECT_GT(listed, 4000u);
+}
+
 TEST(SampleBlocks, BoxMeetsSlabsIsASuperset)
 {
     // Random slabs and boxes: whenever a random point of the box lies in all slabs, the box must meet them.
