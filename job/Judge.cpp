@@ -6,11 +6,16 @@
 
 #include <cmath>
 #include <cstdio>
+#include <cstring>
+#include <deque>
 #include <limits>
+#include <mutex>
 
+#include "core/Error.h"
 #include "core/Polar.h"
 #include "image/Metrics.h"
 #include "render/RenderDevice.h"
+#include "stage2/BlockFeatures.h"
 
 namespace splatwarp {
 
@@ -104,29 +109,58 @@ void appendPoint(const JudgeRest& from, std::size_t j, float weight, JudgeRest& 
     for (std::size_t s = 0; s < stride; ++s) to.unrotated.sumFeatures += double(weight) * std::fabs(f[s]);
 }
 
+/// Draws [first, last) of the judge's rule with their rest side, evaluated in one batch (the block
+/// engine gives each point the same bits in any batch); starts[d - first] is draw d's first point.
+JudgeRest drawsWithRest(const GaussianCloud& rest, const HeldOutOptions& options, int first, int last,
+                        std::vector<std::size_t>& starts)
+{
+    JudgeRest all;
+    starts.assign(1, 0);
+    for (int d = first; d < last; ++d) {
+        HeldOutOptions o = options;
+        o.seed = options.seed + std::uint32_t(d);
+        const HeldOutPoints draw = drawJudgePoints(rest, o);
+        all.points.features = draw.features;
+        all.points.rest.insert(all.points.rest.end(), draw.rest.begin(), draw.rest.end());
+        all.points.warped.insert(all.points.warped.end(), draw.warped.begin(), draw.warped.end());
+        all.points.rotations.insert(all.points.rotations.end(), draw.rotations.begin(), draw.rotations.end());
+        starts.push_back(all.points.size());
+    }
+    all.unrotated = unrotatedTarget(rest, all.points);
+    return all;
+}
+
 } // namespace
 
 JudgeRest prepareValidationRest(const GaussianCloud& rest, const HeldOutOptions& options, int draws)
 {
+    // Draws in batches of about kBatchBytes of rest side (one set-up of the engine a batch, not a
+    // draw; SH degree 0 takes all ten at once, degree 3 one at a time).
+    constexpr double kBatchBytes = 64.0 * (1 << 20);
+    const double drawBytes = double(options.points) * double(rest.shStride()) * (sizeof(float) + sizeof(double));
+    const int batch = std::max(1, int(kBatchBytes / std::max(drawBytes, 1.0)));
     JudgeRest out;
     out.unrotated.shDegree = rest.shDegree;
     std::mt19937_64 rng(options.seed ^ 0x9e3779b97f4a7c15ull);
     std::uniform_real_distribution<double> unit(0.0, 1.0);
-    for (int d = 0; d < draws; ++d) {
-        HeldOutOptions o = options;
-        o.seed = options.seed + std::uint32_t(d);
-        const JudgeRest draw = prepareJudgeRest(rest, o);
-        if (d == 0) out.points.features = draw.points.features;
-        std::size_t inside = 0;
-        for (float x : draw.unrotated.opacity) inside += x > 0.0f;
-        const std::size_t outside = draw.unrotated.size() - inside;
-        const double perDraw = double(options.points) / double(draws);
-        const double keepIn = inside ? std::min(1.0, kValidationInside * perDraw / double(inside)) : 1.0;
-        const double keepOut = outside ? std::min(1.0, kValidationOutside * perDraw / double(outside)) : 1.0;
-        for (std::size_t j = 0; j < draw.unrotated.size(); ++j) {
-            const double keep = draw.unrotated.opacity[j] > 0.0f ? keepIn : keepOut;
-            if (keep < 1.0 && !(unit(rng) < keep)) continue;
-            appendPoint(draw, j, float(1.0 / keep), out);
+    std::vector<std::size_t> starts;
+    for (int first = 0; first < draws; first += batch) {
+        const int last = std::min(draws, first + batch);
+        const JudgeRest all = drawsWithRest(rest, options, first, last, starts);
+        if (first == 0) out.points.features = all.points.features;
+        for (int d = first; d < last; ++d) {
+            const std::size_t begin = starts[std::size_t(d - first)], end = starts[std::size_t(d - first) + 1];
+            std::size_t inside = 0;
+            for (std::size_t j = begin; j < end; ++j) inside += all.unrotated.opacity[j] > 0.0f;
+            const std::size_t outside = end - begin - inside;
+            const double perDraw = double(options.points) / double(draws);
+            const double keepIn = inside ? std::min(1.0, kValidationInside * perDraw / double(inside)) : 1.0;
+            const double keepOut = outside ? std::min(1.0, kValidationOutside * perDraw / double(outside)) : 1.0;
+            for (std::size_t j = begin; j < end; ++j) {
+                const double keep = all.unrotated.opacity[j] > 0.0f ? keepIn : keepOut;
+                if (keep < 1.0 && !(unit(rng) < keep)) continue;
+                appendPoint(all, j, float(1.0 / keep), out);
+            }
         }
     }
     return out;
@@ -149,14 +183,105 @@ Judge::Judge(const GaussianCloud& restModel, const JudgeRest& rest, const Deform
     }
 }
 
+/// The last models' evaluations, by a hash of each model's contents, within a byte budget.
+struct Judge::Memo {
+    using Key = std::pair<std::uint64_t, std::uint64_t>;
+    std::size_t budget = 0; ///< bytes of features and opacity kept (the newest entry always)
+    std::mutex mutex;
+    std::deque<std::pair<Key, std::shared_ptr<const Evaluation>>> entries; ///< least recently used first
+
+    static std::size_t bytesOf(const Evaluation& e) { return (e.features.size() + e.opacity.size()) * sizeof(float); }
+
+    /// Two 64-bit hashes (different multipliers) over the count, SH degree and every parameter's bits.
+    static Key keyOf(const GaussianCloud& m)
+    {
+        Key k{0x243f6a8885a308d3ull ^ m.size(), 0x13198a2e03707344ull ^ std::uint64_t(m.shDegree)};
+        const auto add = [&](std::uint64_t w) {
+            k.first = (k.first ^ w) * 0x9e3779b97f4a7c15ull;
+            k.first ^= k.first >> 29;
+            k.second = (k.second ^ w) * 0xc2b2ae3d27d4eb4full;
+            k.second ^= k.second >> 31;
+        };
+        for (const std::vector<float>* v : {&m.means, &m.rotations, &m.logScales, &m.opacities, &m.sh}) {
+            add(v->size());
+            std::size_t i = 0;
+            for (; i + 2 <= v->size(); i += 2) {
+                std::uint64_t w;
+                std::memcpy(&w, v->data() + i, sizeof w);
+                add(w);
+            }
+            if (i < v->size()) {
+                std::uint32_t w;
+                std::memcpy(&w, v->data() + i, sizeof w);
+                add(w);
+            }
+        }
+        return k;
+    }
+
+    std::shared_ptr<const Evaluation> find(const Key& key)
+    {
+        const std::lock_guard<std::mutex> lock(mutex);
+        for (auto it = entries.begin(); it != entries.end(); ++it)
+            if (it->first == key) {
+                auto hit = *it;
+                entries.erase(it);
+                entries.push_back(hit);
+                return hit.second;
+            }
+        return nullptr;
+    }
+
+    void add(const Key& key, std::shared_ptr<const Evaluation> e)
+    {
+        const std::lock_guard<std::mutex> lock(mutex);
+        entries.emplace_back(key, std::move(e));
+        std::size_t bytes = 0;
+        for (const auto& entry : entries) bytes += bytesOf(*entry.second);
+        while (entries.size() > 1 && bytes > budget) {
+            bytes -= bytesOf(*entries.front().second);
+            entries.pop_front();
+        }
+    }
+};
+
+void Judge::rememberEvaluations(std::size_t bytes)
+{
+    mMemo = bytes ? std::make_shared<Memo>() : nullptr;
+    if (mMemo) mMemo->budget = bytes;
+}
+
+std::shared_ptr<const Judge::Evaluation> Judge::evaluate(const GaussianCloud& deformed) const
+{
+    Memo::Key key;
+    if (mMemo) {
+        key = Memo::keyOf(deformed);
+        if (std::shared_ptr<const Evaluation> hit = mMemo->find(key)) return hit;
+    }
+    auto e = std::make_shared<Evaluation>();
+    e->features.resize(mPoints.size() * std::size_t(deformed.shStride()));
+    e->opacity.resize(mPoints.size());
+    evaluatePointsOn(deformed, mPoints.warped.data(), mPoints.size(), mPoints.features, e->features.data(), e->opacity.data());
+    if (mMemo) mMemo->add(key, e);
+    return e;
+}
+
+FieldPointErrors Judge::pointErrors(const GaussianCloud& deformed) const
+{
+    if (mTarget.size() != mPoints.size())
+        throw InputError(msg("held-out evaluation: a rest side of ", mTarget.size(), " points for ", mPoints.size(), " points"));
+    const std::shared_ptr<const Evaluation> e = evaluate(deformed);
+    return fieldPointErrors(mTarget, deformed, e->features.data(), e->opacity.data());
+}
+
 FieldErrorReport Judge::fieldError(const GaussianCloud& deformed) const
 {
-    return evaluateHeldOut(mTarget, deformed, mPoints);
+    return fieldErrorOf(mTarget, pointErrors(deformed));
 }
 
 std::vector<double> Judge::pointScores(const GaussianCloud& deformed) const
 {
-    const FieldPointErrors e = heldOutPointErrors(mTarget, deformed, mPoints);
+    const FieldPointErrors e = pointErrors(deformed);
     const double o = mTarget.sumOpacity > 0 ? 1.0 / mTarget.sumOpacity : 0.0;
     const double c = mTarget.sumFeatures > 0 ? 1.0 / mTarget.sumFeatures : 0.0;
     std::vector<double> scores(e.opacity.size());

@@ -4,6 +4,7 @@
 ///        held-out field error at drawJudgePoints() (the rest model alone decides the points; no
 ///        low-pass filter on either side), pushed through the spec's own deformation, and for a
 ///        rigid spec the image PSNR against the rest model seen from the inversely moved cameras.
+#include <memory>
 #include <optional>
 #include <string>
 #include <vector>
@@ -92,14 +93,29 @@ public:
     std::vector<double> pointScores(const GaussianCloud& deformed) const;
     /// @brief The sum of pointScores(): opacity + colour relative L1 (a validation score).
     double score(const GaussianCloud& deformed) const;
+    /// @brief A deformed model's features [P, shStride] and opacity [P] at the warped points.
+    struct Evaluation {
+        std::vector<float> features, opacity;
+    };
+    /// @brief The block engine's evaluation of a deformed model at the points (what every method
+    ///        above compares with the target).
+    std::shared_ptr<const Evaluation> evaluate(const GaussianCloud& deformed) const;
+    /// @brief Keep the latest evaluations (by a 128-bit hash of each model's contents) within
+    ///        `bytes` (the latest always): the deform pipeline's choices evaluate the same model
+    ///        again (the keep scores the curve shift's pick and the last check's fit, and its
+    ///        per-Gaussian step the kept mix). 0: keep none (the default).
+    void rememberEvaluations(std::size_t bytes);
     const HeldOutPoints& points() const { return mPoints; }
     /// The rest side at the points, SH rotated (what pointScores() compares with).
     const FieldErrorTarget& target() const { return mTarget; }
     bool rigid() const { return !mTruth.empty(); }
 
 private:
+    struct Memo;
+    FieldPointErrors pointErrors(const GaussianCloud& deformed) const;
     HeldOutPoints mPoints;
     FieldErrorTarget mTarget;
+    std::shared_ptr<Memo> mMemo; ///< shared by copies (the same points and target)
     RenderOptions mRender; ///< the device of the renders
     std::vector<Camera> mMovedCameras; ///< the rest cameras moved with the model
     std::vector<Image> mTruth;         ///< the rest model from the rest cameras

@@ -86,8 +86,9 @@ ValidationResiduals::ValidationResiduals(const Judge& validation, const Gaussian
     const std::vector<float>& x = validation.points().warped;
     const FieldErrorTarget& t = validation.target();
     const std::size_t p = t.size(), stride = std::size_t(mStride);
-    std::vector<float> f(p * stride), o(p);
-    evaluatePointsOn(model, x.data(), p, mOptions, f.data(), o.data()); // the block engine on the CPU: same bits
+    const std::shared_ptr<const Judge::Evaluation> evaluation = validation.evaluate(model);
+    const std::vector<float>& f = evaluation->features;
+    const std::vector<float>& o = evaluation->opacity;
     mWeightO = t.sumOpacity > 0 ? 1.0 / t.sumOpacity : 0.0;
     mWeightF = t.sumFeatures > 0 ? 1.0 / t.sumFeatures : 0.0;
     mX.resize(3 * p);

@@ -111,6 +111,54 @@ TEST(Judge, TheRestSideOnTheBlockEngineIsThePerPointOnes)
     }
 }
 
+// The validation side's rest features come from draws evaluated in batches: each point must hold
+// what the rest model gives it alone, for SH degrees that take all draws in one batch (0) and in
+// several (3).
+TEST(Judge, TheValidationRestSideIsTheRestModelAtItsPoints)
+{
+    for (const int degree : {0, 3}) {
+        const GaussianCloud rest = test::randomCloud(300, degree, 5);
+        const JudgeRest v = prepareValidationRest(rest, HeldOutOptions{20000, 3, {}});
+        ASSERT_GT(v.points.size(), 1000u);
+        const FieldErrorTarget alone = fieldErrorTarget(rest, v.points.rest.data(), nullptr, v.points.size(), v.points.features);
+        EXPECT_EQ(v.unrotated.opacity, alone.opacity) << "degree " << degree;
+        EXPECT_EQ(v.unrotated.features, alone.features) << "degree " << degree;
+        std::size_t inside = 0;
+        for (float o : v.unrotated.opacity) inside += o > 0.0f;
+        EXPECT_GT(inside, 0u);
+        EXPECT_LT(inside, v.points.size());
+    }
+}
+
+// A judge that remembers evaluations gives the same scores and errors as one that does not, hands
+// back the remembered evaluation for the same model, and evaluates a model changed in one bit again.
+TEST(Judge, RememberedEvaluationsAreTheModelsOwn)
+{
+    const GaussianCloud rest = test::randomCloud(300, 1, 5);
+    const DeformSpec spec = loadDeformSpec(kSpecs + "twist.json");
+    const DeformationGraph graph = DeformationGraph::build(rest, spec.graph);
+    const Deformation d = solveDeformation(graph, rest, spec);
+    const JudgeRest jr = prepareJudgeRest(rest, HeldOutOptions{4000, 3, {}});
+    const Judge plain(rest, jr, d);
+    Judge remembering(rest, jr, d);
+    remembering.rememberEvaluations(std::size_t(1) << 20);
+    GaussianCloud a = rest, b = rest;
+    b.means[7] = std::nextafter(b.means[7], 1e9f);
+    for (const GaussianCloud* m : {&a, &b, &a, &b}) {
+        EXPECT_EQ(remembering.pointScores(*m), plain.pointScores(*m));
+        EXPECT_EQ(remembering.fieldError(*m).opacity, plain.fieldError(*m).opacity);
+    }
+    EXPECT_EQ(remembering.evaluate(a), remembering.evaluate(a)); // the same object: remembered
+    EXPECT_NE(remembering.evaluate(a), remembering.evaluate(b));
+    EXPECT_NE(remembering.evaluate(a)->opacity, remembering.evaluate(b)->opacity);
+    EXPECT_NE(plain.evaluate(a), plain.evaluate(a)); // evaluated each time
+    // Past the byte budget the oldest is dropped (the newest is always kept).
+    remembering.rememberEvaluations(1);
+    const auto first = remembering.evaluate(a);
+    remembering.evaluate(b);
+    EXPECT_NE(remembering.evaluate(a), first);
+}
+
 TEST(Judge, RigidSpecsAreRecognisedWithTheirMotion)
 {
     const GaussianCloud rest = smallStripes();
