@@ -25,7 +25,9 @@ struct GaussianChoiceReport {
 
 /// @brief Refine `kept` (same Gaussians as every candidate): each Gaussian whose candidate
 ///        versions differ takes the one that lowers the validation score, heaviest (alpha times
-///        its scales' product) first, in one pass.
+///        its scales' product) first, in one pass. Picks that read the validation points on
+///        opposite sides of one plane run on two threads between the picks that read both sides:
+///        the same picks and sums as one at a time (the points' threaded flag).
 GaussianCloud chooseEachGaussian(const Judge& validation, const std::vector<StageTwoCandidate>& candidates,
                                  GaussianCloud kept, GaussianChoiceReport& report);
 

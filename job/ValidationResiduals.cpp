@@ -225,6 +225,14 @@ void ValidationResiduals::changes(GaussianRef out, const std::vector<GaussianRef
     for (std::size_t c = 0; c < n; ++c) result[c] = sumO[c] * mWeightO + sumF[c] * mWeightF;
 }
 
+BucketRange ValidationResiduals::reads(GaussianRef out, const std::vector<GaussianRef>& ins) const
+{
+    float lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
+    SwapSide(out, mOptions).widen(lo, hi);
+    for (const GaussianRef& r : ins) SwapSide(r, mOptions).widen(lo, hi);
+    return mBuckets.rangeOf(lo, hi);
+}
+
 void ValidationResiduals::apply(const std::vector<GaussianRef>& out, const std::vector<GaussianRef>& in)
 {
     visit(out, in, [&](std::size_t j, double dO, const double* dF) {

@@ -44,6 +44,8 @@ public:
     PointBuckets(const std::vector<float>& points, int cellsAlong);
     /// The buckets overlapping [lo, hi] (empty when the box misses the grid or is NaN).
     BucketRange rangeOf(const float* lo, const float* hi) const;
+    /// Buckets along axis a.
+    std::int64_t count(int a) const { return mCount[a]; }
     /// The point at a slot: slots number the points bucket by bucket, in index order within one.
     std::size_t pointAt(std::size_t slot) const { return mOrder[slot]; }
     /// Calls f(slot) for each point in the buckets overlapping [lo, hi] (the caller tests the box).
@@ -77,6 +79,10 @@ public:
     /// change({out}, {ins[c]}) for each c into result[c], the same bits, in one visit of the
     /// points (out's weights are computed once).
     void changes(GaussianRef out, const std::vector<GaussianRef>& ins, double* result) const;
+    /// The buckets changes(out, ins) reads; apply({out}, {one of ins}) writes within them.
+    BucketRange reads(GaussianRef out, const std::vector<GaussianRef>& ins) const;
+    /// Buckets along axis a.
+    std::int64_t bucketsAlong(int a) const { return mBuckets.count(a); }
 
 private:
     template <typename F>
