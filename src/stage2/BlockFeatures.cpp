@@ -5,6 +5,8 @@
 #include <limits>
 #include <numeric>
 
+#include <tbb/parallel_sort.h>
+
 #include "core/ParallelFor.h"
 #include "field/FeatureDevice.h"
 #include "stage2/BlockLoops.h"
@@ -54,7 +56,7 @@ struct MortonBlocks {
     std::vector<float> points;        ///< [m,3] in sorted order
     std::vector<std::int32_t> cell;   ///< [m] in sorted order
 
-    MortonBlocks(const float* x, std::size_t m)
+    MortonBlocks(const float* x, std::size_t m, bool threaded)
     {
         float lo[3], hi[3], scale[3];
         for (int a = 0; a < 3; ++a) lo[a] = hi[a] = x[a];
@@ -65,10 +67,15 @@ struct MortonBlocks {
             }
         for (int a = 0; a < 3; ++a) scale[a] = hi[a] > lo[a] ? float(1023.999 / (double(hi[a]) - lo[a])) : 0.0f;
         std::vector<std::uint64_t> key(m);
-        for (std::size_t j = 0; j < m; ++j) key[j] = mortonKey(x + 3 * j, lo, scale);
+        parallelFor(m, 4096, threaded, [&](std::size_t j) { key[j] = mortonKey(x + 3 * j, lo, scale); });
         order.resize(m);
         std::iota(order.begin(), order.end(), 0u);
-        std::sort(order.begin(), order.end(), [&](std::uint32_t a, std::uint32_t b) { return key[a] < key[b] || (key[a] == key[b] && a < b); });
+        // A total order (ties by index), so any sort gives the same permutation.
+        const auto before = [&](std::uint32_t a, std::uint32_t b) { return key[a] < key[b] || (key[a] == key[b] && a < b); };
+        if (threaded)
+            tbb::parallel_sort(order.begin(), order.end(), before);
+        else
+            std::sort(order.begin(), order.end(), before);
         int shift = 0; // bits dropped: cells of 2^(shift/3) finest cells a side
         for (; shift < 30; shift += 3)
             if (m >= kPointsPerCell * distinct(key, shift)) break;
@@ -153,7 +160,7 @@ FeatureStats evaluatePointFeatures(const GaussianCloud& cloud, const float* poin
         evaluateFeatures(cloud, points, m, options, features, opacity, &s);
         return s;
     }
-    const MortonBlocks sorted(points, m);
+    const MortonBlocks sorted(points, m, options.threaded);
     const std::size_t stride = std::size_t(cloud.shStride());
     std::vector<float> f(features ? m * stride : 0), o(opacity ? m : 0);
     const FeatureStats s = evaluateBlockFeatures(cloud, sorted.points.data(), sorted.cell.data(), m, options,
