@@ -172,6 +172,8 @@ Judge::Judge(const GaussianCloud& restModel, const JudgeRest& rest, const Deform
     mRender.device = mPoints.features.device;
     warpHeldOutPoints(mPoints, deformation, threaded);
     mTarget = rotatedTarget(rest.unrotated, mPoints);
+    if (!mPoints.features.device.cuda())
+        mBlocks = std::make_shared<const PointBlocks>(mPoints.warped.data(), mPoints.size(), mPoints.features.threaded);
     const std::optional<RigidMotion> motion = rigidMotionOf(deformation);
     if (!motion) return;
     OrbitOptions orbit;
@@ -261,7 +263,10 @@ std::shared_ptr<const Judge::Evaluation> Judge::evaluate(const GaussianCloud& de
     auto e = std::make_shared<Evaluation>();
     e->features.resize(mPoints.size() * std::size_t(deformed.shStride()));
     e->opacity.resize(mPoints.size());
-    evaluatePointsOn(deformed, mPoints.warped.data(), mPoints.size(), mPoints.features, e->features.data(), e->opacity.data());
+    if (mBlocks && mBlocks->usable())
+        mBlocks->evaluate(deformed, mPoints.features, e->features.data(), e->opacity.data());
+    else
+        evaluatePointsOn(deformed, mPoints.warped.data(), mPoints.size(), mPoints.features, e->features.data(), e->opacity.data());
     if (mMemo) mMemo->add(key, e);
     return e;
 }

@@ -18,6 +18,8 @@
 
 namespace splatwarp {
 
+class PointBlocks;
+
 /// @brief x = rotation X + translation.
 struct RigidMotion {
     Mat3d rotation = Mat3d::identity();
@@ -116,6 +118,7 @@ private:
     HeldOutPoints mPoints;
     FieldErrorTarget mTarget;
     std::shared_ptr<Memo> mMemo; ///< shared by copies (the same points and target)
+    std::shared_ptr<const PointBlocks> mBlocks; ///< the warped points in blocks (CPU), cut once
     RenderOptions mRender; ///< the device of the renders
     std::vector<Camera> mMovedCameras; ///< the rest cameras moved with the model
     std::vector<Image> mTruth;         ///< the rest model from the rest cameras

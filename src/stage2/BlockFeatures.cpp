@@ -7,6 +7,7 @@
 
 #include <tbb/parallel_sort.h>
 
+#include "core/Error.h"
 #include "core/ParallelFor.h"
 #include "field/FeatureDevice.h"
 #include "stage2/BlockLoops.h"
@@ -101,8 +102,11 @@ private:
 
 } // namespace
 
-FeatureStats evaluateBlockFeatures(const GaussianCloud& cloud, const float* points, const std::int32_t* cell, std::size_t m,
-                                   const FeatureOptions& options, float* features, float* opacity)
+namespace {
+
+/// evaluateBlockFeatures() over blocks already cut.
+FeatureStats evaluateSampleBlocks(const GaussianCloud& cloud, const SampleBlocks& blocks, const FeatureOptions& options,
+                                  float* features, float* opacity)
 {
     checkFeatureOptions(options);
     const std::vector<PreparedGaussian> prepared = prepareCloud(cloud, options.filterVariance, options.cutoff, options.threaded);
@@ -115,7 +119,6 @@ FeatureStats evaluateBlockFeatures(const GaussianCloud& cloud, const float* poin
         preparedBox(prepared[i], &lo[3 * i], &hi[3 * i]);
         slabs[i] = preparedSlabs(cloud, i, prepared[i], double(options.filterVariance));
     });
-    const SampleBlocks blocks = SampleBlocks::build(points, cell, m, options.threaded);
     BlockCoverage coverage(blocks);
     coverage.build(lo.data(), hi.data(), slabs.data(), n, options.threaded);
     const int stride = cloud.shStride();
@@ -146,30 +149,47 @@ FeatureStats evaluateBlockFeatures(const GaussianCloud& cloud, const float* poin
     return stats;
 }
 
-FeatureStats evaluatePointFeatures(const GaussianCloud& cloud, const float* points, std::size_t m,
+} // namespace
+
+FeatureStats evaluateBlockFeatures(const GaussianCloud& cloud, const float* points, const std::int32_t* cell, std::size_t m,
                                    const FeatureOptions& options, float* features, float* opacity)
 {
+    return evaluateSampleBlocks(cloud, SampleBlocks::build(points, cell, m, options.threaded), options, features, opacity);
+}
+
+PointBlocks::PointBlocks(const float* points, std::size_t m, bool threaded) : mCount(m)
+{
+    if (m == 0 || m > std::size_t(std::numeric_limits<std::int32_t>::max())) return;
     for (std::size_t j = 0; j < 3 * m; ++j)
-        if (!std::isfinite(points[j])) { // no box holds it: the per-point evaluation decides
-            FeatureStats s;
-            evaluateFeatures(cloud, points, m, options, features, opacity, &s);
-            return s;
-        }
-    if (m == 0 || m > std::size_t(std::numeric_limits<std::int32_t>::max())) {
-        FeatureStats s;
-        evaluateFeatures(cloud, points, m, options, features, opacity, &s);
-        return s;
-    }
-    const MortonBlocks sorted(points, m, options.threaded);
-    const std::size_t stride = std::size_t(cloud.shStride());
+        if (!std::isfinite(points[j])) return; // no box holds it: the per-point evaluation decides
+    MortonBlocks sorted(points, m, threaded);
+    mBlocks = std::make_unique<SampleBlocks>(SampleBlocks::build(sorted.points.data(), sorted.cell.data(), m, threaded));
+    mOrder = std::move(sorted.order);
+}
+
+PointBlocks::~PointBlocks() = default;
+
+FeatureStats PointBlocks::evaluate(const GaussianCloud& cloud, const FeatureOptions& options, float* features, float* opacity) const
+{
+    if (!mBlocks) throw Error("PointBlocks::evaluate on points the block engine does not take");
+    const std::size_t m = mCount, stride = std::size_t(cloud.shStride());
     std::vector<float> f(features ? m * stride : 0), o(opacity ? m : 0);
-    const FeatureStats s = evaluateBlockFeatures(cloud, sorted.points.data(), sorted.cell.data(), m, options,
-                                                 features ? f.data() : nullptr, opacity ? o.data() : nullptr);
+    const FeatureStats s = evaluateSampleBlocks(cloud, *mBlocks, options, features ? f.data() : nullptr, opacity ? o.data() : nullptr);
     parallelFor(m, 4096, options.threaded, [&](std::size_t j) {
-        const std::size_t i = sorted.order[j];
+        const std::size_t i = mOrder[j];
         if (opacity) opacity[i] = o[j];
         if (features) std::copy(&f[j * stride], &f[j * stride] + stride, &features[i * stride]);
     });
+    return s;
+}
+
+FeatureStats evaluatePointFeatures(const GaussianCloud& cloud, const float* points, std::size_t m,
+                                   const FeatureOptions& options, float* features, float* opacity)
+{
+    const PointBlocks blocks(points, m, options.threaded);
+    if (blocks.usable()) return blocks.evaluate(cloud, options, features, opacity);
+    FeatureStats s;
+    evaluateFeatures(cloud, points, m, options, features, opacity, &s);
     return s;
 }
 

@@ -6,6 +6,8 @@
 ///        targets of a sample grid use it (a cell's samples are one block). Same sums in the
 ///        same (ascending Gaussian) order per point as evaluateFeatures().
 #include <cstdint>
+#include <memory>
+#include <vector>
 
 #include "core/GaussianCloud.h"
 #include "core/Device.h"
@@ -26,6 +28,26 @@ FeatureStats evaluateBlockFeatures(const GaussianCloud& cloud, const float* poin
 ///        Same bits as evaluateFeatures() (the same sums in the same order per point).
 FeatureStats evaluatePointFeatures(const GaussianCloud& cloud, const float* points, std::size_t m,
                                    const FeatureOptions& options, float* features, float* opacity);
+
+struct SampleBlocks;
+
+/// @brief Points put in Morton order and cut into blocks once, as evaluatePointFeatures() does,
+///        for evaluating many models at the same points (the judges' points).
+class PointBlocks {
+public:
+    PointBlocks(const float* points, std::size_t m, bool threaded);
+    ~PointBlocks();
+    /// False where the block engine does not take these points (a non-finite point, none, or
+    ///  more than 2^31): evaluatePointFeatures() evaluates them one by one.
+    bool usable() const { return mBlocks != nullptr; }
+    /// @brief F and O of a model at the points, in their order (usable() only).
+    FeatureStats evaluate(const GaussianCloud& cloud, const FeatureOptions& options, float* features, float* opacity) const;
+
+private:
+    std::size_t mCount = 0;
+    std::vector<std::uint32_t> mOrder;    ///< sorted position -> point
+    std::unique_ptr<SampleBlocks> mBlocks; ///< of the sorted points
+};
 
 /// @brief evaluatePointFeatures() on the CPU, evaluateFeaturesOn() (field/FeatureDevice.h) where
 ///        options.device is CUDA. @return the device that ran

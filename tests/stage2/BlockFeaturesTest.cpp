@@ -66,3 +66,31 @@ TEST(BlockFeatures, AnyPointsInMortonBlocksGiveTheSameBitsAsThePerPointEvaluatio
         EXPECT_EQ(std::memcmp(oa.data(), ob.data(), oa.size() * sizeof(float)), 0);
     }
 }
+
+// Points cut into blocks once and evaluated for several models (the judges' points): each
+// evaluation the same bits as the per-point one; non-finite points are not taken.
+TEST(BlockFeatures, PointBlocksCutOnceServeEveryModel)
+{
+    std::mt19937 rng(13);
+    std::uniform_real_distribution<float> u(-0.6f, 0.6f);
+    std::vector<float> points;
+    for (int j = 0; j < 2000; ++j)
+        for (int a = 0; a < 3; ++a) points.push_back(u(rng));
+    const std::size_t m = points.size() / 3;
+    FeatureOptions fo;
+    fo.filterVariance = 1e-3f;
+    const PointBlocks blocks(points.data(), m, true);
+    ASSERT_TRUE(blocks.usable());
+    for (int degree : {0, 1, 3}) {
+        const GaussianCloud cloud = randomCloud(90, degree, 7u + std::uint32_t(degree), 0.45f, 0.01f, 0.12f);
+        const int stride = cloud.shStride();
+        std::vector<float> fa(m * std::size_t(stride)), oa(m), fb(fa.size(), -1.0f), ob(m, -1.0f);
+        evaluateFeatures(cloud, points.data(), m, fo, fa.data(), oa.data());
+        blocks.evaluate(cloud, fo, fb.data(), ob.data());
+        EXPECT_EQ(std::memcmp(fa.data(), fb.data(), fa.size() * sizeof(float)), 0) << "degree " << degree;
+        EXPECT_EQ(std::memcmp(oa.data(), ob.data(), oa.size() * sizeof(float)), 0) << "degree " << degree;
+    }
+    points[7] = INFINITY;
+    EXPECT_FALSE(PointBlocks(points.data(), m, true).usable());
+    EXPECT_FALSE(PointBlocks(points.data(), 0, true).usable());
+}
