@@ -13,23 +13,6 @@ namespace splatwarp {
 
 namespace {
 
-/// Gaussians some candidate holds another version of, heaviest (alpha s0 s1 s2) first.
-std::vector<std::size_t> heaviestFirst(const std::vector<StageTwoCandidate>& candidates, const GaussianCloud& kept)
-{
-    std::vector<std::size_t> order;
-    std::vector<double> mass(kept.size(), 0.0);
-    for (std::size_t i = 0; i < kept.size(); ++i) {
-        bool differs = false;
-        for (const StageTwoCandidate& c : candidates) differs = differs || !kept.sameGaussian(i, *c.model, i);
-        if (!differs) continue;
-        const Vec3f s = kept.scale(i);
-        mass[i] = double(kept.alpha(i)) * double(s.x) * double(s.y) * double(s.z);
-        order.push_back(i);
-    }
-    std::stable_sort(order.begin(), order.end(), [&](std::size_t a, std::size_t b) { return mass[a] > mass[b]; });
-    return order;
-}
-
 /// The candidates' versions of Gaussian i that differ from kept's.
 std::vector<GaussianRef> versionsOf(const std::vector<StageTwoCandidate>& candidates, const GaussianCloud& kept, std::size_t i)
 {
@@ -37,6 +20,21 @@ std::vector<GaussianRef> versionsOf(const std::vector<StageTwoCandidate>& candid
     for (const StageTwoCandidate& c : candidates)
         if (!kept.sameGaussian(i, *c.model, i)) ins.push_back({c.model, i});
     return ins;
+}
+
+/// Gaussians some candidate holds another version of, heaviest (alpha s0 s1 s2) first.
+std::vector<std::size_t> heaviestFirst(const std::vector<StageTwoCandidate>& candidates, const GaussianCloud& kept)
+{
+    std::vector<std::size_t> order;
+    std::vector<double> mass(kept.size(), 0.0);
+    for (std::size_t i = 0; i < kept.size(); ++i) {
+        if (versionsOf(candidates, kept, i).empty()) continue;
+        const Vec3f s = kept.scale(i);
+        mass[i] = double(kept.alpha(i)) * double(s.x) * double(s.y) * double(s.z);
+        order.push_back(i);
+    }
+    std::stable_sort(order.begin(), order.end(), [&](std::size_t a, std::size_t b) { return mass[a] > mass[b]; });
+    return order;
 }
 
 /// The candidate whose version of Gaussian i lowers the score most, or none when none lowers it.

@@ -139,6 +139,15 @@ struct SwapSide {
     }
 };
 
+/// The buckets of the box holding every side's box (the points a swap among them can change).
+BucketRange unionRange(const PointBuckets& buckets, const SwapSide& out, const SwapSide* in, std::size_t n)
+{
+    float lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
+    out.widen(lo, hi);
+    for (std::size_t k = 0; k < n; ++k) in[k].widen(lo, hi);
+    return buckets.rangeOf(lo, hi);
+}
+
 } // namespace
 
 template <typename F>
@@ -188,19 +197,13 @@ void ValidationResiduals::changes(GaussianRef out, const std::vector<GaussianRef
     const SwapSide o(out, mOptions);
     std::vector<SwapSide> in;
     std::vector<BucketRange> read;
-    float allLo[3] = {INFINITY, INFINITY, INFINITY}, allHi[3] = {-INFINITY, -INFINITY, -INFINITY};
-    o.widen(allLo, allHi);
     for (const GaussianRef& r : ins) {
         in.emplace_back(r, mOptions);
-        float lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
-        o.widen(lo, hi);
-        in.back().widen(lo, hi);
-        in.back().widen(allLo, allHi);
-        read.push_back(mBuckets.rangeOf(lo, hi));
+        read.push_back(unionRange(mBuckets, o, &in.back(), 1));
     }
     const std::size_t n = in.size(), stride = std::size_t(mStride);
     std::vector<double> sumO(n, 0.0), sumF(n, 0.0);
-    mBuckets.forEachIn(mBuckets.rangeOf(allLo, allHi), [&](std::int64_t bi, std::int64_t bj, std::int64_t bk, std::size_t j) {
+    mBuckets.forEachIn(unionRange(mBuckets, o, in.data(), in.size()), [&](std::int64_t bi, std::int64_t bj, std::int64_t bk, std::size_t j) {
         const Vec3f x{mX[3 * j], mX[3 * j + 1], mX[3 * j + 2]};
         const double wOut = double(o.g.weight(x - o.g.mean, mOptions.cutoff)) * -1.0;
         const double* r = mF.data() + j * stride;
@@ -227,10 +230,9 @@ void ValidationResiduals::changes(GaussianRef out, const std::vector<GaussianRef
 
 BucketRange ValidationResiduals::reads(GaussianRef out, const std::vector<GaussianRef>& ins) const
 {
-    float lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
-    SwapSide(out, mOptions).widen(lo, hi);
-    for (const GaussianRef& r : ins) SwapSide(r, mOptions).widen(lo, hi);
-    return mBuckets.rangeOf(lo, hi);
+    std::vector<SwapSide> in;
+    for (const GaussianRef& r : ins) in.emplace_back(r, mOptions);
+    return unionRange(mBuckets, SwapSide(out, mOptions), in.data(), in.size());
 }
 
 void ValidationResiduals::apply(const std::vector<GaussianRef>& out, const std::vector<GaussianRef>& in)
