@@ -20,6 +20,16 @@ void GaussianCloud::resize(std::size_t n, int degree)
     sh.assign(n * std::size_t(shStride()), 0.0f);
 }
 
+void GaussianCloud::erase(const std::vector<std::uint8_t>& drop)
+{
+    if (drop.size() != size()) throw InputError(msg("erase: ", drop.size(), " flags for ", size(), " Gaussians"));
+    eraseRows(means, drop, 3);
+    eraseRows(rotations, drop, 4);
+    eraseRows(logScales, drop, 3);
+    eraseRows(opacities, drop);
+    eraseRows(sh, drop, std::size_t(shStride()));
+}
+
 void GaussianCloud::append(const GaussianCloud& o, std::size_t i)
 {
     means.insert(means.end(), o.means.begin() + 3 * i, o.means.begin() + 3 * i + 3);

@@ -3,6 +3,7 @@
 /// @brief A 3D Gaussian Splatting model as a structure of arrays, with raw (pre-activation)
 ///        parameters exactly as 3DGS stores them.
 #include <cstddef>
+#include <cstdint>
 #include <vector>
 
 #include "core/HostDevice.h"
@@ -12,6 +13,21 @@ namespace splatwarp {
 
 /// @brief Number of SH coefficients per colour channel for a degree: (d+1)^2.
 SPLATWARP_HOST_DEVICE int shCoeffCount(int degree) { return (degree + 1) * (degree + 1); }
+
+/// @brief Remove the rows i with drop[i] != 0 from an array of `stride` values per row, keeping the
+///        others in order (a per-Gaussian array kept in step with GaussianCloud::erase()).
+template <class T>
+void eraseRows(std::vector<T>& rows, const std::vector<std::uint8_t>& drop, std::size_t stride = 1)
+{
+    std::size_t to = 0;
+    for (std::size_t i = 0; i < drop.size(); ++i) {
+        if (drop[i]) continue;
+        if (to != i)
+            for (std::size_t k = 0; k < stride; ++k) rows[to * stride + k] = rows[i * stride + k];
+        ++to;
+    }
+    rows.resize(to * stride);
+}
 
 /// @brief 3DGS model, structure of arrays. N = size().
 /// @note  Activations as in 3DGS: scale = exp(logScale), opacity = sigmoid(logitOpacity),
@@ -37,6 +53,8 @@ struct GaussianCloud {
     void append(const GaussianCloud& other, std::size_t i);
     /// @brief Overwrite Gaussian i with Gaussian j of another cloud of the same SH degree.
     void assign(std::size_t i, const GaussianCloud& other, std::size_t j);
+    /// @brief Remove every Gaussian i with drop[i] != 0 (drop: [N]), keeping the others in order.
+    void erase(const std::vector<std::uint8_t>& drop);
     /// @brief Whether Gaussian i holds exactly (bit for bit) the values of Gaussian j of another cloud.
     bool sameGaussian(std::size_t i, const GaussianCloud& other, std::size_t j) const;
     /// @brief Throws InputError if array sizes disagree or the degree is outside 0..3.

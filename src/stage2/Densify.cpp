@@ -91,24 +91,17 @@ std::size_t splitGaussians(FitState& d, const std::vector<std::size_t>& which, c
 
 std::size_t pruneMovingBelow(FitState& d, float below)
 {
-    GaussianCloud kept;
-    kept.shDegree = d.cloud.shDegree;
-    std::vector<std::uint8_t> moving;
-    std::vector<std::int32_t> cell;
-    std::vector<float> curve;
-    const bool keepsCurve = d.curve && !d.curve->empty();
+    std::vector<std::uint8_t> drop(d.cloud.size(), 0);
+    std::size_t removed = 0;
     for (std::size_t i = 0; i < d.cloud.size(); ++i) {
-        if (d.moving[i] && d.cloud.alpha(i) < below) continue;
-        kept.append(d.cloud, i);
-        moving.push_back(d.moving[i]);
-        cell.push_back(d.gaussianCell[i]);
-        if (keepsCurve) curve.insert(curve.end(), d.curve->begin() + std::ptrdiff_t(3 * i), d.curve->begin() + std::ptrdiff_t(3 * i + 3));
+        drop[i] = d.moving[i] && d.cloud.alpha(i) < below;
+        removed += drop[i];
     }
-    const std::size_t removed = d.cloud.size() - kept.size();
-    d.cloud = std::move(kept);
-    d.moving = std::move(moving);
-    d.gaussianCell = std::move(cell);
-    if (keepsCurve) *d.curve = std::move(curve);
+    if (removed == 0) return 0;
+    d.cloud.erase(drop);
+    eraseRows(d.moving, drop);
+    eraseRows(d.gaussianCell, drop);
+    if (d.curve && !d.curve->empty()) eraseRows(*d.curve, drop, 3);
     return removed;
 }
 

@@ -1,5 +1,6 @@
 #include <gtest/gtest.h>
 
+#include "core/Error.h"
 #include "core/GaussianCloud.h"
 #include "support/TestGaussians.h"
 
@@ -43,4 +44,21 @@ TEST(GaussianCloud, SameGaussianComparesEveryArray)
         EXPECT_FALSE(c.sameGaussian(0, src, 0));
         EXPECT_TRUE(c.sameGaussian(1, src, 1));
     }
+}
+
+// erase(drop) keeps the other Gaussians whole and in order; eraseRows() keeps an array beside it in step.
+TEST(GaussianCloud, EraseKeepsTheOthersWholeAndInOrder)
+{
+    const GaussianCloud src = test::threeGaussians();
+    GaussianCloud g = src;
+    std::vector<int> tags{10, 11, 12, 20, 21, 22};
+    const std::vector<std::uint8_t> drop{0, 1, 0};
+    g.erase(drop);
+    eraseRows(tags, drop, 2);
+    ASSERT_EQ(g.size(), 2u);
+    g.checkConsistent();
+    EXPECT_TRUE(g.sameGaussian(0, src, 0));
+    EXPECT_TRUE(g.sameGaussian(1, src, 2));
+    EXPECT_EQ(tags, (std::vector<int>{10, 11, 21, 22}));
+    EXPECT_THROW(g.erase({1}), InputError);
 }
