@@ -165,7 +165,10 @@ struct ColdStart {
     std::vector<std::uint8_t> moving;
     std::vector<std::int32_t> cells;
     std::vector<float> curve; ///< [N,3] phi's second-order offsets of model's Gaussians, while the splits and shift need them
-    std::size_t added = 0;
+    std::size_t added = 0, removed = 0; ///< by the splits before Stage II (removed: to make room for children)
+    /// Gaussians added, net: what the splits before Stage II spent of the budget.
+    std::size_t grown() const { return added - removed; }
+    bool changed() const { return added > 0 || removed > 0; }
     /// The arrays as the steps that change them take them (stage2/Densify.h).
     FitState state() { return {model, moving, cells, &curve}; }
 };
@@ -235,7 +238,7 @@ void splitByValidation(const DeformRest& rest, const Deformation& deformation, c
                        const DeformJobOptions& o, const Selector& validation, ColdStart& c, FrameReport& report)
 {
     const std::size_t allowed = splitBudget(o, rest.model.size());
-    const std::size_t budget = allowed > c.added ? allowed - c.added : 0;
+    const std::size_t budget = allowed > c.grown() ? allowed - c.grown() : 0;
     StageOneOptions s1 = o.stage1;
     s1.threaded = o.grid.threaded;
     const ValidatedSplitReport r =
@@ -257,15 +260,18 @@ std::vector<float> splitBent(const DeformRest& rest, const Deformation& deformat
     record.roundsUsed = cs.rounds;
     record.split = cs.split;
     record.added = cs.added;
+    record.pruned = cs.pruned;
     record.gaussians = cs.deformed.size();
     record.ms = cs.ms;
     report.timingsMs["curveSplit"] = cs.ms;
-    progress(msg("curve split: ", cs.split, " bent Gaussians split, ", cs.added, " added: ", cs.deformed.size(),
+    const std::string removed = cs.pruned ? msg(", ", cs.pruned, " faint ones removed to make room") : std::string();
+    progress(msg("curve split: ", cs.split, " bent Gaussians split, ", cs.added, " added", removed, ": ", cs.deformed.size(),
                  " Gaussians (", int(cs.ms), " ms)"));
     if (cs.added > 0) {
         c.model = std::move(cs.deformed);
         c.moving = std::move(cs.moving);
         c.added = cs.added;
+        c.removed = cs.pruned;
         std::vector<std::int32_t> cells(cs.parent.size()); // children filter as their parent's rest cell
         for (std::size_t i = 0; i < cs.parent.size(); ++i) cells[i] = c.cells[std::size_t(cs.parent[i])];
         c.cells = std::move(cells);
@@ -298,7 +304,7 @@ void recordGaussianCounts(const ColdStart& cold, const DensifyCounts& counts, co
     stage2.densify = o.densify;
     stage2.densifyMs = counts.ms;
     stage2.gaussiansAdded = cold.added + (fitKept ? counts.split : 0);
-    stage2.gaussiansRemoved = fitKept ? counts.pruned : 0;
+    stage2.gaussiansRemoved = cold.removed + (fitKept ? counts.pruned : 0);
     stage2.gaussians = kept.size();
     if (o.densify.split || o.densify.pruneBelow > 0)
         progress(msg("Stage II: ", counts.split, " Gaussians added by splits, ", counts.pruned, " pruned", fitKept ? "" : " (not kept)",
@@ -436,9 +442,9 @@ void stageTwoStep(Refine& f)
     if (f.start.change) { // a warm start corrects each Stage I Gaussian: a split start stays cold
         GaussianCloud warm = f.stage1.deformed;
         f.start.change(f.stage1, warm);
-        if (f.cold.added == 0) f.fitted = std::move(warm);
+        if (!f.cold.changed()) f.fitted = std::move(warm);
     }
-    f.warm = f.start.change && f.cold.added == 0;
+    f.warm = f.start.change && !f.cold.changed();
     if (o.keepValidated) f.startModel = f.fitted;
     StageTwoOptions s2 = o.stage2;
     s2.device = f.rest.device;
@@ -447,9 +453,9 @@ void stageTwoStep(Refine& f)
         s2.heldOutStop.every = o.validationStop;
     }
     DensifyJobOptions densify = o.densify; // Stage II's split spends what the splits before it left
-    if (o.maxGaussians) densify.maxSplits = splitBudget(o, f.rest.model.size()) - f.cold.added;
+    if (o.maxGaussians) densify.maxSplits = splitBudget(o, f.rest.model.size()) - f.cold.grown();
     auto fit = [&] {
-        progress(msg("Stage II: ", o.stage2.iterations, " iterations on ", f.stage1.movingCount + f.cold.added, " moving Gaussians"));
+        progress(msg("Stage II: ", o.stage2.iterations, " iterations on ", std::count(f.cold.moving.begin(), f.cold.moving.end(), 1), " moving Gaussians"));
         f.curve.points.clear();
         f.counts = DensifyCounts();
         return fitInRounds(f.fitted, f.samples, f.cold.moving, f.cold.cells, s2, densify, f.curve.onEval(o.evalEvery > 0),

@@ -50,6 +50,8 @@ struct DeformJobOptions {
     /// The most Gaussians the output may hold; every step that adds Gaussians (curve split,
     /// validated split, Stage II's split) spends from it in that order. None: the curve split's
     /// maxAdded bounds its and the validated split's additions, Stage II's split is unbounded.
+    /// (1.5x as a default loses 0.2-0.44 dB in images and 12-28% on the field judge; with the
+    /// curve split's prune it holds the field but loses 0.6-1.3 dB: docs/lab/gaussian-budget.md.)
     std::optional<GaussianBudget> maxGaussians;
     CurveSplitOptions curve;
     /// With --keep validated, the start with its means moved by this share of phi's second-order

@@ -283,6 +283,23 @@ std::vector<Setting> splitSettings()
     };
 }
 
+/// --curve-split-prune: written only when on, so the hash of earlier runs holds.
+Setting curveSplitPruneSetting()
+{
+    Setting s = number<double>(
+        "--curve-split-prune", "curveSplitPrune", Expert,
+        "With --curve-split auto and a budget that binds: once it is spent, a split is still made by removing "
+        "the faintest Gaussians not split (least visible alpha times mean projected area first) while each "
+        "one's cost times this is below the split's expected gain per Gaussian added; 0: never (better in "
+        "images on meshes, worse on the field judge of captures; docs/lab/gaussian-budget.md)",
+        [](DeformJobOptions& o) -> double& { return o.curve.pruneWorth; }, {0.0, 1e6});
+    const auto write = s.write;
+    s.write = [write](const DeformJobOptions& o, json& out) {
+        if (o.curve.pruneWorth > 0) write(o, out);
+    };
+    return s;
+}
+
 /// The steps around Stage II that add or choose Gaussians, and the prune.
 std::vector<Setting> candidateSettings()
 {
@@ -324,6 +341,7 @@ std::vector<Setting> candidateSettings()
                        "thin children at once (three rounds of halving could not straighten it); with --keep validated the "
                        "split is made with fans and without and the validation points keep the better; 0: never fan",
                        [](DeformJobOptions& o) -> double& { return o.curve.fanAbove; }, {0.0, 1000.0}),
+        curveSplitPruneSetting(),
         Setting{"--curve-shift", "auto|SHARE", Expert,
                 "With --keep validated: one more candidate of the keep, the start with each moving Gaussian's mean "
                 "moved by this share of the deformation's second-order offset along its axes (where its mass goes "

@@ -16,7 +16,7 @@ json curveSplitJson(const CurveSplitRecord& r)
 {
     json j = {{"fans", r.fans ? "on" : "off (validated)"}, {"maxAdded", r.options.maxAdded}, {"rounds", r.options.rounds},
               {"fanAbove", r.options.fanAbove}, {"roundsUsed", r.roundsUsed}, {"split", r.split}, {"added", r.added},
-              {"gaussians", r.gaussians}, {"ms", r.ms}};
+              {"pruned", r.pruned}, {"pruneWorth", r.options.pruneWorth}, {"gaussians", r.gaussians}, {"ms", r.ms}};
     if (r.validationWithFans) j["validationWithFans"] = *r.validationWithFans;
     if (r.validationWithoutFans) j["validationWithoutFans"] = *r.validationWithoutFans;
     if (r.errors) modelErrorsJson(*r.errors, j);

@@ -38,6 +38,7 @@ struct CurveSplitRecord {
     std::optional<double> validationWithFans, validationWithoutFans;
     int roundsUsed = 0;
     std::size_t split = 0, added = 0, gaussians = 0;
+    std::size_t pruned = 0;                  ///< faint Gaussians removed to make room for children
     double ms = 0;
     std::optional<ModelErrors> errors;       ///< judged when it added Gaussians
 };

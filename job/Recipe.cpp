@@ -38,7 +38,8 @@ struct SettingRow {
 const SettingRow kSettings[] = {
     {"stage1", "shape", "--stage1-shape"},        {"stage1", "endpointSigmas", "--endpoint-sigmas"},
     {"curveSplit", "max", "--curve-split-max"},   {"curveSplit", "rounds", "--curve-split-rounds"},
-    {"curveSplit", "fan", "--curve-split-fan"},   {"curveShift", "share", "--curve-shift"},
+    {"curveSplit", "fan", "--curve-split-fan"},   {"curveSplit", "prune", "--curve-split-prune"},
+    {"curveShift", "share", "--curve-shift"},
     {"split", "stretch", "--split-stretch"},      {"split", "after", "--split-after"},
     {"split", "offset", "--split-offset"},        {"stage2", "iterations", "--iterations"},
     {"stage2", "boundaryWeight", "--boundary-weight"}, {"stage2", "stallTolerance", "--stall-tolerance"},

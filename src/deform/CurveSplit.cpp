@@ -46,6 +46,68 @@ double splitGain(const GaussianCloud& g, std::size_t i, double m, const SplitPat
     return mass * (saved - std::fabs(parent - children) - kCurveSplitL1) / double(p.offsets.size() - 1);
 }
 
+/// Gaussian i's mean projected area over its volume: what turns splitGain()'s mass units into a
+/// view's (alpha times area). A flat Gaussian of a surface holds little mass and covers much.
+double areaPerVolume(const GaussianCloud& g, std::size_t i)
+{
+    const Vec3f s = g.scale(i);
+    return (double(s.x) * s.y + double(s.y) * s.z + double(s.x) * s.z) / (double(s.x) * s.y * s.z);
+}
+
+/// What removing Gaussian i of a model costs a view: its visible alpha times its mean projected area.
+double pruneCost(const GaussianCloud& g, std::size_t i)
+{
+    const Vec3f s = g.scale(i);
+    const double alpha = g.alpha(i);
+    return alpha * visibleMass(alpha) * (double(s.x) * s.y + double(s.y) * s.z + double(s.x) * s.z);
+}
+
+/// The model's own Gaussians (the result's first slots) that may make room for children, faintest
+/// first: a split whose gain per Gaussian added exceeds worth x a Gaussian's cost may remove it.
+class Pruner {
+public:
+    Pruner(const GaussianCloud& model, double worth) : worth_(worth), removed_(model.size(), 0), split_(model.size(), 0)
+    {
+        if (!(worth > 0)) return;
+        cost_.resize(model.size());
+        for (std::size_t i = 0; i < model.size(); ++i) cost_[i] = pruneCost(model, i);
+        order_.resize(model.size());
+        std::iota(order_.begin(), order_.end(), std::size_t(0));
+        std::stable_sort(order_.begin(), order_.end(), [&](std::size_t a, std::size_t b) { return cost_[a] < cost_[b]; });
+    }
+    /// A Gaussian in this slot is split: it is no longer a candidate (children's slots are past the model's).
+    void markSplit(std::size_t slot)
+    {
+        if (slot < split_.size()) split_[slot] = 1;
+    }
+    bool removed(std::size_t slot) const { return slot < removed_.size() && removed_[slot]; }
+    /// Removes `count` Gaussians for a split of this gain per Gaussian added, when each costs less;
+    /// false (nothing removed) otherwise.
+    bool makeRoom(std::size_t count, double gain, std::size_t skipSlot)
+    {
+        std::vector<std::size_t> picked;
+        for (std::size_t k = next_; k < order_.size() && picked.size() < count; ++k) {
+            const std::size_t i = order_[k];
+            if (removed_[i] || split_[i] || i == skipSlot) continue;
+            if (!(worth_ * cost_[i] < gain)) break;
+            picked.push_back(i);
+        }
+        if (picked.size() < count) return false;
+        for (std::size_t i : picked) removed_[i] = 1;
+        while (next_ < order_.size() && (removed_[order_[next_]] || split_[order_[next_]])) ++next_;
+        count_ += count;
+        return true;
+    }
+    std::size_t count() const { return count_; }
+
+private:
+    double worth_;
+    std::vector<double> cost_;
+    std::vector<std::size_t> order_;
+    std::vector<std::uint8_t> removed_, split_;
+    std::size_t next_ = 0, count_ = 0;
+};
+
 /// One generation of Gaussians to check: a rest cloud, its rig and Stage I result, and where each
 /// one sits in the output.
 struct Generation {
@@ -115,11 +177,13 @@ GaussianCloud curveShifted(GaussianCloud deformed, const std::vector<float>& cur
 
 namespace {
 
-/// The Gaussians of a generation worth splitting (bend > 0, positive gain), most gain first.
-std::vector<std::size_t> bentByGain(const GaussianCloud& rest, const std::vector<float>& bending, double fanAbove)
+/// The Gaussians of a generation worth splitting (bend > 0, positive gain), most gain first;
+/// `gain` receives each one's gain per Gaussian added.
+std::vector<std::size_t> bentByGain(const GaussianCloud& rest, const std::vector<float>& bending, double fanAbove,
+                                    std::vector<double>& gain)
 {
     std::vector<std::size_t> bent;
-    std::vector<double> gain(bending.size(), 0.0);
+    gain.assign(bending.size(), 0.0);
     for (std::size_t i = 0; i < bending.size(); ++i) {
         if (!(bending[i] > 0.0f)) continue;
         gain[i] = splitGain(rest, i, bending[i], curveSplitPattern(bending[i], fanAbove));
@@ -164,6 +228,18 @@ void recordCurves(const StageOneBends& bends, const Generation& gen, CurveSplitR
         std::copy_n(bends.curve.begin() + std::ptrdiff_t(3 * j), 3, res.curve.begin() + std::ptrdiff_t(3 * gen.slot[j]));
 }
 
+/// The result without the Gaussians the pruner removed.
+void removePruned(const Pruner& pruner, CurveSplitResult& res)
+{
+    std::vector<std::uint8_t> drop(res.parent.size(), 0);
+    for (std::size_t j = 0; j < drop.size(); ++j) drop[j] = pruner.removed(j);
+    res.deformed.erase(drop);
+    eraseRows(res.moving, drop);
+    eraseRows(res.parent, drop);
+    eraseRows(res.curve, drop, 3);
+    res.pruned = pruner.count();
+}
+
 } // namespace
 
 CurveSplitResult curveSplit(const GaussianCloud& rest, const StageOneRig& rig, const DeformationGraph& graph,
@@ -179,6 +255,7 @@ CurveSplitResult curveSplit(const GaussianCloud& rest, const StageOneRig& rig, c
     std::size_t budget = o.maxAddedCount ? *o.maxAddedCount : std::size_t(double(o.maxAdded) * double(rest.size()));
     StageOneOptions childOptions = s1;
     childOptions.threaded = o.threaded;
+    Pruner pruner(stage1.deformed, o.pruneWorth);
 
     Generation gen{rest, rig, stage1, {}};
     gen.slot.resize(rest.size());
@@ -191,10 +268,11 @@ CurveSplitResult curveSplit(const GaussianCloud& rest, const StageOneRig& rig, c
         recordCurves(bends, gen, res);
         measured = true;
     };
-    for (int round = 0; round < o.rounds && budget >= 2; ++round) {
+    for (int round = 0; round < o.rounds && (budget >= 2 || o.pruneWorth > 0); ++round) {
         measure();
         const std::vector<float>& bending = bends.bend;
-        std::vector<std::size_t> bent = bentByGain(gen.rest, bending, o.fanAbove);
+        std::vector<double> gain;
+        std::vector<std::size_t> bent = bentByGain(gen.rest, bending, o.fanAbove, gain);
         if (o.fanAbove > 0.0)
             res.beyondFan += std::size_t(std::count_if(bending.begin(), bending.end(), [&](float b) { return b > o.fanAbove; }));
         if (bent.empty()) break;
@@ -203,8 +281,14 @@ CurveSplitResult curveSplit(const GaussianCloud& rest, const StageOneRig& rig, c
         std::vector<std::size_t> counts, taken; // children per split, in the order of next.rest
         for (std::size_t i : bent) {
             const SplitPattern p = curveSplitPattern(bending[i], o.fanAbove);
-            if (p.offsets.size() - 1 > budget) continue; // a smaller split may still fit
-            budget -= p.offsets.size() - 1;
+            const std::size_t need = p.offsets.size() - 1, slot = gen.slot[i];
+            if (pruner.removed(slot)) continue;
+            if (need > budget) {
+                if (!pruner.makeRoom(need - budget, gain[i] * areaPerVolume(gen.rest, i), slot)) continue; // a smaller split may still fit
+                budget = need;
+            }
+            budget -= need;
+            pruner.markSplit(slot);
             counts.push_back(appendSplitChildren(gen.rest, i, bends.axis[i], p, next.rest));
             taken.push_back(i);
         }
@@ -222,6 +306,7 @@ CurveSplitResult curveSplit(const GaussianCloud& rest, const StageOneRig& rig, c
         measured = false;
     }
     if (!measured) measure();
+    if (pruner.count()) removePruned(pruner, res);
     res.ms = clock.ms();
     return res;
 }

@@ -270,3 +270,79 @@ TEST(CurveSplit, ASplitWithNothingToFanSaysSoAndIsTheSplitWithoutFans)
     EXPECT_GE(fanned.beyondFan, 1u);
     EXPECT_NE(fanned.deformed.means, without.deformed.means); // a fan: other children
 }
+
+// With no budget left, a split may still be made by removing the faintest Gaussians, while each
+// one's visible mass (times pruneWorth) is below the split's gain per Gaussian added; the count
+// stays, the bright Gaussian stays, and every array stays in step.
+namespace {
+
+/// The bent sheet (alpha 0.9, 0.3 x 0.3 x 0.03) with six faint specks (alpha 0.02, sigma 0.01)
+/// and one bright ball (alpha 0.9, sigma 0.1) on it.
+struct BentSheetWithSpecks : BentSheet {
+    static constexpr float kSpeckLogit = -3.8918203f; // logit(0.02)
+    static constexpr float kBallLogit = 2.1972246f;   // logit(0.9)
+
+    BentSheetWithSpecks() : BentSheet(0.5)
+    {
+        const GaussianCloud sheetOnly = rest;
+        for (int k = 0; k < 7; ++k) {
+            GaussianCloud g = sheetOnly;
+            const bool ball = k == 6;
+            g.setMean(0, Vec3f{-0.3f + 0.1f * float(k), 0.1f, 0.0f});
+            for (int a = 0; a < 3; ++a) g.logScales[std::size_t(a)] = std::log(ball ? 0.1f : 0.01f);
+            g.opacities[0] = ball ? kBallLogit : kSpeckLogit;
+            rest.append(g, 0);
+        }
+        rig = prepareStageOne(rest, graph);
+        s1 = applyStageOneCpu(rest, rig, graph, t, moving);
+    }
+    CurveSplitResult split(std::size_t budget, double pruneWorth) const
+    {
+        CurveSplitOptions o;
+        o.maxAddedCount = budget;
+        o.pruneWorth = pruneWorth;
+        return curveSplit(rest, rig, graph, t, moving, s1, {}, o);
+    }
+};
+
+std::size_t countWithLogit(const GaussianCloud& g, float logit)
+{
+    return std::size_t(std::count(g.opacities.begin(), g.opacities.end(), logit));
+}
+
+} // namespace
+
+TEST(CurveSplit, AFullBudgetSplitsByRemovingTheFaintestWhenTheyCostLess)
+{
+    const BentSheetWithSpecks b;
+    ASSERT_EQ(b.rest.size(), 8u);
+    const CurveSplitResult none = b.split(0, 0.0); // no budget, no removal: nothing split
+    EXPECT_EQ(none.split, 0u);
+    EXPECT_EQ(none.deformed.size(), 8u);
+
+    const CurveSplitResult cs = b.split(0, 1.0);
+    EXPECT_GE(cs.split, 1u);
+    EXPECT_GT(cs.added, 0u);
+    EXPECT_EQ(cs.pruned, cs.added); // no growth: each child took a speck's place
+    ASSERT_EQ(cs.deformed.size(), 8u);
+    EXPECT_EQ(cs.moving.size(), 8u);
+    EXPECT_EQ(cs.parent.size(), 8u);
+    EXPECT_EQ(cs.curve.size(), 24u);
+    EXPECT_EQ(countWithLogit(cs.deformed, BentSheetWithSpecks::kSpeckLogit), 6u - cs.pruned);
+    EXPECT_EQ(countWithLogit(cs.deformed, BentSheetWithSpecks::kBallLogit), 1u); // the ball is worth more
+    for (std::size_t j = 0; j < cs.deformed.size(); ++j) {
+        const std::int32_t p = cs.parent[j];
+        if (p == 0) continue; // the sheet's children
+        EXPECT_TRUE(cs.deformed.sameGaussian(j, b.s1.deformed, std::size_t(p))) << j; // untouched, in their order
+        EXPECT_EQ(cs.moving[j], b.s1.moving[std::size_t(p)]);
+    }
+
+    // Worth so much that no speck costs less than a split gains: nothing removed, nothing split.
+    const CurveSplitResult dear = b.split(0, 1e9);
+    EXPECT_EQ(dear.pruned, 0u);
+    EXPECT_EQ(dear.split, 0u);
+    // With room in the budget nothing is removed.
+    const CurveSplitResult room = b.split(64, 1.0);
+    EXPECT_EQ(room.pruned, 0u);
+    EXPECT_EQ(room.deformed.size(), 8u + room.added);
+}

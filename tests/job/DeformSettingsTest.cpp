@@ -87,10 +87,11 @@ TEST(DeformSettings, TheRecordKeepsTheHashOfEarlierRuns)
     EXPECT_EQ(settingsJson(o).size(), 39u);
     const nlohmann::json before = settingsJson(o);
     for (const auto& [flag, value] : std::initializer_list<std::pair<const char*, const char*>>{
-             {"--keep", "regions"}, {"--validated-split", "off"}, {"--max-gaussians", "1.5x"}})
+             {"--keep", "regions"}, {"--validated-split", "off"}, {"--max-gaussians", "1.5x"}, {"--curve-split-prune", "3"}})
         deformSetting(flag).set(o, value);
     const nlohmann::json after = settingsJson(o);
-    EXPECT_EQ(after.size(), 42u); // three keys written only off their defaults
+    EXPECT_EQ(after.size(), 43u); // four keys written only off their defaults
+    EXPECT_EQ(after["curveSplitPrune"], 3.0);
     EXPECT_EQ(after["keepPerGaussian"], false);
     EXPECT_EQ(after["validatedSplit"], false);
     EXPECT_EQ(after["maxGaussians"], "1.5x");

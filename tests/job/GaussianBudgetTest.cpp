@@ -1,6 +1,7 @@
 // --max-gaussians: the budget every step that adds Gaussians spends (issue 33).
 #include <gtest/gtest.h>
 
+#include <cmath>
 #include <filesystem>
 #include <fstream>
 
@@ -71,6 +72,36 @@ TEST(GaussianBudget, DeformHonoursTheBudgetAndOneTimesKeepsTheCount)
                      " --curve-split off --validated-split off --split auto --split-stretch 1.01 --keep fit"),
               0);
     EXPECT_GT(countOf(dir.file("split/deformed.ply")), 2000u);
+}
+
+// --curve-split-prune: at 1x the curve split still splits by removing the faintest Gaussians, and the
+// report counts both.
+TEST(GaussianBudget, AtOneTimesTheCurveSplitMakesRoomByRemovingTheFaintest)
+{
+    TempDir dir;
+    const std::string model = dir.file("s.ply"), spec = std::string(SPLATWARP_SOURCE_DIR) + "/samples/specs/bend.json";
+    ASSERT_EQ(runCli("-q sample stripes --count 2000 -o " + model), 0);
+    // A model with faint specks, as captures have: every fourth Gaussian at alpha 0.01, a third its size.
+    GaussianCloud specked = readGaussians(model);
+    for (std::size_t i = 0; i < specked.size(); i += 4) {
+        specked.opacities[i] = std::log(0.01f / 0.99f);
+        for (int a = 0; a < 3; ++a) specked.logScales[3 * i + std::size_t(a)] += std::log(1.0f / 3.0f);
+    }
+    writePly(dir.file("specked.ply"), specked);
+    const std::string common = "-q deform " + dir.file("specked.ply") + " --spec " + spec + " --iterations 4 --max-gaussians 1x --keep fit ";
+    ASSERT_EQ(runCli(common + "-o " + dir.file("one") + " --curve-split-prune 3"), 0);
+    const nlohmann::json one = reportOf(dir.file("one"));
+    EXPECT_EQ(countOf(dir.file("one/deformed.ply")), 2000u);
+    const std::size_t added = one["curveSplit"]["added"].get<std::size_t>(), pruned = one["curveSplit"]["pruned"].get<std::size_t>();
+    EXPECT_GT(added, 0u); // the split was made at no growth
+    EXPECT_EQ(pruned, added);
+    EXPECT_EQ(one["stage2"]["gaussiansAdded"].get<std::size_t>(), added);
+    EXPECT_EQ(one["stage2"]["gaussiansRemoved"].get<std::size_t>(), pruned);
+    EXPECT_EQ(one["settings"]["curveSplitPrune"].get<double>(), 3.0);
+    // Without the prune (the default) nothing is split at 1x, so the lines above test it.
+    ASSERT_EQ(runCli(common + "-o " + dir.file("noprune")), 0);
+    EXPECT_EQ(reportOf(dir.file("noprune"))["curveSplit"]["added"].get<std::size_t>(), 0u);
+    EXPECT_EQ(reportOf(dir.file("noprune"))["curveSplit"]["pruned"].get<std::size_t>(), 0u);
 }
 
 TEST(GaussianBudget, BadBudgetsExitTwoAndWriteNothing)
