@@ -7,7 +7,9 @@
 ///        one affine copy leaves the curved surface at its ends, is bent by several of its (thin)
 ///        sigmas. A split halves the bend; it pays when the L1 it saves on the Gaussian's mass exceeds
 ///        what the split costs (the children's own L1 and the mass the dimmer children lose to the
-///        1/255 cutoff), and the Gaussians are split in order of that gain, within a budget.
+///        1/255 cutoff), and the Gaussians are split in order of that gain, within a budget. Where
+///        the budget is spent, CurveSplitOptions::pruneWorth (off by default) lets a split remove the
+///        faintest Gaussians to make room.
 ///
 ///        The children of a Gaussian bent by at most kFanAbove (more are fanned, curveSplitPattern()):
 ///        three along the bent axis at mean + {-d, 0, +d} sigma, that axis' sigma times
