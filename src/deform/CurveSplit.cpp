@@ -46,20 +46,26 @@ double splitGain(const GaussianCloud& g, std::size_t i, double m, const SplitPat
     return mass * (saved - std::fabs(parent - children) - kCurveSplitL1) / double(p.offsets.size() - 1);
 }
 
+/// Gaussian i's mean projected area, up to a constant factor: s0 s1 + s1 s2 + s0 s2.
+double meanArea(const GaussianCloud& g, std::size_t i)
+{
+    const Vec3f s = g.scale(i);
+    return double(s.x) * s.y + double(s.y) * s.z + double(s.x) * s.z;
+}
+
 /// Gaussian i's mean projected area over its volume: what turns splitGain()'s mass units into a
 /// view's (alpha times area). A flat Gaussian of a surface holds little mass and covers much.
 double areaPerVolume(const GaussianCloud& g, std::size_t i)
 {
     const Vec3f s = g.scale(i);
-    return (double(s.x) * s.y + double(s.y) * s.z + double(s.x) * s.z) / (double(s.x) * s.y * s.z);
+    return meanArea(g, i) / (double(s.x) * s.y * s.z);
 }
 
 /// What removing Gaussian i of a model costs a view: its visible alpha times its mean projected area.
 double pruneCost(const GaussianCloud& g, std::size_t i)
 {
-    const Vec3f s = g.scale(i);
     const double alpha = g.alpha(i);
-    return alpha * visibleMass(alpha) * (double(s.x) * s.y + double(s.y) * s.z + double(s.x) * s.z);
+    return alpha * visibleMass(alpha) * meanArea(g, i);
 }
 
 /// The model's own Gaussians (the result's first slots) that may make room for children, faintest
