@@ -369,8 +369,9 @@ std::vector<Setting> candidateSettings()
                  if (!o.keepPerGaussian) out["keepPerGaussian"] = false; // off its default only (older hashes hold)
              }),
         number<int>("--validation-stop", "validationStop", Expert,
-                    "With --keep validated or regions: score Stage II's fit on the validation points every K iterations "
-                    "and stop it once the score rose by more than 1% (0: run every iteration)",
+                    "With --keep validated or regions: score Stage II's start, then its fit every K iterations, on the "
+                    "validation points and stop once the score rose by more than 1% of the last check's (at the "
+                    "first check: by more than 15% of the start's; 0: run every iteration)",
                     [](DeformJobOptions& o) -> int& { return o.validationStop; }, {0, 1000000}),
         number<float>("--prune-below", "pruneBelow", Expert,
                       "Remove the moving Gaussians whose opacity Stage II leaves below this (before the split and at the "

@@ -155,28 +155,32 @@ void updateCoverage(StageTwoSolver& solver, const StageTwoOptions& o, int it, St
     if (!scheduled) ++report.coverageForcedRebuilds;
 }
 
-/// StageTwoOptions::heldOutStop: scores the held iterate every `every` iterations and says when
-/// the score rose (a non-finite one stops too).
+/// StageTwoOptions::heldOutStop: scores the start and then the held iterate every `every`
+/// iterations, and says when the score rose (a non-finite one stops too).
 class HeldOutCheck {
 public:
     explicit HeldOutCheck(const StageTwoOptions::HeldOutStop& stop) : mStop(stop) {}
 
-    /// Whether iteration `it` is scored.
-    bool due(int it) const { return mStop.on() && it > 0 && it % mStop.every == 0; }
+    /// Whether iteration `it` is scored: 0 (the start, the first check's reference) and every
+    /// `every`-th.
+    bool due(int it) const { return mStop.on() && it % mStop.every == 0; }
     /// Score the model held at `it` (a due iteration): whether the score rose.
     bool rose(int it, const GaussianCloud& held, StageTwoReport& report)
     {
         const double score = mStop.score(held);
         report.heldOutChecks.emplace_back(it, score);
         progress(msg("Stage II iteration ", it, ": validation score ", score));
-        const bool rose = !(score <= mLast * (1.0 + mStop.rise));
+        const double rise = mLastIsStart ? mStop.riseFromStart : mStop.rise;
+        const bool rose = !(score <= mLast * (1.0 + rise));
         mLast = score;
+        mLastIsStart = it == 0;
         return rose;
     }
 
 private:
     const StageTwoOptions::HeldOutStop& mStop;
     double mLast = std::numeric_limits<double>::infinity();
+    bool mLastIsStart = false;
 };
 
 /// Whether a non-finite energy ends the run (with the best iterate). At the start it is bad input;
@@ -261,7 +265,9 @@ StageTwoReport runStageTwoLoop(StageTwoSolver& solver, GaussianCloud& cloud, con
         }
         if (it == o.iterations) break; // final energy only
         const char* why = keeper.stalled();
-        if (!why && heldOut.due(it) && heldOut.rose(it, current(), report)) why = "the validation score rose";
+        // The start is scored as given (the keep scores the same bytes again, and its judge
+        // remembers them), later iterates as the solver holds them.
+        if (!why && heldOut.due(it) && heldOut.rose(it, it == 0 ? cloud : current(), report)) why = "the validation score rose";
         if (why) {
             progress(msg("Stage II: stopping at iteration ", it, " (", why, ")"));
             report.stoppedAt = it;

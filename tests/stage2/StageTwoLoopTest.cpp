@@ -353,12 +353,13 @@ TEST(StageTwoLoop, AutoIterationsKeepTheDefaultRunsPositionSchedule)
 TEST(StageTwoLoop, StopsWhenTheHeldOutScoreStopsFalling)
 {
     // Energies fall all the way; the held-out score (here: of the written "parameter", the state)
-    // falls at the check of iteration 2 and rises at iteration 4: the run stops there, holding
-    // iteration 4's iterate, and records each check.
+    // falls from the start's at the check of iteration 2 and rises at iteration 4: the run stops
+    // there, holding iteration 4's iterate, and records each check, the start's first.
     ScriptedSolver s({10, 9, 8, 7, 6, 5, 4, 3, 2});
     GaussianCloud cloud;
+    cloud.opacities = {0.0f}; // the start: state 0
     StageTwoOptions o = rejecting(8);
-    const std::vector<double> scoreOfState = {0, 0, 0.5, 0, 0.7, 0, 0.2, 0, 0.1};
+    const std::vector<double> scoreOfState = {0.9, 0, 0.5, 0, 0.7, 0, 0.2, 0, 0.1};
     int scored = 0;
     o.heldOutStop = {[&](const GaussianCloud& m) {
                          ++scored;
@@ -368,16 +369,42 @@ TEST(StageTwoLoop, StopsWhenTheHeldOutScoreStopsFalling)
     const StageTwoReport r = runStageTwoLoop(s, cloud, o);
     EXPECT_EQ(r.stoppedAt, 4);
     EXPECT_EQ(r.stopReason, "the validation score rose");
-    EXPECT_EQ(scored, 2);
-    ASSERT_EQ(r.heldOutChecks.size(), 2u);
-    EXPECT_EQ(r.heldOutChecks[0], (std::pair<int, double>{2, 0.5}));
-    EXPECT_EQ(r.heldOutChecks[1], (std::pair<int, double>{4, 0.7}));
+    EXPECT_EQ(scored, 3);
+    ASSERT_EQ(r.heldOutChecks.size(), 3u);
+    EXPECT_EQ(r.heldOutChecks[0], (std::pair<int, double>{0, 0.9}));
+    EXPECT_EQ(r.heldOutChecks[1], (std::pair<int, double>{2, 0.5}));
+    EXPECT_EQ(r.heldOutChecks[2], (std::pair<int, double>{4, 0.7}));
     EXPECT_EQ(cloud.opacities, std::vector<float>{4.0f});
     EXPECT_EQ(r.bestIteration, 4);
     // A rise within `rise` (1%) of the last check goes on; the next one past it stops.
     ScriptedSolver t({10, 9, 8, 7, 6, 5, 4, 3, 2});
-    const std::vector<double> flat = {0, 0, 0.5, 0, 0.5049, 0, 0.51, 0, 0.1};
+    const std::vector<double> flat = {0.9, 0, 0.5, 0, 0.5049, 0, 0.51, 0, 0.1};
     o.heldOutStop.score = [&](const GaussianCloud& m) { return flat[std::size_t(m.opacities.at(0))]; };
+    cloud.opacities = {0.0f};
+    EXPECT_EQ(runStageTwoLoop(t, cloud, o).stoppedAt, 6);
+}
+
+TEST(StageTwoLoop, AFitWorseOnHeldOutPointsThanItsStartStopsAtTheFirstCheck)
+{
+    // Guitar's shape: the energy falls while the held-out score is far above the start's (+20%)
+    // from the first check on. The start is the first check's reference, so the run stops at
+    // iteration 2, not at the first rise between two later checks.
+    ScriptedSolver s({10, 9, 8, 7, 6, 5, 4, 3, 2});
+    GaussianCloud cloud;
+    cloud.opacities = {0.0f};
+    StageTwoOptions o = rejecting(8);
+    const std::vector<double> scoreOfState = {0.5, 0, 0.6, 0, 0.55, 0, 0.7, 0, 0.1};
+    o.heldOutStop = {[&](const GaussianCloud& m) { return scoreOfState[std::size_t(m.opacities.at(0))]; }, 2};
+    const StageTwoReport r = runStageTwoLoop(s, cloud, o);
+    EXPECT_EQ(r.stoppedAt, 2);
+    ASSERT_EQ(r.heldOutChecks.size(), 2u);
+    EXPECT_EQ(r.heldOutChecks[0], (std::pair<int, double>{0, 0.5}));
+    EXPECT_EQ(cloud.opacities, std::vector<float>{2.0f});
+    // Within `riseFromStart` (15%) of the start it goes on; later checks keep `rise` (1%).
+    ScriptedSolver t({10, 9, 8, 7, 6, 5, 4, 3, 2});
+    const std::vector<double> level = {0.5, 0, 0.55, 0, 0.4, 0, 0.41, 0, 0.1};
+    o.heldOutStop.score = [&](const GaussianCloud& m) { return level[std::size_t(m.opacities.at(0))]; };
+    cloud.opacities = {0.0f};
     EXPECT_EQ(runStageTwoLoop(t, cloud, o).stoppedAt, 6);
 }
 
@@ -385,11 +412,12 @@ TEST(StageTwoLoop, AHeldOutScoreThatKeepsFallingRunsEveryIteration)
 {
     ScriptedSolver s({10, 9, 8, 7, 6, 5, 4});
     GaussianCloud cloud;
+    cloud.opacities = {0.0f};
     StageTwoOptions o = rejecting(6);
     o.heldOutStop = {[](const GaussianCloud& m) { return 1.0 / (1.0 + m.opacities.at(0)); }, 2};
     const StageTwoReport r = runStageTwoLoop(s, cloud, o);
     EXPECT_EQ(r.stoppedAt, -1);
-    EXPECT_EQ(r.heldOutChecks.size(), 2u); // 2 and 4; none at the last iteration, which ends the run anyway
+    EXPECT_EQ(r.heldOutChecks.size(), 3u); // 0, 2 and 4; none at the last iteration, which ends the run anyway
     EXPECT_EQ(cloud.opacities, std::vector<float>{6.0f});
     // every = 0 never scores
     ScriptedSolver t({10, 9, 8, 7});
