@@ -9,10 +9,12 @@ cd "$(dirname "$0")/.."
 export CCACHE_BASEDIR="${CCACHE_BASEDIR:-$(cd .. && pwd)}"
 start=$(date +%s)
 SAN="-fsanitize=address,undefined -fno-sanitize-recover=all -fno-omit-frame-pointer"
+# -g1 (line tables) is all a sanitizer's stack trace reads, and compiles 25-50% faster than -g on
+# the OpenVDB-heavy files (vdb/Volume.cpp: 164 -> 111 s), the bulk of CI's time.
 # The Python module is left out: an ASan-built extension cannot load into a python3 that is not
 # (its C++ is the library code the C++ tests run here; Python.Module then skips).
 cmake -S . -B build-asan -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo -DSPLATWARP_CUDA=OFF -DSPLATWARP_PYTHON=OFF \
-  -DCMAKE_CXX_FLAGS="$SAN" -DCMAKE_CXX_FLAGS_RELWITHDEBINFO="-O1 -g -DNDEBUG" \
+  -DCMAKE_CXX_FLAGS="$SAN" -DCMAKE_CXX_FLAGS_RELWITHDEBINFO="-O1 -g1 -DNDEBUG" \
   -DCMAKE_EXE_LINKER_FLAGS="$SAN" -DCMAKE_SHARED_LINKER_FLAGS="$SAN" >/dev/null
 cmake --build build-asan -j"$(nproc)"
 built=$(date +%s)
