@@ -170,17 +170,15 @@ public:
         const double score = mStop.score(held);
         report.heldOutChecks.emplace_back(it, score);
         progress(msg("Stage II iteration ", it, ": validation score ", score));
-        const double rise = mLastIsStart ? mStop.riseFromStart : mStop.rise;
-        const bool rose = !(score <= mLast * (1.0 + rise));
+        const bool first = it == mStop.every; // compared with the start's (iteration 0)
+        const bool rose = !(score <= mLast * (1.0 + (first ? mStop.riseFromStart : mStop.rise)));
         mLast = score;
-        mLastIsStart = it == 0;
         return rose;
     }
 
 private:
     const StageTwoOptions::HeldOutStop& mStop;
     double mLast = std::numeric_limits<double>::infinity();
-    bool mLastIsStart = false;
 };
 
 /// Whether a non-finite energy ends the run (with the best iterate). At the start it is bad input;
