@@ -300,6 +300,21 @@ Setting curveSplitPruneSetting()
     return s;
 }
 
+/// --budget-merge: written only with a budget (it does nothing without one).
+Setting budgetMergeSetting()
+{
+    return word("--budget-merge", {"auto", "off"}, Expert,
+             "With --max-gaussians and the keep (and no Stage II split or prune): after the keep, each Gaussian the "
+             "splits made children of is merged back (same mass, mean, covariance, mass-weighted colour) whole, or "
+             "first into runs of three when split twice, least validation loss per Gaussian removed first, until the "
+             "model fits the budget; off: the splits spend the budget itself, most expected gain first",
+             [](DeformJobOptions& o, const std::string& w) { o.budgetMerge = w == "auto"; },
+             [](const DeformJobOptions& o) { return o.budgetMerge ? "auto" : "off"; },
+             [](const DeformJobOptions& o, json& out) {
+                 if (o.maxGaussians) out["budgetMerge"] = o.budgetMerge;
+             });
+}
+
 /// The steps around Stage II that add or choose Gaussians, and the prune.
 std::vector<Setting> candidateSettings()
 {
@@ -315,23 +330,28 @@ std::vector<Setting> candidateSettings()
               "other seeds) says it pays, largest drops first (needs --keep validated or regions; shares "
               "--curve-split-max); off: no such split",
               [](DeformJobOptions& o) -> bool& { return o.validatedSplit; }, false),
-        Setting{"--max-gaussians", "N|Xx", User,
+        Setting{"--max-gaussians", "N|Xx|none", User,
                 "The most Gaussians the output may hold: N, or a factor of the input's count such as 1.5x (1x: "
-                "no growth); the curve split, the validated split and Stage II's split spend it in that order "
-                "(default: none; the curve split's own share then bounds the splits before Stage II)",
+                "no growth; none: no budget, the splits add up to 1.25x the model). With the keep (--keep validated "
+                "or regions) the splits add their share, Stage II fits the children, and the splits that buy least "
+                "are merged back until the model fits (--budget-merge); else the curve split, the validated split and "
+                "Stage II's split spend the budget itself, in that order",
                 [](DeformJobOptions& o, const std::string& t) {
+                    if (t == "none") {
+                        o.maxGaussians.reset();
+                        return;
+                    }
                     GaussianBudget budget;
                     const std::string error = parseGaussianBudget(t, budget);
-                    if (!error.empty()) throw UsageError("--max-gaussians " + error);
+                    if (!error.empty()) throw UsageError("--max-gaussians " + error + " or none");
                     o.maxGaussians = budget;
                 },
-                [](const DeformJobOptions& o, json& out) {
-                    if (o.maxGaussians) out["maxGaussians"] = o.maxGaussians->text();
-                },
-                [](const DeformJobOptions&) { return std::string(); }},
+                [](const DeformJobOptions& o, json& out) { out["maxGaussians"] = o.maxGaussians ? o.maxGaussians->text() : "none"; },
+                [](const DeformJobOptions& o) { return o.maxGaussians ? o.maxGaussians->text() : std::string("none"); }},
+        budgetMergeSetting(),
         number<float>("--curve-split-max", "curveSplitMax", Expert,
                       "At most this many Gaussians added by the curve split and the validated split together, as a share "
-                      "of the model's",
+                      "of the model's (with a budget the merge does not meet, --budget-merge, the budget instead)",
                       [](DeformJobOptions& o) -> float& { return o.curve.maxAdded; }, {0.0, 16.0}),
         number<int>("--curve-split-rounds", "curveSplitRounds", Expert,
                     "With --curve-split auto: children still bent are split again, up to this many rounds in all",

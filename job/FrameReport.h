@@ -12,6 +12,7 @@
 #include <nlohmann/json.hpp>
 
 #include "deform/CurveSplit.h"
+#include "job/BudgetMerge.h"
 #include "job/GaussianChoice.h"
 #include "job/Judge.h"
 #include "job/StageTwoChoice.h"
@@ -84,6 +85,7 @@ struct StageTwoRecord {
     double densifyMs = 0;
     std::size_t gaussiansAdded = 0, gaussiansRemoved = 0, gaussians = 0;
     std::optional<std::size_t> gaussianBudget; ///< `--max-gaussians`: the most the output may hold
+    std::optional<BudgetMergeReport> budgetMerge; ///< the budget met after the keep (job/BudgetMerge.h)
     std::optional<std::string> start;     ///< animate --warm-start: "warm" or "cold"
     std::optional<double> warmEnergy;     ///< the rejected warm start's energy
     std::optional<double> warmLimit;      ///< animate: the energy a warm start had to stay under

@@ -87,8 +87,9 @@ inline DeformJobOptions deformJobOptions(DeformArgs& args)
             }
         }
     }
-    if (args.given.count("--max-gaussians") && args.given.count("--curve-split-max"))
-        throw UsageError("--curve-split-max and --max-gaussians: give one budget");
+    if (job.maxGaussians && args.given.count("--curve-split-max") && !mergesToBudget(job))
+        throw UsageError("--curve-split-max and --max-gaussians (" + job.maxGaussians->text() +
+                         "): without the budget's merge the splits spend the budget itself; give one (--max-gaussians none)");
     return job;
 }
 

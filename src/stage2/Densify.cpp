@@ -59,6 +59,7 @@ void FitState::replace(std::size_t i, const GaussianCloud& from, const std::vect
             slot = cloud.size() - 1;
             moving.push_back(moving[i]);
             gaussianCell.push_back(gaussianCell[i]);
+            if (parent && !parent->empty()) parent->push_back((*parent)[i]);
             if (keepsCurve) {
                 const float row[3] = {(*curve)[3 * i], (*curve)[3 * i + 1], (*curve)[3 * i + 2]};
                 curve->insert(curve->end(), row, row + 3);

@@ -47,9 +47,10 @@ struct FitState {
     std::vector<std::uint8_t>& moving;       ///< [N] 1: Stage II moves it
     std::vector<std::int32_t>& gaussianCell; ///< [N] rest cell of its low-pass filter (-1: none)
     std::vector<float>* curve = nullptr;     ///< [N,3] phi's second-order offsets, when kept (deform's start)
+    std::vector<std::int32_t>* parent = nullptr; ///< [N] the rest Gaussian each comes from, when kept (deform's start)
 
     /// @brief Gaussian i becomes row rows[0] of `from`, the other rows are appended; each takes i's
-    ///        cell, its moving flag from fromMoving and its curve row from fromCurve (both indexed
+    ///        cell and parent, its moving flag from fromMoving and its curve row from fromCurve (both indexed
     ///        by the row of `from`; null: i's).
     void replace(std::size_t i, const GaussianCloud& from, const std::vector<std::size_t>& rows,
                  const std::uint8_t* fromMoving = nullptr, const float* fromCurve = nullptr);

@@ -82,19 +82,27 @@ TEST(DeformSettings, EverySwitchChangesTheRecordAndEveryFlagARecipeSetsIsARow)
 TEST(DeformSettings, TheRecordKeepsTheHashOfEarlierRuns)
 {
     DeformJobOptions o = deformDefaults();
-    // 39 since --validation-stop: written always, as it changed the default's output (a resume must
-    // not take an earlier default run's frames for this one's).
-    EXPECT_EQ(settingsJson(o).size(), 39u);
+    // 41 since the 1.5x budget: maxGaussians and budgetMerge written always, as the budget changed
+    // the default's output (a resume must not take an earlier default run's frames for this one's).
+    EXPECT_EQ(settingsJson(o).size(), 41u);
     const nlohmann::json before = settingsJson(o);
+    EXPECT_EQ(before["maxGaussians"], "1.5x");
+    EXPECT_EQ(before["budgetMerge"], true);
     for (const auto& [flag, value] : std::initializer_list<std::pair<const char*, const char*>>{
-             {"--keep", "regions"}, {"--validated-split", "off"}, {"--max-gaussians", "1.5x"}, {"--curve-split-prune", "3"}})
+             {"--keep", "regions"}, {"--validated-split", "off"}, {"--max-gaussians", "2x"}, {"--curve-split-prune", "3"}})
         deformSetting(flag).set(o, value);
     const nlohmann::json after = settingsJson(o);
-    EXPECT_EQ(after.size(), 43u); // four keys written only off their defaults
+    EXPECT_EQ(after.size(), 44u); // three keys written only off their defaults
     EXPECT_EQ(after["curveSplitPrune"], 3.0);
     EXPECT_EQ(after["keepPerGaussian"], false);
     EXPECT_EQ(after["validatedSplit"], false);
-    EXPECT_EQ(after["maxGaussians"], "1.5x");
+    EXPECT_EQ(after["maxGaussians"], "2x");
+    // No budget: the key says so, and the merge is not written (it does nothing).
+    DeformJobOptions none = deformDefaults();
+    deformSetting("--max-gaussians").set(none, "none");
+    EXPECT_FALSE(none.maxGaussians);
+    EXPECT_EQ(settingsJson(none)["maxGaussians"], "none");
+    EXPECT_FALSE(settingsJson(none).contains("budgetMerge"));
     EXPECT_EQ(before["samplesPerCell"], "auto");
     EXPECT_EQ(before["curveShift"], "auto");
     EXPECT_EQ(before["nodes"], -1);

@@ -52,7 +52,7 @@ TEST(GaussianBudget, DeformHonoursTheBudgetAndOneTimesKeepsTheCount)
     ASSERT_EQ(runCli("-q sample stripes --count 2000 -o " + model), 0);
     const std::string common = "-q deform " + model + " --spec " + spec + " --iterations 4 ";
     // Without a budget the splits add more than 300 here, so a budget of 2300 binds.
-    ASSERT_EQ(runCli(common + "-o " + dir.file("free")), 0);
+    ASSERT_EQ(runCli(common + "-o " + dir.file("free") + " --max-gaussians none"), 0);
     const std::size_t free = countOf(dir.file("free/deformed.ply"));
     ASSERT_GT(free, 2300u);
     ASSERT_EQ(runCli(common + "-o " + dir.file("b2300") + " --max-gaussians 2300"), 0);
@@ -63,6 +63,17 @@ TEST(GaussianBudget, DeformHonoursTheBudgetAndOneTimesKeepsTheCount)
     EXPECT_EQ(r["stage2"]["gaussianBudget"].get<std::size_t>(), 2300u);
     EXPECT_EQ(r["stage2"]["gaussians"].get<std::size_t>(), bounded);
     EXPECT_EQ(r["stage2"]["gaussiansAdded"].get<std::size_t>() - r["stage2"]["gaussiansRemoved"].get<std::size_t>(), bounded - 2000);
+    // The budget is met after the fit: the splits added their own share, the merge removed the rest.
+    EXPECT_GT(r["curveSplit"]["added"].get<std::size_t>(), 300u);
+    EXPECT_EQ(r["stage2"]["budgetMerge"]["removed"].get<std::size_t>(), r["stage2"]["gaussiansRemoved"].get<std::size_t>());
+    EXPECT_EQ(r["stage2"]["budgetMerge"]["limit"].get<std::size_t>(), 2300u);
+    EXPECT_TRUE(r["settings"]["budgetMerge"].get<bool>());
+    // --budget-merge off: the splits spend the budget itself, nothing is merged.
+    ASSERT_EQ(runCli(common + "-o " + dir.file("nomerge") + " --max-gaussians 2300 --budget-merge off"), 0);
+    const nlohmann::json off = reportOf(dir.file("nomerge"));
+    EXPECT_LE(countOf(dir.file("nomerge/deformed.ply")), 2300u);
+    EXPECT_LE(off["curveSplit"]["added"].get<std::size_t>(), 300u);
+    EXPECT_FALSE(off["stage2"].contains("budgetMerge"));
     // 1x: no step adds a Gaussian, Stage II's own split included (its fit kept, so a split would show).
     ASSERT_EQ(runCli(common + "-o " + dir.file("one") + " --max-gaussians 1x --split auto --split-stretch 1.01 --keep fit"), 0);
     EXPECT_EQ(countOf(dir.file("one/deformed.ply")), 2000u);

@@ -222,10 +222,11 @@ def test_deform_settings_are_checked_as_flags(stripes):
     with pytest.raises(ValueError, match="--cells"):
         splatwarp.deform(stripes, BEND, cells=-3)
     # A usage error after parsing: the CLI's message (exit 2), word for word.
-    run = cli("deform", stripes, "--spec", BEND, "-o", "never", "--max-gaussians", "1x", "--curve-split-max", 0.1, ok=False)
+    run = cli("deform", stripes, "--spec", BEND, "-o", "never", "--max-gaussians", "1x", "--curve-split-max", 0.1,
+              "--budget-merge", "off", ok=False)
     assert run.returncode == 2
     with pytest.raises(splatwarp.Error) as caught:
-        splatwarp.deform(stripes, BEND, max_gaussians="1x", curve_split_max=0.1)
+        splatwarp.deform(stripes, BEND, max_gaussians="1x", curve_split_max=0.1, budget_merge="off")
     assert "splatwarp: usage error: " + str(caught.value) == run.stderr.strip().splitlines()[-1]
 
 
