@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <numeric>
+#include <stdexcept>
 
 #include "core/Error.h"
 #include "core/ParallelFor.h"
@@ -157,6 +158,8 @@ std::vector<std::vector<std::size_t>> familiesToMerge(const Judge& validation, c
                                                       BudgetMergeReport& report)
 {
     const Stopwatch clock;
+    if (parent.size() != model.size())
+        throw std::logic_error(msg("familiesToMerge: ", parent.size(), " parents for ", model.size(), " Gaussians"));
     report.limit = limit;
     const std::vector<std::vector<std::size_t>> families = familiesOf(parent);
     report.families = families.size();
@@ -207,7 +210,7 @@ std::vector<std::vector<std::size_t>> familiesToMerge(const Judge& validation, c
             for (const auto& run : runs[f])
                 if (run.size() > 1) groups.push_back(run);
         report.merged += level[f] == kWhole;
-        report.partly += level[f] == kRuns;
+        report.mergedToRuns += level[f] == kRuns;
     }
     report.ms = clock.ms();
     return groups;

@@ -21,7 +21,7 @@ struct BudgetMergeReport {
     std::size_t limit = 0;     ///< the most Gaussians the output may hold
     std::size_t families = 0;  ///< Gaussians of the rest model that were split (two or more children)
     std::size_t merged = 0;    ///< families merged back into one Gaussian
-    std::size_t partly = 0;    ///< families of more than three merged into runs of three
+    std::size_t mergedToRuns = 0; ///< families of more than three merged into runs of three
     std::size_t removed = 0;   ///< Gaussians removed by those merges
     double before = 0, after = 0; ///< validation score (opacity + colour relative L1)
     double ms = 0;

@@ -511,8 +511,9 @@ void budgetMergeStep(Refine& f)
     f.fitted = mergeToBudget(f.validation->points(), f.fitted, f.cold.parent, f.o.maxGaussians->limit(f.rest.model.size()), r);
     f.report.timingsMs["budgetMerge"] = r.ms;
     const std::string scores = r.merged ? msg(", validation ", r.before, " -> ", r.after) : std::string();
-    progress(msg("budget: ", r.merged, " of ", r.families, " split Gaussians merged back whole, ", r.partly, " into runs of three, ", r.removed, " removed: ",
-                 f.fitted.size(), " Gaussians (at most ", r.limit, ")", scores, " (", int(r.ms), " ms)"));
+    progress(msg("budget: ", r.merged, " of ", r.families, " split Gaussians merged back whole, ", r.mergedToRuns,
+                 " into runs of three, ", r.removed, " removed: ", f.fitted.size(), " Gaussians (at most ", r.limit, ")",
+                 scores, " (", int(r.ms), " ms)"));
 }
 
 /// What the kept model holds and how it was made (the report's stage2 counts, start and curve).

@@ -128,9 +128,9 @@ json stageTwoJson(const StageTwoRecord& s)
     j.update({{"gaussiansAdded", s.gaussiansAdded}, {"gaussiansRemoved", s.gaussiansRemoved}, {"gaussians", s.gaussians}});
     if (s.gaussianBudget) j["gaussianBudget"] = *s.gaussianBudget;
     if (const auto& m = s.budgetMerge)
-        j["budgetMerge"] = {{"limit", m->limit},           {"families", m->families},         {"merged", m->merged}, {"mergedToRuns", m->partly},
-                            {"removed", m->removed},       {"validationBefore", m->before},   {"validationAfter", m->after},
-                            {"ms", m->ms}};
+        j["budgetMerge"] = {{"limit", m->limit},   {"families", m->families},       {"merged", m->merged},
+                            {"mergedToRuns", m->mergedToRuns}, {"removed", m->removed}, {"validationBefore", m->before},
+                            {"validationAfter", m->after}, {"ms", m->ms}};
     if (s.keep) j["keep"] = keepJson(*s.keep);
     if (s.start) j["start"] = *s.start;
     if (s.warmEnergy) j["warmEnergy"] = *s.warmEnergy;

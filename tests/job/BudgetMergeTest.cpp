@@ -147,7 +147,7 @@ TEST(BudgetMerge, AFamilyOfNineMergesIntoRunsOfThreeFirst)
     const GaussianCloud out = mergeToBudget(*fx.validation, model, parent, n - 6, r);
     EXPECT_EQ(out.size(), n - 6);
     EXPECT_EQ(r.families, 1u);
-    EXPECT_EQ(r.partly, 1u);
+    EXPECT_EQ(r.mergedToRuns, 1u);
     EXPECT_EQ(r.merged, 0u);
     for (std::size_t g : abc) // each run is one Gaussian's children, merged in its slot: that Gaussian's mean
         for (int a = 0; a < 3; ++a) EXPECT_NEAR(out.mean(g)[a], fx.stage1.mean(g)[a], 1e-4) << g;
