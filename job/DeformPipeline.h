@@ -84,7 +84,8 @@ struct DeformJobOptions {
 
 /// @brief Whether --max-gaussians is met after the keep by merging split children back
 ///        (job/BudgetMerge.h): a budget, --budget-merge auto, the keep's validation points and a fit
-///        that keeps its Gaussians (no Stage II split or prune). Else the splits spend the budget.
+///        that keeps its Gaussians (no Stage II split or prune); and, on a given model, a budget
+///        above its count (at 1x nothing is split). Else the splits spend the budget.
 bool mergesToBudget(const DeformJobOptions& o);
 
 /// @brief The spec's graph block with the options' --nodes/--k/--seed overrides applied.

@@ -334,8 +334,8 @@ std::vector<Setting> candidateSettings()
                 "The most Gaussians the output may hold: N, or a factor of the input's count such as 1.5x (1x: "
                 "no growth; none: no budget, the splits add up to 1.25x the model). With the keep (--keep validated "
                 "or regions) the splits add their share, Stage II fits the children, and the splits that buy least "
-                "are merged back until the model fits (--budget-merge); else the curve split, the validated split and "
-                "Stage II's split spend the budget itself, in that order",
+                "are merged back until the model fits (--budget-merge; at 1x nothing is split); else the curve split, "
+                "the validated split and Stage II's split spend the budget itself, in that order",
                 [](DeformJobOptions& o, const std::string& t) {
                     if (t == "none") {
                         o.maxGaussians.reset();

@@ -74,6 +74,12 @@ TEST(GaussianBudget, DeformHonoursTheBudgetAndOneTimesKeepsTheCount)
     EXPECT_LE(countOf(dir.file("nomerge/deformed.ply")), 2300u);
     EXPECT_LE(off["curveSplit"]["added"].get<std::size_t>(), 300u);
     EXPECT_FALSE(off["stage2"].contains("budgetMerge"));
+    // 1x with the keep: nothing is split (splitting all and merging all back judges worse), nothing merged.
+    ASSERT_EQ(runCli(common + "-o " + dir.file("onekeep") + " --max-gaussians 1x"), 0);
+    const nlohmann::json onekeep = reportOf(dir.file("onekeep"));
+    EXPECT_EQ(countOf(dir.file("onekeep/deformed.ply")), 2000u);
+    EXPECT_EQ(onekeep["curveSplit"]["added"].get<std::size_t>(), 0u);
+    EXPECT_FALSE(onekeep["stage2"].contains("budgetMerge"));
     // 1x: no step adds a Gaussian, Stage II's own split included (its fit kept, so a split would show).
     ASSERT_EQ(runCli(common + "-o " + dir.file("one") + " --max-gaussians 1x --split auto --split-stretch 1.01 --keep fit"), 0);
     EXPECT_EQ(countOf(dir.file("one/deformed.ply")), 2000u);
