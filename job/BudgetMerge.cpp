@@ -9,6 +9,7 @@
 #include "core/ParallelFor.h"
 #include "core/Polar.h"
 #include "core/Progress.h"
+#include "field/GaussianMath.h"
 #include "job/ValidationResiduals.h"
 
 namespace splatwarp {
@@ -39,13 +40,6 @@ std::vector<GaussianRef> refsOf(const GaussianCloud& g, const std::vector<std::s
 }
 
 constexpr double kMaxMergedAlpha = 0.99; ///< a merged Gaussian's alpha at most (its logit stays finite)
-
-/// The field's mass of Gaussian i, up to (2 pi)^1.5: alpha s0 s1 s2.
-double massOf(const GaussianCloud& g, std::size_t i)
-{
-    const Vec3f s = g.scale(i);
-    return double(g.alpha(i)) * double(s.x) * double(s.y) * double(s.z);
-}
 
 Vec3d meanOf(const GaussianCloud& g, std::size_t i)
 {
@@ -114,26 +108,21 @@ void appendMerged(const GaussianCloud& g, const std::vector<std::size_t>& member
     double mass = 0;
     Vec3d mean(0, 0, 0);
     for (std::size_t i : members) {
-        mass += massOf(g, i);
-        mean += meanOf(g, i) * massOf(g, i);
+        mass += g.mass(i);
+        mean += meanOf(g, i) * g.mass(i);
     }
     const bool massless = !(mass > 0);
     mean = massless ? meanOf(g, members[0]) : mean / mass;
     Mat3d cov;
     std::vector<double> sh(std::size_t(g.shStride()), 0.0);
     for (std::size_t i : members) {
-        const Vec3f s = g.scale(i);
-        const double w = massless ? 1.0 / double(members.size()) : massOf(g, i) / mass;
+        const double w = massless ? 1.0 / double(members.size()) : g.mass(i) / mass;
         const Quatf q = g.rotation(i);
-        const Mat3d r = quatToMatrix(Quatd{q.w, q.x, q.y, q.z});
+        const Vec3f s = g.scale(i);
+        const Mat3d own = gaussianCovariance(Quatd{q.w, q.x, q.y, q.z}, Vec3d(s.x, s.y, s.z));
         const Vec3d d = meanOf(g, i) - mean;
-        const double var[3] = {double(s.x) * s.x, double(s.y) * s.y, double(s.z) * s.z};
         for (int a = 0; a < 3; ++a)
-            for (int b = 0; b < 3; ++b) {
-                double rsr = 0;
-                for (int k = 0; k < 3; ++k) rsr += r.m[a][k] * var[k] * r.m[b][k];
-                cov.m[a][b] += w * (rsr + d[a] * d[b]);
-            }
+            for (int b = 0; b < 3; ++b) cov.m[a][b] += w * (own.m[a][b] + d[a] * d[b]);
         const float* c = g.shOf(i);
         for (std::size_t k = 0; k < sh.size(); ++k) sh[k] += w * double(c[k]);
     }
@@ -153,13 +142,13 @@ void appendMerged(const GaussianCloud& g, const std::vector<std::size_t>& member
     std::copy(sh.begin(), sh.end(), out.shOf(o));
 }
 
-std::vector<std::vector<std::size_t>> familiesToMerge(const Judge& validation, const GaussianCloud& model,
+std::vector<std::vector<std::size_t>> groupsToMerge(const Judge& validation, const GaussianCloud& model,
                                                       const std::vector<std::int32_t>& parent, std::size_t limit,
                                                       BudgetMergeReport& report)
 {
     const Stopwatch clock;
     if (parent.size() != model.size())
-        throw std::logic_error(msg("familiesToMerge: ", parent.size(), " parents for ", model.size(), " Gaussians"));
+        throw std::logic_error(msg("groupsToMerge: ", parent.size(), " parents for ", model.size(), " Gaussians"));
     report.limit = limit;
     const std::vector<std::vector<std::size_t>> families = familiesOf(parent);
     report.families = families.size();
@@ -216,15 +205,15 @@ std::vector<std::vector<std::size_t>> familiesToMerge(const Judge& validation, c
     return groups;
 }
 
-GaussianCloud withFamiliesMerged(const GaussianCloud& g, const std::vector<std::vector<std::size_t>>& families)
+GaussianCloud withGroupsMerged(const GaussianCloud& g, const std::vector<std::vector<std::size_t>>& groups)
 {
     GaussianCloud out = g, merged;
     merged.shDegree = g.shDegree;
     std::vector<std::uint8_t> drop(g.size(), 0);
-    for (std::size_t f = 0; f < families.size(); ++f) {
-        appendMerged(g, families[f], merged);
-        out.assign(families[f][0], merged, f);
-        for (std::size_t k = 1; k < families[f].size(); ++k) drop[families[f][k]] = 1;
+    for (std::size_t t = 0; t < groups.size(); ++t) {
+        appendMerged(g, groups[t], merged);
+        out.assign(groups[t][0], merged, t);
+        for (std::size_t k = 1; k < groups[t].size(); ++k) drop[groups[t][k]] = 1;
     }
     out.erase(drop);
     return out;
@@ -234,12 +223,12 @@ GaussianCloud mergeToBudget(const Judge& validation, const GaussianCloud& model,
                             std::size_t limit, BudgetMergeReport& report)
 {
     const Stopwatch clock;
-    const std::vector<std::vector<std::size_t>> families = familiesToMerge(validation, model, parent, limit, report);
-    if (families.empty()) {
+    const std::vector<std::vector<std::size_t>> groups = groupsToMerge(validation, model, parent, limit, report);
+    if (groups.empty()) {
         report.ms = clock.ms();
         return model;
     }
-    GaussianCloud out = withFamiliesMerged(model, families);
+    GaussianCloud out = withGroupsMerged(model, groups);
     report.after = ValidationResiduals(validation, out).score();
     report.ms = clock.ms();
     return out;

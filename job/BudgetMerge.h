@@ -38,15 +38,15 @@ void appendMerged(const GaussianCloud& g, const std::vector<std::size_t>& member
 ///        back to its first split's children); steps of least validation loss per Gaussian removed
 ///        first, each loss measured once on `model`. Each group lists its members in index order.
 /// @throws UsageError when merging every family still leaves more than `limit`.
-std::vector<std::vector<std::size_t>> familiesToMerge(const Judge& validation, const GaussianCloud& model,
+std::vector<std::vector<std::size_t>> groupsToMerge(const Judge& validation, const GaussianCloud& model,
                                                       const std::vector<std::int32_t>& parent, std::size_t limit,
                                                       BudgetMergeReport& report);
 
 /// @brief `g` with each group merged into one Gaussian (appendMerged()) in its first member's slot,
 ///        the other members removed, the order of the rest kept.
-GaussianCloud withFamiliesMerged(const GaussianCloud& g, const std::vector<std::vector<std::size_t>>& groups);
+GaussianCloud withGroupsMerged(const GaussianCloud& g, const std::vector<std::vector<std::size_t>>& groups);
 
-/// @brief familiesToMerge() then withFamiliesMerged() on `model`, the report's scores before and
+/// @brief groupsToMerge() then withGroupsMerged() on `model`, the report's scores before and
 ///        after included.
 GaussianCloud mergeToBudget(const Judge& validation, const GaussianCloud& model, const std::vector<std::int32_t>& parent,
                             std::size_t limit, BudgetMergeReport& report);

@@ -29,8 +29,7 @@ std::vector<std::size_t> heaviestFirst(const std::vector<StageTwoCandidate>& can
     std::vector<double> mass(kept.size(), 0.0);
     for (std::size_t i = 0; i < kept.size(); ++i) {
         if (versionsOf(candidates, kept, i).empty()) continue;
-        const Vec3f s = kept.scale(i);
-        mass[i] = double(kept.alpha(i)) * double(s.x) * double(s.y) * double(s.z);
+        mass[i] = kept.mass(i);
         order.push_back(i);
     }
     std::stable_sort(order.begin(), order.end(), [&](std::size_t a, std::size_t b) { return mass[a] > mass[b]; });

@@ -20,8 +20,7 @@ std::vector<std::size_t> splittable(const GaussianCloud& rest, const GaussianClo
     std::vector<double> mass(rest.size(), 0.0);
     for (std::size_t i = 0; i < rest.size() && i < s.cloud.size(); ++i) {
         if (!s.moving[i] || !s.cloud.sameGaussian(i, stage1, i)) continue;
-        const Vec3f sc = rest.scale(i);
-        mass[i] = double(rest.alpha(i)) * double(sc.x) * double(sc.y) * double(sc.z);
+        mass[i] = rest.mass(i);
         out.push_back(i);
     }
     std::stable_sort(out.begin(), out.end(), [&](std::size_t a, std::size_t b) { return mass[a] > mass[b]; });

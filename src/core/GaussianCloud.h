@@ -74,6 +74,12 @@ struct GaussianCloud {
     Vec3f scale(std::size_t i) const;
     /// @brief Activated opacity sigmoid(logit).
     float alpha(std::size_t i) const { return sigmoid(opacities[i]); }
+    /// @brief alpha s0 s1 s2 in double: the field's mass up to (2 pi)^1.5 (heaviest-first orders, merges).
+    double mass(std::size_t i) const
+    {
+        const Vec3f s = scale(i);
+        return double(alpha(i)) * double(s.x) * double(s.y) * double(s.z);
+    }
     float* shOf(std::size_t i) { return sh.data() + i * std::size_t(shStride()); }
     const float* shOf(std::size_t i) const { return sh.data() + i * std::size_t(shStride()); }
 };

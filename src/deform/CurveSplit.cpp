@@ -37,8 +37,7 @@ double visibleMass(double peak)
 /// faint or too thin to weigh.
 double splitGain(const GaussianCloud& g, std::size_t i, double m, const SplitPattern& p)
 {
-    const Vec3f s = g.scale(i);
-    const double alpha = g.alpha(i), mass = alpha * double(s.x) * double(s.y) * double(s.z);
+    const double alpha = g.alpha(i), mass = g.mass(i);
     const double parent = visibleMass(alpha);
     double children = 0.0;
     for (double w : p.weights) children += p.sigma * w * visibleMass(w * alpha);

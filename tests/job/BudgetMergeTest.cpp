@@ -10,6 +10,7 @@
 #include "core/GaussianSplit.h"
 #include "core/Polar.h"
 #include "deform/CurveSplit.h"
+#include "field/GaussianMath.h"
 #include "job/BudgetMerge.h"
 #include "stage2/Densify.h"
 
@@ -22,14 +23,8 @@ namespace {
 Mat3d covarianceOf(const GaussianCloud& g, std::size_t i)
 {
     const Quatf q = g.rotation(i);
-    const Mat3d r = quatToMatrix(Quatd{q.w, q.x, q.y, q.z});
     const Vec3f s = g.scale(i);
-    const double var[3] = {double(s.x) * s.x, double(s.y) * s.y, double(s.z) * s.z};
-    Mat3d c;
-    for (int a = 0; a < 3; ++a)
-        for (int b = 0; b < 3; ++b)
-            for (int k = 0; k < 3; ++k) c.m[a][b] += r.m[a][k] * var[k] * r.m[b][k];
-    return c;
+    return gaussianCovariance(Quatd{q.w, q.x, q.y, q.z}, Vec3d(s.x, s.y, s.z));
 }
 
 /// A model of `g` with Gaussian i replaced by the rows of `children` (the first in i's slot), and
