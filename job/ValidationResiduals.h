@@ -48,12 +48,10 @@ public:
     std::int64_t count(int a) const { return mCount[a]; }
     /// The point at a slot: slots number the points bucket by bucket, in index order within one.
     std::size_t pointAt(std::size_t slot) const { return mOrder[slot]; }
-    /// Calls f(slot) for each point in the buckets overlapping [lo, hi] (the caller tests the box).
+    /// Calls f(first, end) for each run of slots the buckets of r hold: a run per (i, j), its
+    /// buckets along k being adjacent slots. Runs ascend, so slots do.
     template <typename F>
-    void forEachNear(const float* lo, const float* hi, F&& f) const;
-    /// Calls f(i, j, k, slot) for each point in the buckets of r, buckets in (i, j, k) order.
-    template <typename F>
-    void forEachIn(const BucketRange& r, F&& f) const;
+    void forEachRun(const BucketRange& r, F&& f) const;
 
 private:
     std::int64_t cellOf(double x, int a) const;
@@ -85,10 +83,18 @@ public:
     std::int64_t bucketsAlong(int a) const { return mBuckets.count(a); }
 
 private:
+    /// Where one Gaussian counts: a point's slot, the Gaussian's term in a swap, its weight there.
+    struct Hit {
+        std::uint32_t slot, term;
+        float w;
+    };
+
     template <typename F>
     void visit(const std::vector<GaussianRef>& out, const std::vector<GaussianRef>& in, F&& f) const;
+    template <typename Side>
+    void hitsOf(const Side& side, std::uint32_t term, std::vector<Hit>& hits) const;
 
-    std::vector<float> mX; ///< [P,3] by slot (PointBuckets::pointAt), as every array below
+    std::vector<float> mX[3]; ///< [P] per axis, by slot (PointBuckets::pointAt), as every array below
     FeatureOptions mOptions;
     int mStride;
     PointBuckets mBuckets;
