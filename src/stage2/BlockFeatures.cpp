@@ -5,9 +5,8 @@
 #include <limits>
 #include <numeric>
 
-#include <tbb/parallel_sort.h>
-
 #include "core/Error.h"
+#include "core/MortonOrder.h"
 #include "core/ParallelFor.h"
 #include "field/FeatureDevice.h"
 #include "stage2/BlockLoops.h"
@@ -38,17 +37,6 @@ CoverageSlabs preparedSlabs(const GaussianCloud& cloud, std::size_t i, const Pre
     return s;
 }
 
-/// 10 bits per axis interleaved: the point's cell of a 1024^3 lattice over [lo, hi].
-std::uint64_t mortonKey(const float* p, const float* lo, const float* scale)
-{
-    std::uint64_t key = 0;
-    std::uint32_t c[3];
-    for (int a = 0; a < 3; ++a) c[a] = std::uint32_t(std::clamp((double(p[a]) - lo[a]) * scale[a], 0.0, 1023.0));
-    for (int bit = 9; bit >= 0; --bit)
-        for (int a = 0; a < 3; ++a) key = (key << 1) | ((c[a] >> bit) & 1u);
-    return key;
-}
-
 /// Points in Morton order with their block cell: the coarsest level of the Morton lattice whose
 /// cells hold at least kPointsPerCell points on average (SampleBlocks cuts longer runs).
 struct MortonBlocks {
@@ -59,24 +47,9 @@ struct MortonBlocks {
 
     MortonBlocks(const float* x, std::size_t m, bool threaded)
     {
-        float lo[3], hi[3], scale[3];
-        for (int a = 0; a < 3; ++a) lo[a] = hi[a] = x[a];
-        for (std::size_t j = 0; j < m; ++j)
-            for (int a = 0; a < 3; ++a) {
-                lo[a] = std::min(lo[a], x[3 * j + a]);
-                hi[a] = std::max(hi[a], x[3 * j + a]);
-            }
-        for (int a = 0; a < 3; ++a) scale[a] = hi[a] > lo[a] ? float(1023.999 / (double(hi[a]) - lo[a])) : 0.0f;
-        std::vector<std::uint64_t> key(m);
-        parallelFor(m, 4096, threaded, [&](std::size_t j) { key[j] = mortonKey(x + 3 * j, lo, scale); });
-        order.resize(m);
-        std::iota(order.begin(), order.end(), 0u);
-        // A total order (ties by index), so any sort gives the same permutation.
-        const auto before = [&](std::uint32_t a, std::uint32_t b) { return key[a] < key[b] || (key[a] == key[b] && a < b); };
-        if (threaded)
-            tbb::parallel_sort(order.begin(), order.end(), before);
-        else
-            std::sort(order.begin(), order.end(), before);
+        MortonOrder sorted(x, m, threaded);
+        const std::vector<std::uint64_t>& key = sorted.key;
+        order = std::move(sorted.order);
         int shift = 0; // bits dropped: cells of 2^(shift/3) finest cells a side
         for (; shift < 30; shift += 3)
             if (m >= kPointsPerCell * distinct(key, shift)) break;

@@ -42,8 +42,9 @@ TEST(SkinWeightMath, BruteForceMatchesNanoflann)
         const SkinWeights ref = graph.skinWeights(points.data(), points.size() / 3);
         const SkinWeights got = bruteWeights(graph, points);
         ASSERT_EQ(got.k, ref.k);
-        // Random float points have no exact distance ties, so the node lists agree exactly; the
-        // squared distances are computed the same way in double (dx^2 + dy^2 + dz^2), so the weights
+        // Random points are spread (skinWeights() searches them in Morton order, each run near
+        // its nodes). Random float points have no exact distance ties, so the node lists agree
+        // exactly; the squared distances are computed the same way in double (dx^2 + dy^2 + dz^2), so the weights
         // are identical too.
         EXPECT_EQ(got.nodes, ref.nodes) << "k " << k;
         EXPECT_EQ(got.weights, ref.weights) << "k " << k;
