@@ -44,8 +44,8 @@ TEST(SkinWeightMath, BruteForceMatchesNanoflann)
         ASSERT_EQ(got.k, ref.k);
         // Random points are spread (skinWeights() searches them in Morton order, each run near
         // its nodes). Random float points have no exact distance ties, so the node lists agree
-        // exactly; the squared distances are computed the same way in double (dx^2 + dy^2 + dz^2), so the weights
-        // are identical too.
+        // exactly; the squared distances are computed the same way in double (dx^2 + dy^2 + dz^2),
+        // so the weights are identical too.
         EXPECT_EQ(got.nodes, ref.nodes) << "k " << k;
         EXPECT_EQ(got.weights, ref.weights) << "k " << k;
     }
