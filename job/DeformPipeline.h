@@ -107,7 +107,7 @@ struct DeformRest {
     std::optional<JudgeRest> validation;         ///< the judge's rule with another seed: Stage II's choice
     std::optional<HeldOutPoints> latticePoints;  ///< training-lattice points X; warped per frame
     std::optional<FieldErrorTarget> latticeRest; ///< rest features at X with the grid's filter, not yet rotated
-    double readMs = 0, graphMs = 0, rigMs = 0, sampleGridMs = 0, heldOutMs = 0, validationMs = 0;
+    double readMs = 0, graphMs = 0, rigMs = 0, sampleGridMs = 0, heldOutMs = 0, latticeMs = 0, validationMs = 0;
 
     DeformRest() = default;
     DeformRest(const DeformRest&) = delete;
