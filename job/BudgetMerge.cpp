@@ -173,15 +173,14 @@ std::vector<std::vector<std::size_t>> groupsToMerge(const Judge& validation, con
     report.before = residuals.score();
     std::vector<std::vector<MergeStep>> stepsOf(families.size());
     parallelFor(families.size(), 64, validation.points().features.threaded, [&](std::size_t f) {
-        const std::vector<GaussianRef> out = refsOf(model, families[f]);
-        const double w = residuals.change(out, {{&whole, f}});
-        double p = 0;
+        std::vector<std::vector<GaussianRef>> in{{{&whole, f}}}; // whole, then (when made) the runs
         if (!runs[f].empty()) {
-            std::vector<GaussianRef> in;
-            for (std::size_t r = 0; r < runs[f].size(); ++r) in.push_back({&parts, runStart[f] + r});
-            p = residuals.change(out, in);
+            in.emplace_back();
+            for (std::size_t r = 0; r < runs[f].size(); ++r) in.back().push_back({&parts, runStart[f] + r});
         }
-        addSteps(f, families[f].size(), runs[f].size(), w, p, stepsOf[f]);
+        double loss[2] = {0, 0};
+        residuals.changes(refsOf(model, families[f]), in, loss);
+        addSteps(f, families[f].size(), runs[f].size(), loss[0], loss[1], stepsOf[f]);
     });
     std::vector<MergeStep> steps;
     for (const auto& s : stepsOf) steps.insert(steps.end(), s.begin(), s.end());

@@ -41,8 +41,10 @@ const GaussianCloud* bestFor(const ValidationResiduals& residuals, const std::ve
                              const GaussianCloud& kept, std::size_t i)
 {
     const std::vector<GaussianRef> ins = versionsOf(candidates, kept, i);
+    std::vector<std::vector<GaussianRef>> each;
+    for (const GaussianRef& r : ins) each.push_back({r});
     std::vector<double> change(ins.size());
-    residuals.changes({&kept, i}, ins, change.data());
+    residuals.changes({{&kept, i}}, each, change.data());
     const GaussianCloud* best = nullptr;
     double bestChange = 0.0;
     for (std::size_t c = 0; c < ins.size(); ++c)

@@ -184,84 +184,80 @@ void ValidationResiduals::hitsOf(const Side& side, std::uint32_t term, std::vect
     });
 }
 
-template <typename F>
-void ValidationResiduals::visit(const std::vector<GaussianRef>& out, const std::vector<GaussianRef>& in, F&& f) const
+void ValidationResiduals::sideHits(const std::vector<GaussianRef>& sides, std::vector<Hit>& hits,
+                                   std::vector<const float*>& sh) const
 {
-    // Each side's hits, then point by point (slots ascending) the sides that count there in the
-    // order given, out before in: a point no side reaches changes nothing and is not visited.
-    thread_local std::vector<Hit> hits;
     hits.clear();
-    std::vector<const float*> sh;
-    for (int side = 0; side < 2; ++side)
-        for (const GaussianRef& r : side ? in : out) {
-            hitsOf(SwapSide(r, mOptions), std::uint32_t(sh.size()), hits);
-            sh.push_back(r.cloud->shOf(r.index));
-        }
-    std::sort(hits.begin(), hits.end(), [](const Hit& a, const Hit& b) { return a.slot != b.slot ? a.slot < b.slot : a.term < b.term; });
-    const std::size_t outs = out.size();
-    std::vector<double> dF(static_cast<std::size_t>(mStride));
-    for (std::size_t h = 0; h < hits.size();) {
-        const std::uint32_t j = hits[h].slot;
+    for (const GaussianRef& r : sides) {
+        hitsOf(SwapSide(r, mOptions), std::uint32_t(sh.size()), hits);
+        sh.push_back(r.cloud->shOf(r.index));
+    }
+    if (sides.size() > 1)
+        std::sort(hits.begin(), hits.end(), [](const Hit& x, const Hit& y) { return x.slot != y.slot ? x.slot < y.slot : x.term < y.term; });
+}
+
+template <typename F>
+void ValidationResiduals::forEachPoint(const std::vector<Hit>& out, const std::vector<Hit>& in, std::size_t outs,
+                                       const std::vector<const float*>& sh, F&& f) const
+{
+    // Point by point (slots ascending) the sides that count there in term order, out before in (in's
+    // terms follow out's): a point no side reaches changes nothing and is not visited.
+    thread_local std::vector<double> dF;
+    dF.assign(std::size_t(mStride), 0.0);
+    std::size_t a = 0, b = 0;
+    const auto add = [&](const Hit& h) {
+        const double w = double(h.w) * (h.term < outs ? -1.0 : 1.0);
+        const float* c = sh[h.term];
+        for (int s = 0; s < mStride; ++s) dF[std::size_t(s)] += w * double(c[s]);
+        return w;
+    };
+    while (a < out.size() || b < in.size()) {
+        const std::uint32_t j = b == in.size() || (a < out.size() && out[a].slot <= in[b].slot) ? out[a].slot : in[b].slot;
         double dO = 0;
         std::fill(dF.begin(), dF.end(), 0.0);
-        for (; h < hits.size() && hits[h].slot == j; ++h) {
-            const double w = double(hits[h].w) * (hits[h].term < outs ? -1.0 : 1.0);
-            dO += w;
-            const float* c = sh[hits[h].term];
-            for (int s = 0; s < mStride; ++s) dF[std::size_t(s)] += w * double(c[s]);
-        }
+        for (; a < out.size() && out[a].slot == j; ++a) dO += add(out[a]);
+        for (; b < in.size() && in[b].slot == j; ++b) dO += add(in[b]);
         f(j, dO, dF.data());
     }
 }
 
-double ValidationResiduals::change(const std::vector<GaussianRef>& out, const std::vector<GaussianRef>& in) const
+template <typename F>
+void ValidationResiduals::visit(const std::vector<GaussianRef>& out, const std::vector<GaussianRef>& in, F&& f) const
 {
-    double o = 0, c = 0;
-    visit(out, in, [&](std::size_t j, double dO, const double* dF) {
-        o += (std::fabs(mO[j] + dO) - std::fabs(mO[j])) * mWeight[j];
-        const double* r = mF.data() + j * std::size_t(mStride);
-        double cj = 0;
-        for (int s = 0; s < mStride; ++s) cj += std::fabs(r[s] + dF[s]) - std::fabs(r[s]);
-        c += cj * mWeight[j];
-    });
-    return o * mWeightO + c * mWeightF;
+    thread_local std::vector<Hit> outHits, inHits;
+    std::vector<const float*> sh;
+    sideHits(out, outHits, sh);
+    sideHits(in, inHits, sh);
+    forEachPoint(outHits, inHits, out.size(), sh, f);
 }
 
-void ValidationResiduals::changes(GaussianRef out, const std::vector<GaussianRef>& ins, double* result) const
+double ValidationResiduals::change(const std::vector<GaussianRef>& out, const std::vector<GaussianRef>& in) const
 {
-    // out's hits found once; each candidate's merged with them, slots ascending: the points and
-    // sums change({out}, {in}) would make.
-    const SwapSide o(out, mOptions);
+    double result = 0;
+    changes(out, {in}, &result);
+    return result;
+}
+
+void ValidationResiduals::changes(const std::vector<GaussianRef>& out, const std::vector<std::vector<GaussianRef>>& ins,
+                                  double* result) const
+{
+    // out's hits found once, each candidate's merged with them: the points and sums of change(out,
+    // in) for each, one at a time.
     thread_local std::vector<Hit> outHits, inHits;
-    outHits.clear();
-    hitsOf(o, 0, outHits);
-    const std::size_t stride = std::size_t(mStride);
+    std::vector<const float*> sh;
+    sideHits(out, outHits, sh);
     for (std::size_t c = 0; c < ins.size(); ++c) {
-        const SwapSide in(ins[c], mOptions);
-        inHits.clear();
-        hitsOf(in, 1, inHits);
-        double sumO = 0, sumF = 0;
-        for (std::size_t a = 0, b = 0; a < outHits.size() || b < inHits.size();) {
-            const std::uint32_t j = b == inHits.size() || (a < outHits.size() && outHits[a].slot <= inHits[b].slot)
-                                        ? outHits[a].slot
-                                        : inHits[b].slot;
-            const double wOut = a < outHits.size() && outHits[a].slot == j ? double(outHits[a++].w) * -1.0 : 0.0;
-            const double wIn = b < inHits.size() && inHits[b].slot == j ? double(inHits[b++].w) : 0.0;
-            double dO = 0;
-            if (wOut != 0.0) dO += wOut;
-            if (wIn != 0.0) dO += wIn;
-            sumO += (std::fabs(mO[j] + dO) - std::fabs(mO[j])) * mWeight[j];
-            const double* r = mF.data() + j * stride;
+        sh.resize(out.size());
+        sideHits(ins[c], inHits, sh);
+        double o = 0, f = 0;
+        forEachPoint(outHits, inHits, out.size(), sh, [&](std::size_t j, double dO, const double* dF) {
+            o += (std::fabs(mO[j] + dO) - std::fabs(mO[j])) * mWeight[j];
+            const double* r = mF.data() + j * std::size_t(mStride);
             double cj = 0;
-            for (std::size_t s = 0; s < stride; ++s) {
-                double dF = 0;
-                if (wOut != 0.0) dF += wOut * double(o.sh[s]);
-                if (wIn != 0.0) dF += wIn * double(in.sh[s]);
-                cj += std::fabs(r[s] + dF) - std::fabs(r[s]);
-            }
-            sumF += cj * mWeight[j];
-        }
-        result[c] = sumO * mWeightO + sumF * mWeightF;
+            for (int s = 0; s < mStride; ++s) cj += std::fabs(r[s] + dF[s]) - std::fabs(r[s]);
+            f += cj * mWeight[j];
+        });
+        result[c] = o * mWeightO + f * mWeightF;
     }
 }
 

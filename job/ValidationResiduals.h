@@ -74,9 +74,9 @@ public:
     double change(const std::vector<GaussianRef>& out, const std::vector<GaussianRef>& in) const;
     /// Record that swap.
     void apply(const std::vector<GaussianRef>& out, const std::vector<GaussianRef>& in);
-    /// change({out}, {ins[c]}) for each c into result[c], the same bits, in one visit of the
-    /// points (out's weights are computed once).
-    void changes(GaussianRef out, const std::vector<GaussianRef>& ins, double* result) const;
+    /// change(out, ins[c]) for each c into result[c], the same bits, out's hits found once.
+    void changes(const std::vector<GaussianRef>& out, const std::vector<std::vector<GaussianRef>>& ins,
+                 double* result) const;
     /// The buckets changes(out, ins) reads; apply({out}, {one of ins}) writes within them.
     BucketRange reads(GaussianRef out, const std::vector<GaussianRef>& ins) const;
     /// Buckets along axis a.
@@ -93,6 +93,13 @@ private:
     void visit(const std::vector<GaussianRef>& out, const std::vector<GaussianRef>& in, F&& f) const;
     template <typename Side>
     void hitsOf(const Side& side, std::uint32_t term, std::vector<Hit>& hits) const;
+    /// The hits of `sides` into hits (terms numbered on from sh.size(), whose SH they append),
+    /// slots ascending, then terms.
+    void sideHits(const std::vector<GaussianRef>& sides, std::vector<Hit>& hits, std::vector<const float*>& sh) const;
+    /// f(slot, dO, dF) at each point out's or in's hits reach: the signed sums of their weights.
+    template <typename F>
+    void forEachPoint(const std::vector<Hit>& out, const std::vector<Hit>& in, std::size_t outs,
+                      const std::vector<const float*>& sh, F&& f) const;
 
     std::vector<float> mX[3]; ///< [P] per axis, by slot (PointBuckets::pointAt), as every array below
     FeatureOptions mOptions;
