@@ -12,6 +12,7 @@
 #include "core/Error.h"
 #include "core/MortonOrder.h"
 #include "core/ParallelFor.h"
+#include "core/Simd.h"
 #include "deform/SkinWeightMath.h"
 
 namespace splatwarp {
@@ -197,17 +198,54 @@ bool spreadRuns(const detail::NodeIndex& index, const float* points, std::size_t
     return 2 * spread > runs;
 }
 
-/// The `query` nearest of the candidate nodes to q, nearest first (ties: lower node first), with
-/// the tree's distance arithmetic ((dx^2 + dy^2) + dz^2 in double).
-void nearestAmong(const std::vector<double>& xyz, const std::vector<std::int32_t>& candidates, const double* q,
-                  std::size_t query, std::int32_t* idx, double* d2)
-{
-    std::size_t found = 0;
-    for (const std::int32_t n : candidates) {
-        const double dx = q[0] - xyz[3 * std::size_t(n)], dy = q[1] - xyz[3 * std::size_t(n) + 1],
-                     dz = q[2] - xyz[3 * std::size_t(n) + 2];
-        insertNearest(dx * dx + dy * dy + dz * dz, n, query, found, idx, d2);
+/// A run's candidate nodes, nearest the run's first point first (so each point's list fills with
+/// near nodes and the rest are dropped at one comparison; insertNearest() gives the same list in
+/// any order), coordinates by axis (for the distance loop).
+struct RunNodes {
+    std::vector<std::int32_t> id;
+    std::vector<double> x, y, z;
+
+    RunNodes(const std::vector<double>& xyz, std::vector<std::int32_t> candidates, const float* first) : id(std::move(candidates))
+    {
+        const auto d = [&](std::int32_t n) {
+            double s = 0;
+            for (int a = 0; a < 3; ++a) s += (xyz[3 * std::size_t(n) + std::size_t(a)] - first[a]) * (xyz[3 * std::size_t(n) + std::size_t(a)] - first[a]);
+            return s;
+        };
+        std::vector<std::pair<double, std::int32_t>> byDistance;
+        for (const std::int32_t n : id) byDistance.push_back({d(n), n});
+        std::sort(byDistance.begin(), byDistance.end());
+        for (std::size_t c = 0; c < id.size(); ++c) id[c] = byDistance[c].second;
+        for (const std::int32_t n : id) {
+            x.push_back(xyz[3 * std::size_t(n)]);
+            y.push_back(xyz[3 * std::size_t(n) + 1]);
+            z.push_back(xyz[3 * std::size_t(n) + 2]);
+        }
     }
+};
+
+/// Squared distances from q to each node, the tree's arithmetic per lane ((dx^2 + dy^2) + dz^2 in
+/// double): a loop without branches, vectorised.
+SPLATWARP_SIMD_CLONES
+void squaredDistances(const RunNodes& nodes, const double* q, double* d)
+{
+    const std::size_t n = nodes.id.size();
+    const double *x = nodes.x.data(), *y = nodes.y.data(), *z = nodes.z.data();
+    for (std::size_t c = 0; c < n; ++c) {
+        const double dx = q[0] - x[c], dy = q[1] - y[c], dz = q[2] - z[c];
+        d[c] = dx * dx + dy * dy + dz * dz;
+    }
+}
+
+/// The `query` nearest of the candidate nodes to q, nearest first (ties: lower node first), with
+/// the tree's distance arithmetic.
+void nearestAmong(const RunNodes& nodes, const double* q, std::size_t query, std::int32_t* idx, double* d2,
+                  std::vector<double>& scratch)
+{
+    scratch.resize(nodes.id.size());
+    squaredDistances(nodes, q, scratch.data());
+    std::size_t found = 0;
+    for (std::size_t c = 0; c < nodes.id.size(); ++c) insertNearest(scratch[c], nodes.id[c], query, found, idx, d2);
 }
 
 } // namespace
@@ -232,16 +270,16 @@ SkinWeights DeformationGraph::skinWeights(const float* points, std::size_t count
         const std::size_t r0 = run * kRun, r1 = std::min(count, r0 + kRun);
         std::vector<float> x(3 * (r1 - r0));
         for (std::size_t s = r0; s != r1; ++s) std::copy_n(points + 3 * at(s), 3, &x[3 * (s - r0)]);
-        const std::vector<std::int32_t> candidates = runCandidates(*mIndex, x.data(), 0, r1 - r0, query);
+        const RunNodes candidates(mIndex->cloud.xyz, runCandidates(*mIndex, x.data(), 0, r1 - r0, query), x.data());
         std::vector<std::int32_t> idx(query);
-        std::vector<double> d2(query), wt(k);
+        std::vector<double> d2(query), wt(k), scratch;
         for (std::size_t s = r0; s != r1; ++s) {
             const float* xp = &x[3 * (s - r0)];
             const double q[3] = {xp[0], xp[1], xp[2]};
-            if (candidates.empty())
+            if (candidates.id.empty())
                 mIndex->nearest(q, query, idx.data(), d2.data());
             else
-                nearestAmong(mIndex->cloud.xyz, candidates, q, query, idx.data(), d2.data());
+                nearestAmong(candidates, q, query, idx.data(), d2.data(), scratch);
             const std::size_t p = at(s);
             skinWeightsFromDistances(d2.data(), query, k, wt.data(), &w.weights[p * k]);
             for (std::size_t i = 0; i < k; ++i) w.nodes[p * k + i] = idx[i];

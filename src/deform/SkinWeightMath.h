@@ -34,15 +34,17 @@ SPLATWARP_HOST_DEVICE void skinWeightsFromDistances(const double* d2, std::size_
     for (std::size_t i = 0; i < k; ++i) weights[i] = float(uniform ? 1.0 / double(k) : scratch[i] / sum);
 }
 
-/// @brief Node n at squared distance d into the `found` nearest so far (idx, d2 sorted, nearest
-///        first, at most `query`): shifted in after the strictly nearer ones, so an equal distance
-///        keeps the node inserted earlier first; dropped when not nearer than the farthest of a full list.
+/// @brief Node n at squared distance d into the `found` nearest so far (idx, d2 sorted by distance
+///        then node, nearest first, at most `query`), so the list is the same in any insertion
+///        order (an equal distance: the lower node first); dropped when it would come after the
+///        last of a full list.
 SPLATWARP_HOST_DEVICE void insertNearest(double d, std::int32_t n, std::size_t query, std::size_t& found,
                                          std::int32_t* idx, double* d2)
 {
-    if (found == query && !(d < d2[query - 1])) return;
+    const auto before = [&](std::size_t i) { return d < d2[i] || (d == d2[i] && n < idx[i]); };
+    if (found == query && !before(query - 1)) return;
     std::size_t at = found < query ? found : query - 1;
-    while (at > 0 && d < d2[at - 1]) {
+    while (at > 0 && before(at - 1)) {
         d2[at] = d2[at - 1];
         idx[at] = idx[at - 1];
         --at;
