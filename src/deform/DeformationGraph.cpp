@@ -205,17 +205,21 @@ struct RunNodes {
     std::vector<std::int32_t> id;
     std::vector<double> x, y, z;
 
-    RunNodes(const std::vector<double>& xyz, std::vector<std::int32_t> candidates, const float* first) : id(std::move(candidates))
+    RunNodes(const std::vector<double>& xyz, std::vector<std::int32_t> candidates, const float* first)
+        : id(std::move(candidates))
     {
-        const auto d = [&](std::int32_t n) {
-            double s = 0;
-            for (int a = 0; a < 3; ++a) s += (xyz[3 * std::size_t(n) + std::size_t(a)] - first[a]) * (xyz[3 * std::size_t(n) + std::size_t(a)] - first[a]);
-            return s;
-        };
         std::vector<std::pair<double, std::int32_t>> byDistance;
-        for (const std::int32_t n : id) byDistance.push_back({d(n), n});
-        std::sort(byDistance.begin(), byDistance.end());
-        for (std::size_t c = 0; c < id.size(); ++c) id[c] = byDistance[c].second;
+        bool finite = true;
+        for (const std::int32_t n : id) {
+            const double* c = &xyz[3 * std::size_t(n)];
+            const double dx = c[0] - first[0], dy = c[1] - first[1], dz = c[2] - first[2];
+            byDistance.push_back({dx * dx + dy * dy + dz * dz, n});
+            finite = finite && std::isfinite(byDistance.back().first);
+        }
+        if (finite) { // (a point that is not finite keeps the nodes' order: any order gives the same lists)
+            std::sort(byDistance.begin(), byDistance.end());
+            for (std::size_t c = 0; c < id.size(); ++c) id[c] = byDistance[c].second;
+        }
         for (const std::int32_t n : id) {
             x.push_back(xyz[3 * std::size_t(n)]);
             y.push_back(xyz[3 * std::size_t(n) + 1]);
