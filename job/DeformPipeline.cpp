@@ -609,6 +609,17 @@ GraphOptions graphOptionsOf(const DeformSpec& spec, const DeformJobOptions& o)
 namespace {
 
 /// The rest side past the model: graph, Stage I rig, sample grid, the validation and judge points.
+/// Whether the run judges (the held-out errors: the judge's points and the training lattice's).
+bool judges(const DeformJobOptions& o) { return o.evaluate || o.evalEvery > 0; }
+
+/// The held-out point options on the rest side's device.
+HeldOutOptions heldOutOn(const DeformRest& rest, const DeformJobOptions& o)
+{
+    HeldOutOptions h = o.heldOut;
+    h.device = rest.device;
+    return h;
+}
+
 /// The rest field sampled into sparse cells (every frame warps a copy of it) and, when judging,
 /// the training lattice's points drawn from it.
 void prepareGridOf(DeformRest& rest, const DeformJobOptions& o)
@@ -619,11 +630,9 @@ void prepareGridOf(DeformRest& rest, const DeformJobOptions& o)
     gridOptions.extraBytesPerSample += stageTwoBytesPerSample(rest.model.shDegree);
     rest.grid = runStage("sample grid", [&] { return std::make_unique<SampleGrid>(rest.model, gridOptions); });
     rest.sampleGridMs = clock.ms();
-    if (!(o.evaluate || o.evalEvery > 0)) return;
+    if (!judges(o)) return;
     clock.reset();
-    HeldOutOptions heldOutOptions = o.heldOut;
-    heldOutOptions.device = rest.device;
-    rest.latticePoints = drawHeldOutPoints(*rest.grid, heldOutOptions);
+    rest.latticePoints = drawHeldOutPoints(*rest.grid, heldOutOn(rest, o));
     rest.latticeRest = unrotatedTarget(rest.model, *rest.latticePoints);
     rest.latticeMs = clock.ms();
 }
@@ -633,8 +642,7 @@ void prepareValidationOf(DeformRest& rest, const DeformJobOptions& o)
 {
     if (!o.keepValidated) return;
     Stopwatch clock;
-    HeldOutOptions validation = o.heldOut;
-    validation.device = rest.device;
+    HeldOutOptions validation = heldOutOn(rest, o);
     validation.seed ^= kValidationSeedXor;
     rest.validation = prepareValidationRest(rest.model, validation);
     rest.validationMs = clock.ms();
@@ -645,13 +653,11 @@ void prepareValidationOf(DeformRest& rest, const DeformJobOptions& o)
 /// The judge's held-out points at rest.
 void prepareJudgeOf(DeformRest& rest, const DeformJobOptions& o)
 {
-    if (!(o.evaluate || o.evalEvery > 0)) return;
+    if (!judges(o)) return;
     Stopwatch clock;
-    HeldOutOptions heldOutOptions = o.heldOut;
-    heldOutOptions.device = rest.device;
-    rest.judge = prepareJudgeRest(rest.model, heldOutOptions);
+    rest.judge = prepareJudgeRest(rest.model, heldOutOn(rest, o));
     rest.heldOutMs = clock.ms();
-    progress(msg("judge: ", heldOutOptions.points, " held-out points in the rest model's active region (", int(rest.heldOutMs),
+    progress(msg("judge: ", o.heldOut.points, " held-out points in the rest model's active region (", int(rest.heldOutMs),
                  " ms)"));
 }
 

@@ -113,14 +113,12 @@ double ValidationResiduals::score() const
 
 namespace {
 
-/// One side of a swap: the prepared Gaussian, its SH and its box.
+/// One side of a swap: the prepared Gaussian and its box.
 struct SwapSide {
     PreparedGaussian g;
-    const float* sh;
     float lo[3], hi[3];
 
-    SwapSide(GaussianRef r, const FeatureOptions& o)
-        : g(prepareGaussian(*r.cloud, r.index, o.filterVariance, o.cutoff)), sh(r.cloud->shOf(r.index))
+    SwapSide(GaussianRef r, const FeatureOptions& o) : g(prepareGaussian(*r.cloud, r.index, o.filterVariance, o.cutoff))
     {
         preparedBox(g, lo, hi);
     }

@@ -32,10 +32,6 @@ struct PointLattice {
 /// @brief A box of buckets [lo, hi] per axis (empty: lo > hi on some axis).
 struct BucketRange {
     std::int64_t lo[3] = {0, 0, 0}, hi[3] = {-1, -1, -1};
-    bool contains(std::int64_t i, std::int64_t j, std::int64_t k) const
-    {
-        return i >= lo[0] && i <= hi[0] && j >= lo[1] && j <= hi[1] && k >= lo[2] && k <= hi[2];
-    }
 };
 
 /// @brief The validation points bucketed in a uniform grid, to visit the ones near a box.
