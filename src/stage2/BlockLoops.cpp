@@ -275,25 +275,28 @@ inline __attribute__((always_inline)) void backwardPair(const float* kept, unsig
 
 SPLATWARP_SIMD_CLONES void blockBackward(const BlockGaussians& gs, int lanes, const std::uint8_t* chunks, const float* kept,
                                          const std::uint32_t* keptAt, const float* gF, const float* gO, int stride,
-                                         float* partials)
+                                         float* partials, std::uint32_t first, std::uint32_t* slots)
 {
     const std::size_t pitch = std::size_t(kPairSums + stride);
+    std::uint32_t slot = first;
     for (std::size_t i = 0; i < gs.n; ++i) {
         if (chunks[i] == 0) continue;
         const std::uint32_t k = gs.items[i];
         backwardPair(kept + keptAt[i], chunks[i], lanes, gF, gO, gs.sh + k * gs.shPitch, stride, gs.prepared[k].alpha,
-                     partials + i * pitch);
+                     partials + std::size_t(slot - first) * pitch);
+        slots[i] = slot++;
     }
 }
 
-SPLATWARP_SIMD_CLONES void gatherPartials(const float* partials, std::size_t pitch, const std::uint32_t* entries,
-                                          std::size_t n, const std::uint8_t* chunks, double* sums)
+SPLATWARP_SIMD_CLONES void gatherPartials(const float* partials, std::size_t pitch, const std::uint32_t* slots,
+                                          const std::uint32_t* entries, std::size_t n, const std::uint8_t* chunks,
+                                          double* sums)
 {
     const std::size_t wide = pitch / 4 * 4;
     for (std::size_t i = 0; i < n; ++i) {
         const std::uint32_t e = entries[i];
         if (chunks[e] == 0) continue;
-        const float* in = partials + std::size_t(e) * pitch;
+        const float* in = partials + std::size_t(slots[e]) * pitch;
         for (std::size_t c = 0; c < wide; c += 4) {
             VecF4 v;
             std::memcpy(&v, in + c, sizeof v);

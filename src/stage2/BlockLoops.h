@@ -76,16 +76,21 @@ constexpr int kPairSums = 10;
 
 /// @brief The backward sums of each counting pair of a block (pairBackward() per pair, per-lane
 ///        float partial sums, lanes reduced in double in a fixed order) from what blockForward()
-///        kept. Pairs with no counting chunk are left alone.
+///        kept, packed: only counting pairs take room (a pass counts about half of the coverage's
+///        pairs, and room per listed pair kept every page of it resident).
 /// @param gF  [stride][lanes] dE/dF; gO: [lanes] dE/dO (0 in padding)
-/// @param partials  out [n, kPairSums + stride]: dE/dmu, dE/dSigma' (upper triangle), dE/dalpha, dE/dH
+/// @param partials  out [counting pairs, kPairSums + stride], in entry order: dE/dmu, dE/dSigma'
+///                  (upper triangle), dE/dalpha, dE/dH
+/// @param first     the slot of the block's first counting pair
+/// @param slots     out [n]: each counting pair's slot (first, first + 1, ...); the others untouched
 void blockBackward(const BlockGaussians& gs, int lanes, const std::uint8_t* chunks, const float* kept,
-                   const std::uint32_t* keptAt, const float* gF, const float* gO, int stride, float* partials);
+                   const std::uint32_t* keptAt, const float* gF, const float* gO, int stride, float* partials,
+                   std::uint32_t first, std::uint32_t* slots);
 
-/// @brief sums[c] += partials[e * pitch + c] in double for each entry e of `entries` in order
-///        whose chunks[e] is not 0 (one Gaussian's pairs gathered in a fixed order).
-void gatherPartials(const float* partials, std::size_t pitch, const std::uint32_t* entries, std::size_t n,
-                    const std::uint8_t* chunks, double* sums);
+/// @brief sums[c] += partials[slots[e] * pitch + c] in double for each entry e of `entries` in
+///        order whose chunks[e] is not 0 (one Gaussian's pairs gathered in a fixed order).
+void gatherPartials(const float* partials, std::size_t pitch, const std::uint32_t* slots, const std::uint32_t* entries,
+                    std::size_t n, const std::uint8_t* chunks, double* sums);
 
 /// @brief sampleLoss() on every lane of a block (the same operations per lane, so the same bits).
 ///        Lanes at or past `samples` get zero gradients and terms.

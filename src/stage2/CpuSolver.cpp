@@ -116,7 +116,9 @@ private:
     std::vector<double> mBlockEnergy; // [B,3] each block's loss terms summed in sample order
     std::vector<std::uint64_t> mBlockPairs; // [B] counted pairs of the last forward pass
     BigVector<std::uint8_t> mPairChunks; // [block-major coverage entries] counting chunks of the last forward pass
-    BigVector<float> mPartials;          // [block-major coverage entries, kPartial + stride] backward sums of each counting pair
+    BigVector<float> mPartials;          // [counting pairs of the last pass, kPartial + stride] their backward sums, packed
+    BigVector<std::uint32_t> mPartialSlot; // [block-major coverage entries] a counting pair's row of mPartials
+    std::atomic<std::uint64_t> mPartialsUsed{0}; // rows of mPartials the blocks of this pass have taken
     StageTwoProbe* mProbe = nullptr;
     StageTwoPhaseTimes mTimes;
     // Thread time of the fused pass's two halves (forwardBlock()), to split its wall time between
@@ -298,8 +300,11 @@ std::uint64_t CpuSolver::forwardBlock(std::size_t b)
     }
     if (mProbe) keepOutputs(b, f, o, gF, gO);
     const auto t1 = std::chrono::steady_clock::now();
-    blockBackward(gs, pts.lanes, mPairChunks.data() + e0, kept.data(), keptAt.data(), gF, gO, mStride,
-                  mPartials.data() + e0 * partialStride());
+    const std::uint8_t* chunks = mPairChunks.data() + e0;
+    const std::size_t counting = gs.n - std::size_t(std::count(chunks, chunks + gs.n, std::uint8_t(0)));
+    const std::uint64_t first = mPartialsUsed.fetch_add(counting, std::memory_order_relaxed); // rows in any order: the gather reads by slot
+    blockBackward(gs, pts.lanes, chunks, kept.data(), keptAt.data(), gF, gO, mStride, mPartials.data() + first * partialStride(),
+                  std::uint32_t(first), mPartialSlot.data() + e0);
     const auto t2 = std::chrono::steady_clock::now();
     mForwardNs += std::chrono::duration_cast<std::chrono::nanoseconds>(t1 - t0).count();
     mPairBackwardNs += std::chrono::duration_cast<std::chrono::nanoseconds>(t2 - t1).count();
@@ -333,7 +338,12 @@ StageTwoEnergy CpuSolver::forward(int iteration, std::uint64_t& pairs)
         mProbe->gradO.assign(mS, 0.0f);
     }
     resizeDiscarding(mPairChunks, mCoverage.pairCount()); // rewritten by every pass
+    // At most every listed pair counts; the rows are taken from the front, so only the counting
+    // pairs' pages are ever touched (lastchance bend: Stage II's resident memory grew by 126 MB over
+    // its iterations with a row per listed pair).
     resizeDiscarding(mPartials, mCoverage.pairCount() * partialStride());
+    resizeDiscarding(mPartialSlot, mCoverage.pairCount());
+    mPartialsUsed = 0;
     parallelFor(mBlocks.count(), 4, mOptions.threaded, [&](std::size_t b) { mBlockPairs[b] = forwardBlock(b); });
     StageTwoEnergy e;
     e.iteration = iteration;
@@ -360,8 +370,8 @@ void CpuSolver::backwardGaussian(std::size_t k)
     double sums[kPartial + kMaxShStride] = {};
     const auto& offsets = mCoverage.gaussianOffsets();
     // Its pairs' sums in block order (the entries ascend): a fixed order for any thread count.
-    gatherPartials(mPartials.data(), ps, mCoverage.blockEntryOf().data() + offsets[k], std::size_t(offsets[k + 1] - offsets[k]),
-                   mPairChunks.data(), sums);
+    gatherPartials(mPartials.data(), ps, mPartialSlot.data(), mCoverage.blockEntryOf().data() + offsets[k],
+                   std::size_t(offsets[k + 1] - offsets[k]), mPairChunks.data(), sums);
     GaussianAccum<double> acc;
     acc.mean = Vec3d(sums[0], sums[1], sums[2]);
     const int upper[3][3] = {{0, 1, 2}, {1, 3, 4}, {2, 4, 5}};
