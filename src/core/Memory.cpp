@@ -4,6 +4,9 @@
 #include <cstdio>
 #include <cstdlib>
 #include <new>
+#if defined(__GLIBC__)
+#include <malloc.h>
+#endif
 #include <sys/mman.h>
 #include <unistd.h>
 
@@ -32,6 +35,13 @@ void* allocateLarge(std::size_t bytes)
 }
 
 void freeLarge(void* p) noexcept { std::free(p); }
+
+void releaseFreedMemory() noexcept
+{
+#if defined(__GLIBC__)
+    ::malloc_trim(0);
+#endif
+}
 
 std::size_t defaultMemoryBudget() { return physicalMemoryBytes() / 4 * 3; }
 

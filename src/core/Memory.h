@@ -33,6 +33,11 @@ std::string formatBytes(double bytes);
 void* allocateLarge(std::size_t bytes);
 void freeLarge(void* p) noexcept;
 
+/// @brief Hand the heap's free pages back to the system (glibc's malloc_trim; elsewhere nothing).
+///        For a loop that frees and allocates many blocks per round on several threads: freed
+///        memory stays resident in the threads' arenas and the fragments add up over the rounds.
+void releaseFreedMemory() noexcept;
+
 /// @brief Allocator of BigVector: allocateLarge(), and elements default-initialised (no zeroing on
 ///        resize(n); resize(n, value) and assign() still write their value).
 template <typename T>
