@@ -76,8 +76,8 @@ constexpr int kPairSums = 10;
 
 /// @brief The backward sums of each counting pair of a block (pairBackward() per pair, per-lane
 ///        float partial sums, lanes reduced in double in a fixed order) from what blockForward()
-///        kept, packed: only counting pairs take room (a pass counts about half of the coverage's
-///        pairs, and room per listed pair kept every page of it resident).
+///        kept, packed: only counting pairs take room (a pass counts about a quarter of the
+///        coverage's pairs, and room per listed pair kept most pages of it resident).
 /// @param gF  [stride][lanes] dE/dF; gO: [lanes] dE/dO (0 in padding)
 /// @param partials  out [counting pairs, kPairSums + stride], in entry order: dE/dmu, dE/dSigma'
 ///                  (upper triangle), dE/dalpha, dE/dH

@@ -343,8 +343,8 @@ StageTwoEnergy CpuSolver::forward(int iteration, std::uint64_t& pairs)
     }
     resizeDiscarding(mPairChunks, mCoverage.pairCount()); // rewritten by every pass
     // At most every listed pair counts; the rows are taken from the front, so only the counting
-    // pairs' pages are ever touched (lastchance bend: Stage II's resident memory grew by 126 MB over
-    // its iterations with a row per listed pair).
+    // pairs' pages are ever touched (guitar decoded twist: peak 0.94 -> 0.81 GB against a row per
+    // listed pair).
     resizeDiscarding(mPartials, mCoverage.pairCount() * partialStride());
     resizeDiscarding(mPartialSlot, mCoverage.pairCount());
     mPartialsUsed = 0;
