@@ -608,7 +608,6 @@ GraphOptions graphOptionsOf(const DeformSpec& spec, const DeformJobOptions& o)
 
 namespace {
 
-/// The rest side past the model: graph, Stage I rig, sample grid, the validation and judge points.
 /// Whether the run judges (the held-out errors: the judge's points and the training lattice's).
 bool judges(const DeformJobOptions& o) { return o.evaluate || o.evalEvery > 0; }
 
@@ -661,6 +660,7 @@ void prepareJudgeOf(DeformRest& rest, const DeformJobOptions& o)
                  " ms)"));
 }
 
+/// The rest side past the model: graph, Stage I rig, sample grid, the validation and judge points.
 void prepareRestOf(DeformRest& rest, const DeformJobOptions& o, const GraphOptions& graph)
 {
     if (o.maxGaussians) o.maxGaussians->limit(rest.model.size()); // refused before any work

@@ -205,21 +205,15 @@ struct RunNodes {
     std::vector<std::int32_t> id;
     std::vector<double> x, y, z;
 
-    RunNodes(const std::vector<double>& xyz, std::vector<std::int32_t> candidates, const float* first)
-        : id(std::move(candidates))
+    RunNodes(const std::vector<double>& xyz, std::vector<std::int32_t> candidates, const float* first);
+
+private:
+    /// x, y, z of the nodes of id, in its order.
+    void place(const std::vector<double>& xyz)
     {
-        std::vector<std::pair<double, std::int32_t>> byDistance;
-        bool finite = true;
-        for (const std::int32_t n : id) {
-            const double* c = &xyz[3 * std::size_t(n)];
-            const double dx = c[0] - first[0], dy = c[1] - first[1], dz = c[2] - first[2];
-            byDistance.push_back({dx * dx + dy * dy + dz * dz, n});
-            finite = finite && std::isfinite(byDistance.back().first);
-        }
-        if (finite) { // (a point that is not finite keeps the nodes' order: any order gives the same lists)
-            std::sort(byDistance.begin(), byDistance.end());
-            for (std::size_t c = 0; c < id.size(); ++c) id[c] = byDistance[c].second;
-        }
+        x.clear();
+        y.clear();
+        z.clear();
         for (const std::int32_t n : id) {
             x.push_back(xyz[3 * std::size_t(n)]);
             y.push_back(xyz[3 * std::size_t(n) + 1]);
@@ -239,6 +233,22 @@ void squaredDistances(const RunNodes& nodes, const double* q, double* d)
         const double dx = q[0] - x[c], dy = q[1] - y[c], dz = q[2] - z[c];
         d[c] = dx * dx + dy * dy + dz * dz;
     }
+}
+
+RunNodes::RunNodes(const std::vector<double>& xyz, std::vector<std::int32_t> candidates, const float* first)
+    : id(std::move(candidates))
+{
+    place(xyz);
+    const double q[3] = {first[0], first[1], first[2]};
+    std::vector<double> d(id.size());
+    squaredDistances(*this, q, d.data());
+    // (a point that is not finite keeps the nodes' order: any order gives the same lists)
+    if (!std::all_of(d.begin(), d.end(), [](double v) { return std::isfinite(v); })) return;
+    std::vector<std::pair<double, std::int32_t>> byDistance;
+    for (std::size_t c = 0; c < id.size(); ++c) byDistance.push_back({d[c], id[c]});
+    std::sort(byDistance.begin(), byDistance.end());
+    for (std::size_t c = 0; c < id.size(); ++c) id[c] = byDistance[c].second;
+    place(xyz);
 }
 
 /// The `query` nearest of the candidate nodes to q, nearest first (ties: lower node first), with
