@@ -144,7 +144,11 @@ JudgeRegion judgeRegion(const GaussianCloud& rest, bool threaded)
 
 HeldOutPoints drawJudgePoints(const GaussianCloud& rest, const HeldOutOptions& options)
 {
-    const JudgeRegion region = judgeRegion(rest);
+    return drawJudgePoints(judgeRegion(rest), options);
+}
+
+HeldOutPoints drawJudgePoints(const JudgeRegion& region, const HeldOutOptions& options)
+{
     HeldOutPoints out = drawInCells(region.cells.data(), region.size(), region.origin, region.cellSize, options);
     out.features = judgeFeatureOptions();
     out.features.device = options.device;

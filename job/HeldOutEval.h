@@ -58,6 +58,8 @@ FeatureOptions judgeFeatureOptions();
 /// @brief The fixed judge's held-out points: uniform over judgeRegion(rest), features with
 ///        judgeFeatureOptions(); depends on the rest model, points and seed only.
 HeldOutPoints drawJudgePoints(const GaussianCloud& rest, const HeldOutOptions& options = {});
+/// @brief The same points from judgeRegion(rest) made once (many draws of one model).
+HeldOutPoints drawJudgePoints(const JudgeRegion& region, const HeldOutOptions& options);
 
 /// @brief Draw held-out points in the grid's active cells and warp them with the deformation
 ///        (the training-lattice error: the grid's cells, cutoff and rest filter).

@@ -1,7 +1,6 @@
 #include "job/Judge.h"
 
 #include <algorithm>
-#include <numeric>
 #include <random>
 
 #include <cmath>
@@ -99,8 +98,6 @@ void appendPoint(const JudgeRest& from, std::size_t j, float weight, JudgeRest& 
 {
     const std::size_t stride = from.unrotated.features.size() / std::max<std::size_t>(from.unrotated.size(), 1);
     to.points.rest.insert(to.points.rest.end(), &from.points.rest[3 * j], &from.points.rest[3 * j] + 3);
-    to.points.warped.insert(to.points.warped.end(), &from.points.warped[3 * j], &from.points.warped[3 * j] + 3);
-    to.points.rotations.insert(to.points.rotations.end(), &from.points.rotations[9 * j], &from.points.rotations[9 * j] + 9);
     const double* f = &from.unrotated.features[stride * j];
     to.unrotated.features.insert(to.unrotated.features.end(), f, f + stride);
     to.unrotated.opacity.push_back(from.unrotated.opacity[j]);
@@ -111,19 +108,18 @@ void appendPoint(const JudgeRest& from, std::size_t j, float weight, JudgeRest& 
 
 /// Draws [first, last) of the judge's rule with their rest side, evaluated in one batch (the block
 /// engine gives each point the same bits in any batch); starts[d - first] is draw d's first point.
-JudgeRest drawsWithRest(const GaussianCloud& rest, const HeldOutOptions& options, int first, int last,
-                        std::vector<std::size_t>& starts)
+/// The points at rest only: the Judge warps them (48 bytes a point less than a HeldOutPoints').
+JudgeRest drawsWithRest(const GaussianCloud& rest, const JudgeRegion& region, const HeldOutOptions& options, int first,
+                        int last, std::vector<std::size_t>& starts)
 {
     JudgeRest all;
     starts.assign(1, 0);
     for (int d = first; d < last; ++d) {
         HeldOutOptions o = options;
         o.seed = options.seed + std::uint32_t(d);
-        const HeldOutPoints draw = drawJudgePoints(rest, o);
+        const HeldOutPoints draw = drawJudgePoints(region, o);
         all.points.features = draw.features;
         all.points.rest.insert(all.points.rest.end(), draw.rest.begin(), draw.rest.end());
-        all.points.warped.insert(all.points.warped.end(), draw.warped.begin(), draw.warped.end());
-        all.points.rotations.insert(all.points.rotations.end(), draw.rotations.begin(), draw.rotations.end());
         starts.push_back(all.points.size());
     }
     all.unrotated = unrotatedTarget(rest, all.points);
@@ -143,10 +139,11 @@ JudgeRest prepareValidationRest(const GaussianCloud& rest, const HeldOutOptions&
     out.unrotated.shDegree = rest.shDegree;
     std::mt19937_64 rng(options.seed ^ 0x9e3779b97f4a7c15ull);
     std::uniform_real_distribution<double> unit(0.0, 1.0);
+    const JudgeRegion region = judgeRegion(rest);
     std::vector<std::size_t> starts;
     for (int first = 0; first < draws; first += batch) {
         const int last = std::min(draws, first + batch);
-        const JudgeRest all = drawsWithRest(rest, options, first, last, starts);
+        const JudgeRest all = drawsWithRest(rest, region, options, first, last, starts);
         if (first == 0) out.points.features = all.points.features;
         for (int d = first; d < last; ++d) {
             const std::size_t begin = starts[std::size_t(d - first)], end = starts[std::size_t(d - first) + 1];
@@ -170,8 +167,11 @@ Judge::Judge(const GaussianCloud& restModel, const JudgeRest& rest, const Deform
     : mPoints(rest.points)
 {
     mRender.device = mPoints.features.device;
+    mPoints.warped.resize(mPoints.rest.size()); // the validation's rest side holds X only
+    mPoints.rotations.resize(3 * mPoints.rest.size());
     warpHeldOutPoints(mPoints, deformation, threaded);
     mTarget = rotatedTarget(rest.unrotated, mPoints);
+    std::vector<float>().swap(mPoints.rotations); // the target's only use: 36 bytes a point less
     if (!mPoints.features.device.cuda())
         mBlocks = std::make_shared<const PointBlocks>(mPoints.warped.data(), mPoints.size(), mPoints.features.threaded);
     const std::optional<RigidMotion> motion = rigidMotionOf(deformation);
@@ -247,6 +247,13 @@ struct Judge::Memo {
     }
 };
 
+void Judge::forgetLatest()
+{
+    if (!mMemo) return;
+    const std::lock_guard<std::mutex> lock(mMemo->mutex);
+    if (!mMemo->entries.empty()) mMemo->entries.pop_back();
+}
+
 void Judge::rememberEvaluations(std::size_t bytes)
 {
     mMemo = bytes ? std::make_shared<Memo>() : nullptr;
@@ -271,10 +278,15 @@ std::shared_ptr<const Judge::Evaluation> Judge::evaluate(const GaussianCloud& de
     return e;
 }
 
-FieldPointErrors Judge::pointErrors(const GaussianCloud& deformed) const
+void Judge::checkSizes() const
 {
     if (mTarget.size() != mPoints.size())
         throw InputError(msg("held-out evaluation: a rest side of ", mTarget.size(), " points for ", mPoints.size(), " points"));
+}
+
+FieldPointErrors Judge::pointErrors(const GaussianCloud& deformed) const
+{
+    checkSizes();
     const std::shared_ptr<const Evaluation> e = evaluate(deformed);
     return fieldPointErrors(mTarget, deformed, e->features.data(), e->opacity.data());
 }
@@ -287,8 +299,7 @@ FieldErrorReport Judge::fieldError(const GaussianCloud& deformed) const
 std::vector<double> Judge::pointScores(const GaussianCloud& deformed) const
 {
     const FieldPointErrors e = pointErrors(deformed);
-    const double o = mTarget.sumOpacity > 0 ? 1.0 / mTarget.sumOpacity : 0.0;
-    const double c = mTarget.sumFeatures > 0 ? 1.0 / mTarget.sumFeatures : 0.0;
+    const double o = opacityScale(), c = colorScale();
     std::vector<double> scores(e.opacity.size());
     for (std::size_t j = 0; j < scores.size(); ++j) scores[j] = e.opacity[j] * o + e.color[j] * c;
     return scores;
@@ -296,8 +307,11 @@ std::vector<double> Judge::pointScores(const GaussianCloud& deformed) const
 
 double Judge::score(const GaussianCloud& deformed) const
 {
-    const std::vector<double> scores = pointScores(deformed);
-    return std::accumulate(scores.begin(), scores.end(), 0.0);
+    // Summed as it goes (the same bits as pointScores()' sum): no per-point arrays beside
+    // Stage II's buffers at its checks.
+    checkSizes();
+    const std::shared_ptr<const Evaluation> e = evaluate(deformed);
+    return fieldPointScoreSum(mTarget, deformed, e->features.data(), e->opacity.data(), opacityScale(), colorScale());
 }
 
 JudgeReport Judge::judge(const GaussianCloud& deformed) const

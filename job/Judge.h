@@ -75,6 +75,7 @@ constexpr double kValidationOutside = 0.4;
 ///        probability, so the scores estimate the judge's sums. On captured scenes most of the
 ///        judge's region is empty (train-1000: 6% of the points inside), and the choices among
 ///        candidates need many more points where the Gaussians are than the judge's count gives.
+///        The points at rest only (warped and rotations empty: the Judge makes them).
 JudgeRest prepareValidationRest(const GaussianCloud& rest, const HeldOutOptions& options, int draws = kValidationDraws);
 
 /// @brief The judge of one deformation: the points warped and the rest side rotated once; for a
@@ -107,6 +108,10 @@ public:
     ///        again (the keep scores the curve shift's pick and the last check's fit, and its
     ///        per-Gaussian step the kept mix). 0: keep none (the default).
     void rememberEvaluations(std::size_t bytes);
+    /// @brief Drop the most recently used remembered evaluation (one the caller knows it will not
+    ///        ask for again); nothing without remembering.
+    void forgetLatest();
+    /// The points: X and x = phi(X) (the rotations went into target() and are not kept).
     const HeldOutPoints& points() const { return mPoints; }
     /// The rest side at the points, SH rotated (what pointScores() compares with).
     const FieldErrorTarget& target() const { return mTarget; }
@@ -115,6 +120,10 @@ public:
 private:
     struct Memo;
     FieldPointErrors pointErrors(const GaussianCloud& deformed) const;
+    void checkSizes() const;
+    /// pointScores()' weights: one over the target's sums (0 where a sum is 0).
+    double opacityScale() const { return mTarget.sumOpacity > 0 ? 1.0 / mTarget.sumOpacity : 0.0; }
+    double colorScale() const { return mTarget.sumFeatures > 0 ? 1.0 / mTarget.sumFeatures : 0.0; }
     HeldOutPoints mPoints;
     FieldErrorTarget mTarget;
     std::shared_ptr<Memo> mMemo; ///< shared by copies (the same points and target)

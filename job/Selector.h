@@ -37,6 +37,9 @@ public:
     /// @brief A model's validation score (opacity + colour relative L1; lower is better).
     double score(const GaussianCloud& model) const { return mPoints.score(model); }
 
+    /// @brief Forget the last model scored (Judge::forgetLatest()).
+    void forgetLatest() { mPoints.forgetLatest(); }
+
     /// @brief Best: each model's score and the first lowest.
     Selection best(const std::vector<const GaussianCloud*>& models) const { return selectBest(mPoints, models); }
 

@@ -53,27 +53,54 @@ FieldPointErrors fieldPointErrors(const FieldErrorTarget& t, const GaussianCloud
     return fieldPointErrors(t, deformed, fDef.data(), oDef.data());
 }
 
-FieldPointErrors fieldPointErrors(const FieldErrorTarget& t, const GaussianCloud& deformed, const float* fDef,
-                                  const float* oDef)
+namespace {
+
+void checkDegrees(const FieldErrorTarget& t, const GaussianCloud& deformed)
 {
     if (t.shDegree != deformed.shDegree)
         throw InputError(msg("field error: rest SH degree ", t.shDegree, " differs from deformed ", deformed.shDegree));
+}
+
+/// Point j's terms of fieldPointErrors(): weighted |O_def - O_target| and sum of |F_def - F_target|.
+inline void pointErrorsAt(const FieldErrorTarget& t, int stride, const float* fDef, const float* oDef, std::size_t j,
+                          double& opacity, double& color)
+{
+    const double* target = t.features.data() + j * std::size_t(stride);
+    opacity = std::fabs(double(oDef[j]) - double(t.opacity[j]));
+    color = 0.0;
+    const float* fd = fDef + j * std::size_t(stride);
+    for (int s = 0; s < stride; ++s) color += std::fabs(double(fd[s]) - target[s]);
+    if (!t.weight.empty()) {
+        opacity *= double(t.weight[j]);
+        color *= double(t.weight[j]);
+    }
+}
+
+} // namespace
+
+FieldPointErrors fieldPointErrors(const FieldErrorTarget& t, const GaussianCloud& deformed, const float* fDef,
+                                  const float* oDef)
+{
+    checkDegrees(t, deformed);
     const std::size_t p = t.size();
-    const int stride = deformed.shStride();
     FieldPointErrors e;
     e.opacity.resize(p);
-    e.color.assign(p, 0.0);
-    for (std::size_t j = 0; j < p; ++j) {
-        const double* target = t.features.data() + j * std::size_t(stride);
-        e.opacity[j] = std::fabs(double(oDef[j]) - double(t.opacity[j]));
-        const float* fd = fDef + j * std::size_t(stride);
-        for (int s = 0; s < stride; ++s) e.color[j] += std::fabs(double(fd[s]) - target[s]);
-        if (!t.weight.empty()) {
-            e.opacity[j] *= double(t.weight[j]);
-            e.color[j] *= double(t.weight[j]);
-        }
-    }
+    e.color.resize(p);
+    for (std::size_t j = 0; j < p; ++j) pointErrorsAt(t, deformed.shStride(), fDef, oDef, j, e.opacity[j], e.color[j]);
     return e;
+}
+
+double fieldPointScoreSum(const FieldErrorTarget& t, const GaussianCloud& deformed, const float* fDef, const float* oDef,
+                          double opacityScale, double colorScale)
+{
+    checkDegrees(t, deformed);
+    double sum = 0.0;
+    for (std::size_t j = 0; j < t.size(); ++j) {
+        double opacity, color;
+        pointErrorsAt(t, deformed.shStride(), fDef, oDef, j, opacity, color);
+        sum += opacity * opacityScale + color * colorScale;
+    }
+    return sum;
 }
 
 FieldErrorReport fieldError(const FieldErrorTarget& t, const GaussianCloud& deformed, const float* warpedPoints,

@@ -67,6 +67,11 @@ FieldPointErrors fieldPointErrors(const FieldErrorTarget& target, const Gaussian
 FieldPointErrors fieldPointErrors(const FieldErrorTarget& target, const GaussianCloud& deformed, const float* fDef,
                                   const float* oDef);
 
+/// @brief The sum over points of fieldPointErrors()' opacity * opacityScale + color * colorScale,
+///        in point order, without the per-point arrays (the same bits as summing them).
+double fieldPointScoreSum(const FieldErrorTarget& target, const GaussianCloud& deformed, const float* fDef,
+                          const float* oDef, double opacityScale, double colorScale);
+
 /// @brief fieldError() from its per-point terms.
 FieldErrorReport fieldErrorOf(const FieldErrorTarget& target, const FieldPointErrors& errors);
 

@@ -1,6 +1,7 @@
 // The fixed judge: its region and points depend on the rest model alone, no filter, rigid specs.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <array>
 #include <cmath>
 #include <set>
@@ -157,6 +158,50 @@ TEST(Judge, RememberedEvaluationsAreTheModelsOwn)
     const auto first = remembering.evaluate(a);
     remembering.evaluate(b);
     EXPECT_NE(remembering.evaluate(a), first);
+    // forgetLatest() drops the last one used and no other.
+    remembering.rememberEvaluations(std::size_t(1) << 20);
+    const auto ea = remembering.evaluate(a), eb = remembering.evaluate(b);
+    remembering.forgetLatest();
+    EXPECT_EQ(remembering.evaluate(a), ea);
+    EXPECT_NE(remembering.evaluate(b), eb);
+    EXPECT_EQ(remembering.evaluate(b)->opacity, eb->opacity); // evaluated again: the same values
+}
+
+// score() sums as it goes: the same bits as pointScores()' sum in point order, with weights.
+TEST(Judge, TheScoreIsThePointScoresSum)
+{
+    const GaussianCloud rest = test::randomCloud(300, 2, 5);
+    const Deformation d = solveDeformation(rest, loadDeformSpec(kSpecs + "bend.json"));
+    const Judge judge(rest, prepareValidationRest(rest, HeldOutOptions{4000, 3, {}}), d);
+    GaussianCloud m = rest;
+    for (float& o : m.opacities) o *= 0.9f;
+    const std::vector<double> scores = judge.pointScores(m);
+    double sum = 0.0;
+    for (double s : scores) sum += s;
+    EXPECT_EQ(judge.score(m), sum);
+    EXPECT_GT(sum, 0.0);
+}
+
+// The validation's rest side holds X only; its judge warps the points and rotates the target as a
+// judge of the same points with identity warps filled in does, and keeps no rotations after.
+TEST(Judge, AValidationRestSideWithoutWarpsJudgesAsAFullOne)
+{
+    const GaussianCloud rest = test::randomCloud(300, 2, 5);
+    const Deformation d = solveDeformation(rest, loadDeformSpec(kSpecs + "twist.json"));
+    const JudgeRest bare = prepareValidationRest(rest, HeldOutOptions{4000, 3, {}});
+    EXPECT_TRUE(bare.points.warped.empty());
+    EXPECT_TRUE(bare.points.rotations.empty());
+    JudgeRest full = bare;
+    full.points.warped = full.points.rest;
+    full.points.rotations.assign(3 * full.points.rest.size(), 0.0f);
+    for (std::size_t p = 0; p < full.points.size(); ++p)
+        for (int a = 0; a < 3; ++a) full.points.rotations[9 * p + std::size_t(4 * a)] = 1.0f;
+    const Judge a(rest, bare, d), b(rest, full, d);
+    EXPECT_EQ(a.points().warped, b.points().warped);
+    EXPECT_EQ(a.target().features, b.target().features);
+    EXPECT_TRUE(a.points().rotations.empty());
+    EXPECT_NE(a.points().warped, a.points().rest); // twisted
+    EXPECT_EQ(a.pointScores(rest), b.pointScores(rest));
 }
 
 TEST(Judge, RigidSpecsAreRecognisedWithTheirMotion)
