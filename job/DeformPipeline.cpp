@@ -650,9 +650,10 @@ void prepareValidationOf(DeformRest& rest, const DeformJobOptions& o)
     Stopwatch clock;
     HeldOutOptions validation = heldOutOn(rest, o);
     validation.seed ^= kValidationSeedXor;
-    rest.validation = prepareValidationRest(rest.model, validation);
+    const int draws = o.validationDraws > 0 ? o.validationDraws : autoValidationDraws(rest.model.size());
+    rest.validation = prepareValidationRest(rest.model, validation, draws);
     rest.validationMs = clock.ms();
-    progress(msg("validation: ", rest.validation->unrotated.size(), " points from ", kValidationDraws, " draws of the judge's rule (",
+    progress(msg("validation: ", rest.validation->unrotated.size(), " points from ", draws, " draws of the judge's rule (",
                  int(rest.validationMs), " ms)"));
 }
 

@@ -68,6 +68,9 @@ struct DeformJobOptions {
     /// With the keep: score Stage II's fit on the validation points every this many iterations and
     /// stop it once the score rose (StageTwoOptions::heldOutStop; 0: never).
     int validationStop = 10;
+    /// Draws of the judge's rule behind the validation points (Judge.h: prepareValidationRest());
+    /// 0: autoValidationDraws() of the rest model.
+    int validationDraws = 0;
     HeldOutOptions heldOut; ///< points and seed of the judge (and of the training-lattice error)
     bool evaluate = true;   ///< the judge's errors of Stage I and Stage II in the report (and the training-lattice error)
     int evalEvery = 0;      ///< also record the held-out error every K Stage II iterations (0 = off)

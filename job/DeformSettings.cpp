@@ -315,7 +315,27 @@ Setting budgetMergeSetting()
              });
 }
 
-/// The steps around Stage II that add or choose Gaussians, and the prune.
+/// --validation-draws: the keep's points.
+Setting validationDrawsSetting()
+{
+    return Setting{"--validation-draws", "auto|N", Expert,
+                   msg("With --keep validated or regions: draws of the judge's rule (other seeds) behind the validation "
+                       "points that the keep, the budget merge, the splits and the stop choose on; each draw keeps about ",
+                       int(kValidationInside * 1e5 / kValidationDraws), " points inside the model and ",
+                       int(kValidationOutside * 1e5 / kValidationDraws), " outside; more choose better and take longer. auto: ",
+                       kValidationWork, " / the model's Gaussians, from ", kValidationDraws, " to ", 2 * kValidationDraws),
+                   [](DeformJobOptions& o, const std::string& w) {
+                       o.validationDraws = w == "auto" ? 0 : int(parseNumber("--validation-draws", w, {1, 1000}, true, "auto"));
+                   },
+                   [](const DeformJobOptions& o, json& out) {
+                       out["validationDraws"] = o.validationDraws > 0 ? json(o.validationDraws) : json("auto");
+                   },
+                   [](const DeformJobOptions& o) {
+                       return o.validationDraws > 0 ? std::to_string(o.validationDraws) : std::string("auto");
+                   }};
+}
+
+/// The steps before Stage II that add Gaussians, and the budget.
 std::vector<Setting> candidateSettings()
 {
     return {
@@ -362,6 +382,13 @@ std::vector<Setting> candidateSettings()
                        "split is made with fans and without and the validation points keep the better; 0: never fan",
                        [](DeformJobOptions& o) -> double& { return o.curve.fanAbove; }, {0.0, 1000.0}),
         curveSplitPruneSetting(),
+    };
+}
+
+/// The keep's candidates and choices around Stage II, and the prune.
+std::vector<Setting> keepSettings()
+{
+    return {
         Setting{"--curve-shift", "auto|SHARE", Expert,
                 "With --keep validated: one more candidate of the keep, the start with each moving Gaussian's mean "
                 "moved by this share of the deformation's second-order offset along its axes (where its mass goes "
@@ -393,6 +420,7 @@ std::vector<Setting> candidateSettings()
                     "validation points and stop once the score rose by more than 1% of the last check's (at the "
                     "first check: by more than 15% of the start's; 0: run every iteration)",
                     [](DeformJobOptions& o) -> int& { return o.validationStop; }, {0, 1000000}),
+        validationDrawsSetting(),
         number<float>("--prune-below", "pruneBelow", Expert,
                       "Remove the moving Gaussians whose opacity Stage II leaves below this (before the split and at the "
                       "end; 0: keep every Gaussian)",
@@ -475,7 +503,8 @@ const std::vector<Setting>& deformSettings()
 {
     static const std::vector<Setting> table = [] {
         std::vector<Setting> all;
-        for (auto part : {stageOneSettings, gridSettings, splitSettings, candidateSettings, stageTwoSettings, outputSettings})
+        for (auto part : {stageOneSettings, gridSettings, splitSettings, candidateSettings, keepSettings, stageTwoSettings,
+                          outputSettings})
             for (Setting& s : part()) all.push_back(std::move(s));
         return all;
     }();

@@ -128,6 +128,12 @@ JudgeRest drawsWithRest(const GaussianCloud& rest, const JudgeRegion& region, co
 
 } // namespace
 
+int autoValidationDraws(std::size_t gaussians)
+{
+    const std::size_t d = kValidationWork / std::max<std::size_t>(gaussians, 1);
+    return int(std::clamp<std::size_t>(d, kValidationDraws, 2 * kValidationDraws));
+}
+
 JudgeRest prepareValidationRest(const GaussianCloud& rest, const HeldOutOptions& options, int draws)
 {
     // Draws in batches of about kBatchBytes of rest side (one set-up of the engine a batch, not a
@@ -150,7 +156,7 @@ JudgeRest prepareValidationRest(const GaussianCloud& rest, const HeldOutOptions&
             std::size_t inside = 0;
             for (std::size_t j = begin; j < end; ++j) inside += all.unrotated.opacity[j] > 0.0f;
             const std::size_t outside = end - begin - inside;
-            const double perDraw = double(options.points) / double(draws);
+            const double perDraw = double(options.points) / double(kValidationDraws);
             const double keepIn = inside ? std::min(1.0, kValidationInside * perDraw / double(inside)) : 1.0;
             const double keepOut = outside ? std::min(1.0, kValidationOutside * perDraw / double(outside)) : 1.0;
             for (std::size_t j = begin; j < end; ++j) {

@@ -62,20 +62,30 @@ struct JudgeRest {
 /// @brief drawJudgePoints() and the rest features there, on options.device.
 JudgeRest prepareJudgeRest(const GaussianCloud& rest, const HeldOutOptions& options);
 
-/// Draws of the judge's rule behind the validation points (kValidationDraws x the judge's points).
+/// Draws of the judge's rule behind the validation points of a large model (auto's fewest); each
+/// keeps 1/kValidationDraws of the counts below, so twice the draws keep twice the points.
 constexpr int kValidationDraws = 10;
-/// Points the validation keeps, in the judge's points: this many inside the rest model (O_rest > 0)...
+/// `--validation-draws auto`: kValidationWork / the rest model's Gaussians, from kValidationDraws to
+/// twice that. The keep and the budget merge choose each Gaussian on the points it reaches, and twice
+/// the points choose better on every row measured (judged error -0.5% to -4.2%; the image judge level)
+/// for about twice the keep's time, which grows with the model: small models (up to 31k Gaussians)
+/// get 20 draws, guitar (91k) 10 (docs/lab/gaussian-budget.md, "Twice the validation points").
+constexpr std::size_t kValidationWork = 620000;
+int autoValidationDraws(std::size_t gaussians);
+/// Points the validation keeps at kValidationDraws, in the judge's points: this many inside the rest
+/// model (O_rest > 0)...
 constexpr double kValidationInside = 1.6;
 /// ...and this many outside it.
 constexpr double kValidationOutside = 0.4;
 
 /// @brief The validation side (Stage II's choices): `draws` point sets of the judge's rule (seeds
 ///        options.seed, +1, ...), thinned to about kValidationInside x options.points inside the
-///        rest model and kValidationOutside x outside it, each point weighted by one over its keep
-///        probability, so the scores estimate the judge's sums. On captured scenes most of the
-///        judge's region is empty (train-1000: 6% of the points inside), and the choices among
-///        candidates need many more points where the Gaussians are than the judge's count gives.
-///        The points at rest only (warped and rotations empty: the Judge makes them).
+///        rest model and kValidationOutside x outside it (times draws / kValidationDraws), each
+///        point weighted by one over its keep probability, so the scores estimate the judge's sums.
+///        On captured scenes most of the judge's region is empty (train-1000: 6% of the points
+///        inside), and the choices among candidates need many more points where the Gaussians are
+///        than the judge's count gives. The points at rest only (warped and rotations empty: the
+///        Judge makes them).
 JudgeRest prepareValidationRest(const GaussianCloud& rest, const HeldOutOptions& options, int draws = kValidationDraws);
 
 /// @brief The judge of one deformation: the points warped and the rest side rotated once; for a

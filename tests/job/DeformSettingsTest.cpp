@@ -49,7 +49,7 @@ TEST(DeformSettings, FlagsAreUniqueAndABadValueNamesItsFlag)
 // made infinite (a float's 1e300).
 TEST(DeformSettings, ANumberPastItsFieldIsRefused)
 {
-    for (const char* flag : {"--cells", "--nodes", "--eval-every", "--coverage-steps"}) {
+    for (const char* flag : {"--cells", "--nodes", "--eval-every", "--coverage-steps", "--validation-draws"}) {
         DeformJobOptions o = deformDefaults();
         EXPECT_THROW(deformSetting(flag).set(o, "1e10"), UsageError) << flag;
         EXPECT_THROW(deformSetting(flag).set(o, "2147483648"), UsageError) << flag;
@@ -83,8 +83,9 @@ TEST(DeformSettings, TheRecordKeepsTheHashOfEarlierRuns)
 {
     DeformJobOptions o = deformDefaults();
     // 41 since the 1.5x budget: maxGaussians and budgetMerge written always, as the budget changed
-    // the default's output (a resume must not take an earlier default run's frames for this one's).
-    EXPECT_EQ(settingsJson(o).size(), 41u);
+    // the default's output (a resume must not take an earlier default run's frames for this one's);
+    // 42 since validationDraws, for the same reason (auto doubles small models' validation points).
+    EXPECT_EQ(settingsJson(o).size(), 42u);
     const nlohmann::json before = settingsJson(o);
     EXPECT_EQ(before["maxGaussians"], "1.5x");
     EXPECT_EQ(before["budgetMerge"], true);
@@ -92,7 +93,7 @@ TEST(DeformSettings, TheRecordKeepsTheHashOfEarlierRuns)
              {"--keep", "regions"}, {"--validated-split", "off"}, {"--max-gaussians", "2x"}, {"--curve-split-prune", "3"}})
         deformSetting(flag).set(o, value);
     const nlohmann::json after = settingsJson(o);
-    EXPECT_EQ(after.size(), 44u); // three keys written only off their defaults
+    EXPECT_EQ(after.size(), 45u); // three keys written only off their defaults
     EXPECT_EQ(after["curveSplitPrune"], 3.0);
     EXPECT_EQ(after["keepPerGaussian"], false);
     EXPECT_EQ(after["validatedSplit"], false);
@@ -105,6 +106,12 @@ TEST(DeformSettings, TheRecordKeepsTheHashOfEarlierRuns)
     EXPECT_FALSE(settingsJson(none).contains("budgetMerge"));
     EXPECT_EQ(before["samplesPerCell"], "auto");
     EXPECT_EQ(before["curveShift"], "auto");
+    EXPECT_EQ(before["validationDraws"], "auto");
+    DeformJobOptions draws = deformDefaults();
+    deformSetting("--validation-draws").set(draws, "20");
+    EXPECT_EQ(draws.validationDraws, 20);
+    EXPECT_EQ(settingsJson(draws)["validationDraws"], 20);
+    EXPECT_THROW(deformSetting("--validation-draws").set(draws, "0"), UsageError);
     EXPECT_EQ(before["nodes"], -1);
 }
 

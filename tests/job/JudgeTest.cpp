@@ -131,6 +131,39 @@ TEST(Judge, TheValidationRestSideIsTheRestModelAtItsPoints)
     }
 }
 
+// Twice the draws keep about twice the points: the first draws keep the same points, weights and
+// rest side as a run with only those draws, and the later draws as many again.
+TEST(Judge, MoreValidationDrawsKeepTheFirstDrawsPointsAndAsManyAgain)
+{
+    const GaussianCloud rest = test::randomCloud(300, 1, 5);
+    const JudgeRest ten = prepareValidationRest(rest, HeldOutOptions{20000, 3, {}}, kValidationDraws);
+    const JudgeRest twenty = prepareValidationRest(rest, HeldOutOptions{20000, 3, {}}, 2 * kValidationDraws);
+    const std::size_t n = ten.points.size();
+    ASSERT_GT(n, 1000u);
+    ASSERT_GT(twenty.points.size(), n);
+    const double ratio = double(twenty.points.size()) / double(n);
+    EXPECT_GT(ratio, 1.8);
+    EXPECT_LT(ratio, 2.2);
+    EXPECT_TRUE(std::equal(ten.points.rest.begin(), ten.points.rest.end(), twenty.points.rest.begin()));
+    EXPECT_TRUE(std::equal(ten.unrotated.weight.begin(), ten.unrotated.weight.end(), twenty.unrotated.weight.begin()));
+    EXPECT_TRUE(std::equal(ten.unrotated.opacity.begin(), ten.unrotated.opacity.end(), twenty.unrotated.opacity.begin()));
+    // Each point still stands for the judge's sums: the weighted totals are about the same.
+    EXPECT_NEAR(twenty.unrotated.sumOpacity / ten.unrotated.sumOpacity, 2.0, 0.2);
+}
+
+// auto: 20 draws for small models, fewer as the model grows, never below the default's 10.
+TEST(Judge, AutoValidationDrawsFallWithTheModelsSize)
+{
+    EXPECT_EQ(autoValidationDraws(0), 2 * kValidationDraws);
+    EXPECT_EQ(autoValidationDraws(1000), 2 * kValidationDraws);
+    EXPECT_EQ(autoValidationDraws(kValidationWork / 20), 20);
+    EXPECT_EQ(autoValidationDraws(kValidationWork / 20 + 1), 19);
+    EXPECT_EQ(autoValidationDraws(45624), 13); // the donut
+    EXPECT_EQ(autoValidationDraws(kValidationWork / 10), kValidationDraws);
+    EXPECT_EQ(autoValidationDraws(90854), kValidationDraws); // guitar
+    EXPECT_EQ(autoValidationDraws(10000000), kValidationDraws);
+}
+
 // A judge that remembers evaluations gives the same scores and errors as one that does not, hands
 // back the remembered evaluation for the same model, and evaluates a model changed in one bit again.
 TEST(Judge, RememberedEvaluationsAreTheModelsOwn)
