@@ -320,9 +320,9 @@ Setting validationDrawsSetting()
 {
     return Setting{"--validation-draws", "auto|N", Expert,
                    msg("With --keep validated or regions: draws of the judge's rule (other seeds) behind the validation "
-                       "points that the keep, the budget merge, the splits and the stop choose on; each draw keeps about ",
-                       int(kValidationInside * 1e5 / kValidationDraws), " points inside the model and ",
-                       int(kValidationOutside * 1e5 / kValidationDraws), " outside; more choose better and take longer. auto: ",
+                       "points that the keep, the budget merge, the splits and the stop choose on; each draw keeps up to ",
+                       kValidationInside / kValidationDraws, " x --eval-points inside the model and ",
+                       kValidationOutside / kValidationDraws, " x outside; more choose better and take longer. auto: ",
                        kValidationWork, " / the model's Gaussians, from ", kValidationDraws, " to ", 2 * kValidationDraws),
                    [](DeformJobOptions& o, const std::string& w) {
                        o.validationDraws = w == "auto" ? 0 : int(parseNumber("--validation-draws", w, {1, 1000}, true, "auto"));
