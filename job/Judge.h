@@ -81,11 +81,11 @@ constexpr double kValidationOutside = 0.4;
 /// @brief The validation side (Stage II's choices): `draws` point sets of the judge's rule (seeds
 ///        options.seed, +1, ...), thinned to about kValidationInside x options.points inside the
 ///        rest model and kValidationOutside x outside it (times draws / kValidationDraws), each
-///        point weighted by one over its keep probability, so the scores estimate the judge's sums.
-///        On captured scenes most of the judge's region is empty (train-1000: 6% of the points
-///        inside), and the choices among candidates need many more points where the Gaussians are
-///        than the judge's count gives. The points at rest only (warped and rotations empty: the
-///        Judge makes them).
+///        point weighted by one over its keep probability, so the sums estimate the judge's (times
+///        draws / kValidationDraws; the scores, relative errors, do not scale). On captured scenes
+///        most of the judge's region is empty (train-1000: 6% of the points inside), and the
+///        choices among candidates need many more points where the Gaussians are than the judge's
+///        count gives. The points at rest only (warped and rotations empty: the Judge makes them).
 JudgeRest prepareValidationRest(const GaussianCloud& rest, const HeldOutOptions& options, int draws = kValidationDraws);
 
 /// @brief The judge of one deformation: the points warped and the rest side rotated once; for a
