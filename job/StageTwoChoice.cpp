@@ -92,6 +92,15 @@ std::size_t firstLowest(const std::vector<double>& scores)
     return scores.empty() ? 0 : std::size_t(std::min_element(scores.begin(), scores.end()) - scores.begin());
 }
 
+double stillImprovingBy(const StageTwoReport& fit, double fitScore)
+{
+    if (fit.stoppedAt >= 0 || fit.heldOutChecks.empty()) return 0.0;
+    const auto& [iteration, last] = fit.heldOutChecks.back();
+    if (iteration <= 0 || !(last > 0) || !std::isfinite(fitScore)) return 0.0;
+    const double fall = (last - fitScore) / last;
+    return fall >= kStillImproving ? fall : 0.0;
+}
+
 Selection selectBest(const Judge& validation, const std::vector<const GaussianCloud*>& models)
 {
     Selection s;

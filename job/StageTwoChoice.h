@@ -14,6 +14,7 @@
 
 #include "job/Judge.h"
 #include "core/GaussianCloud.h"
+#include "stage2/StageTwo.h"
 
 namespace splatwarp {
 
@@ -59,6 +60,16 @@ struct StageTwoChoice {
 ///        (no split or prune inside Stage II), so they can mix.
 GaussianCloud chooseStageTwoModel(const Judge& validation, const std::vector<StageTwoCandidate>& candidates,
                                   bool sameGaussians, StageTwoChoice& report);
+
+/// How far below Stage II's last validation check its fit must end for deform to say it was still
+/// improving: the donut fell 5.4% over its last 10 of 50 iterations and 50 more bought it 6-8% on
+/// the judge; every other row measured fell 3.1% or less, or stopped (docs/lab/stage2-iterations.md).
+constexpr double kStillImproving = 0.04;
+
+/// @brief The fall of the validation score from Stage II's last check (at iteration > 0) to its
+///        fit (`fitScore`, at the end), as a share of the check's, when the run ran all its
+///        iterations and the fall is kStillImproving or more; 0 otherwise.
+double stillImprovingBy(const StageTwoReport& fit, double fitScore);
 
 /// Shares of the curve shift --curve-shift auto tries (deform/CurveSplit.h curveShifted()).
 constexpr double kCurveShares[] = {0.25, 0.5, 0.75, 1.0};

@@ -1,6 +1,7 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <cmath>
 #include <vector>
 
 #include "ChoiceFixture.h"
@@ -121,4 +122,27 @@ TEST(StageTwoChoice, TheSelectorKeepsTheFirstLowestScore)
     EXPECT_EQ(s.best, 1u);
     EXPECT_EQ(s.scores[1], fx.validation->score(fx.stage1));
     EXPECT_GT(s.scores[0], s.scores[1]);
+}
+
+// deform advises more iterations only when the run ran to its end and its fit ended well below the
+// last check (kStillImproving of it), never from the start's check alone.
+TEST(StageTwoChoice, AFitStillImprovingAtItsEndIsSaidOnlyWhenItFellEnough)
+{
+    StageTwoReport fit;
+    fit.heldOutChecks = {{0, 0.108}, {10, 0.068}, {40, 0.04}};
+    const double justPast = 0.04 * (1.0 - kStillImproving) - 1e-9;
+    EXPECT_NEAR(stillImprovingBy(fit, 0.0378), 0.055, 1e-12);
+    EXPECT_NEAR(stillImprovingBy(fit, justPast), kStillImproving, 1e-7);
+    EXPECT_EQ(stillImprovingBy(fit, 0.04 * (1.0 - 0.5 * kStillImproving)), 0.0); // a small fall
+    EXPECT_EQ(stillImprovingBy(fit, 0.041), 0.0);                               // a rise
+    EXPECT_EQ(stillImprovingBy(fit, std::nan("")), 0.0);
+
+    StageTwoReport stopped = fit; // the validation stop ended it: the fit got worse
+    stopped.stoppedAt = 40;
+    EXPECT_EQ(stillImprovingBy(stopped, 0.0378), 0.0);
+
+    StageTwoReport startOnly; // one check (the start's) says nothing of the run's end
+    startOnly.heldOutChecks = {{0, 0.108}};
+    EXPECT_EQ(stillImprovingBy(startOnly, 0.03), 0.0);
+    EXPECT_EQ(stillImprovingBy(StageTwoReport(), 0.03), 0.0);
 }
