@@ -77,9 +77,10 @@ private:
 
 namespace {
 
-/// evaluateBlockFeatures() over blocks already cut.
+/// evaluateBlockFeatures() over blocks already cut; with an order, the blocks' point j is the
+/// output's point order[j] (PointBlocks: written in place, no sorted copy to scatter).
 FeatureStats evaluateSampleBlocks(const GaussianCloud& cloud, const SampleBlocks& blocks, const FeatureOptions& options,
-                                  float* features, float* opacity)
+                                  float* features, float* opacity, const std::uint32_t* order = nullptr)
 {
     checkFeatureOptions(options);
     const std::vector<PreparedGaussian> prepared = prepareCloud(cloud, options.filterVariance, options.cutoff, options.threaded);
@@ -108,9 +109,10 @@ FeatureStats evaluateSampleBlocks(const GaussianCloud& cloud, const SampleBlocks
         tested[b] = gs.n * std::uint64_t(pts.samples);
         counted[b] = blockFeatures(gs, pts, options.cutoff, stride, f, o);
         for (std::size_t t = 0; t < std::size_t(pts.samples); ++t) {
-            if (opacity) opacity[j0 + t] = o[t];
+            const std::size_t i = order ? std::size_t(order[j0 + t]) : j0 + t;
+            if (opacity) opacity[i] = o[t];
             if (features)
-                for (std::size_t c = 0; c < std::size_t(stride); ++c) features[(j0 + t) * std::size_t(stride) + c] = f[c * lanes + t];
+                for (std::size_t c = 0; c < std::size_t(stride); ++c) features[i * std::size_t(stride) + c] = f[c * lanes + t];
         }
     });
     FeatureStats stats;
@@ -130,7 +132,7 @@ FeatureStats evaluateBlockFeatures(const GaussianCloud& cloud, const float* poin
     return evaluateSampleBlocks(cloud, SampleBlocks::build(points, cell, m, options.threaded), options, features, opacity);
 }
 
-PointBlocks::PointBlocks(const float* points, std::size_t m, bool threaded) : mCount(m)
+PointBlocks::PointBlocks(const float* points, std::size_t m, bool threaded)
 {
     if (m == 0 || m > std::size_t(std::numeric_limits<std::int32_t>::max())) return;
     for (std::size_t j = 0; j < 3 * m; ++j)
@@ -145,15 +147,7 @@ PointBlocks::~PointBlocks() = default;
 FeatureStats PointBlocks::evaluate(const GaussianCloud& cloud, const FeatureOptions& options, float* features, float* opacity) const
 {
     if (!mBlocks) throw Error("PointBlocks::evaluate on points the block engine does not take");
-    const std::size_t m = mCount, stride = std::size_t(cloud.shStride());
-    std::vector<float> f(features ? m * stride : 0), o(opacity ? m : 0);
-    const FeatureStats s = evaluateSampleBlocks(cloud, *mBlocks, options, features ? f.data() : nullptr, opacity ? o.data() : nullptr);
-    parallelFor(m, 4096, options.threaded, [&](std::size_t j) {
-        const std::size_t i = mOrder[j];
-        if (opacity) opacity[i] = o[j];
-        if (features) std::copy(&f[j * stride], &f[j * stride] + stride, &features[i * stride]);
-    });
-    return s;
+    return evaluateSampleBlocks(cloud, *mBlocks, options, features, opacity, mOrder.data());
 }
 
 FeatureStats evaluatePointFeatures(const GaussianCloud& cloud, const float* points, std::size_t m,

@@ -44,7 +44,6 @@ public:
     FeatureStats evaluate(const GaussianCloud& cloud, const FeatureOptions& options, float* features, float* opacity) const;
 
 private:
-    std::size_t mCount = 0;
     std::vector<std::uint32_t> mOrder;    ///< sorted position -> point
     std::unique_ptr<SampleBlocks> mBlocks; ///< of the sorted points
 };
