@@ -205,16 +205,32 @@ void BlockIndex::blocksMeeting(const SampleBlocks& blocks, const float* lo, cons
                 // cell: only the groups of blocks starting there along every such axis are read.
                 const std::size_t need = std::size_t(i > c0[0]) | std::size_t(j > c0[1]) << 1 | std::size_t(k > c0[2]) << 2;
                 const std::size_t c = std::size_t((i * mCount[1] + j) * mCount[2] + k) * kGroups;
-                for (std::size_t mask = need; mask < kGroups; mask = (mask + 1) | need)
-                    for (std::uint32_t e = mStart[c + mask]; e < mStart[c + mask + 1]; ++e) {
+                for (std::size_t mask = need; mask < kGroups; mask = (mask + 1) | need) {
+                    // No branch on the test (a candidate meets the box about as often as not,
+                    // which the predictor cannot learn): each is written, the count advances on a
+                    // hit; the slabs, costlier and rarer, are tested after on the hits only.
+                    const std::uint32_t e0 = mStart[c + mask], e1 = mStart[c + mask + 1];
+                    std::size_t n = out.size();
+                    out.resize(n + (e1 - e0));
+                    for (std::uint32_t e = e0; e < e1; ++e) {
                         const std::uint32_t b = mItems[e];
                         const float* bl = blocks.lo.data() + 3 * std::size_t(b);
                         const float* bh = blocks.hi.data() + 3 * std::size_t(b);
-                        if (bh[0] < lo[0] || bl[0] > hi[0] || bh[1] < lo[1] || bl[1] > hi[1] || bh[2] < lo[2] || bl[2] > hi[2]) continue;
-                        if (slabs && !boxMeetsSlabs(bl, bh, *slabs)) continue;
-                        out.push_back(b);
+                        const bool miss = (bh[0] < lo[0]) | (bl[0] > hi[0]) | (bh[1] < lo[1]) | (bl[1] > hi[1]) |
+                                          (bh[2] < lo[2]) | (bl[2] > hi[2]);
+                        out[n] = b;
+                        n += !miss;
                     }
+                    out.resize(n);
+                }
             }
+    if (slabs)
+        out.erase(std::remove_if(out.begin(), out.end(),
+                                 [&](std::uint32_t b) {
+                                     return !boxMeetsSlabs(blocks.lo.data() + 3 * std::size_t(b),
+                                                           blocks.hi.data() + 3 * std::size_t(b), *slabs);
+                                 }),
+                  out.end());
 }
 
 void BlockCoverage::build(const float* lo, const float* hi, const CoverageSlabs* slabs, std::size_t g, bool threaded,
