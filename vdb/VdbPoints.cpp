@@ -2,6 +2,8 @@
 /// writing, reading (any codec of P; id restores the order), and the registration as a model format.
 #include "vdb/VdbPoints.h"
 
+#include "vdb/VdbLayout.h"
+
 #include <openvdb/io/Stream.h>
 #include <openvdb/openvdb.h>
 #include <openvdb/points/PointConversion.h>
@@ -205,6 +207,9 @@ GaussianCloud readVdbPoints(const std::string& name, const std::string& data, Re
     vdb::initialize();
     try {
         std::istringstream is(data, std::ios::binary);
+        checkVdbLayout(is, data.size(), name); // before OpenVDB, which reads garbage sizes from a cut file
+        is.clear();
+        is.seekg(0);
         openvdb::io::Stream stream(is);
         const openvdb::GridPtrVecPtr grids = stream.getGrids();
         GaussianCloud g = readGrid(name, *firstPointGrid(name, *grids), report);

@@ -12,6 +12,7 @@
 #include <openvdb/tools/LevelSetUtil.h>
 #include <openvdb/tools/Morphology.h>
 
+#include "vdb/VdbLayout.h"
 #include "vdb/VdbLibrary.h"
 #include "core/AtomicFile.h"
 #include "core/Error.h"
@@ -188,7 +189,7 @@ void readFeatures(openvdb::io::File& file, const openvdb::GridPtrVec& grids, con
 Volume readVolume(const std::string& path, const VolumeReadOptions& o)
 {
     vdb::initialize();
-    if (!std::ifstream(path)) throw IoError(msg(path, ": cannot open"));
+    checkVdbFileLayout(path); // before OpenVDB, which reads garbage sizes from a cut file
     openvdb::io::File file(path);
     openFile(file, path);
     openvdb::GridPtrVec grids;

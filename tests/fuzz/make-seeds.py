@@ -38,3 +38,21 @@ b = ('ply\nformat binary_little_endian 1.0\nelement vertex 4\n' + ''.join('prope
 for i in range(4):
     b += struct.pack('<%df' % len(names), *[random.uniform(-0.9, 0.9) for _ in names])
 open(os.path.join(out, '..', 'tiny4-sh3.ply'), 'wb').write(b)
+# vdb_layout: the layout OpenVDB's io::File writes (format 224, grid offsets), with a few bytes of
+# stand-in voxel data per grid: what checkVdbLayout() walks, and a file cut inside a grid.
+def vstr(s): return struct.pack('<I', len(s)) + s
+def vmeta(entries): return struct.pack('<I', len(entries)) + b''.join(vstr(n) + vstr(t) + struct.pack('<I', len(v)) + v for n, t, v in entries)
+def vdb_file(grids):
+    b = struct.pack('<qIIIb', 0x56444220, 224, 10, 0, 1) + b'0123abcd-0000-4000-8000-00000000beef'
+    b += vmeta([(b'creator', b'string', b'splatwarp')]) + struct.pack('<i', len(grids))
+    for name, typ in grids:
+        desc = vstr(name) + vstr(typ) + vstr(b'')
+        grid_pos = len(b) + len(desc) + 24
+        head = struct.pack('<I', 2) + vmeta([(b'class', b'string', b'fog volume'), (b'file_voxel_count', b'int64', struct.pack('<q', 20))]) + vstr(b'UniformScaleMap') + bytes(40)
+        block_pos = grid_pos + len(head)
+        end_pos = block_pos + 16
+        b += desc + struct.pack('<qqq', grid_pos, block_pos, end_pos) + head + bytes(range(16))
+    return b
+two = vdb_file([(b'density', b'Tree_float_5_4_3'), (b'color', b'Tree_vec3s_5_4_3')])
+w('vdb_layout', 'two-grids.vdb', two)
+w('vdb_layout', 'cut.vdb', two[:-5])

@@ -1,0 +1,177 @@
+#include "vdb/VdbLayout.h"
+
+#include <cstring>
+#include <filesystem>
+#include <fstream>
+#include <system_error>
+
+#include "core/Error.h"
+
+namespace splatwarp {
+
+namespace {
+
+constexpr std::int64_t kVdbMagic = 0x56444220;
+constexpr std::uint32_t kFirstCheckedFormat = 222; ///< per-grid compression flags, instance parents
+
+/// Little-endian fields read in order, each checked against the bytes left before `limit`.
+class LayoutReader {
+public:
+    LayoutReader(std::istream& in, std::uint64_t size, const std::string& name)
+        : mIn(in), mSize(size), mLimit(size), mName(name)
+    {
+    }
+
+    std::uint64_t at() const { return mAt; }
+    std::uint64_t left() const { return mLimit - mAt; }
+    void limitTo(std::uint64_t end) { mLimit = end; }
+
+    template <typename T>
+    T value(const std::string& what)
+    {
+        need(sizeof(T), what);
+        char bytes[sizeof(T)];
+        if (!mIn.read(bytes, sizeof(T))) fail(what, " cannot be read");
+        mAt += sizeof(T);
+        T v;
+        std::memcpy(&v, bytes, sizeof(T));
+        return v;
+    }
+
+    /// A length-prefixed string: its text when short (for messages), else skipped.
+    std::string text(const std::string& what)
+    {
+        const std::uint32_t length = value<std::uint32_t>(what + "'s length");
+        need(length, what);
+        std::string s;
+        if (length <= 256) {
+            s.resize(length);
+            if (length > 0 && !mIn.read(&s[0], length)) fail(what, " cannot be read");
+            mAt += length;
+        } else {
+            seek(mAt + length);
+        }
+        return s;
+    }
+
+    void skip(std::uint64_t bytes, const std::string& what)
+    {
+        need(bytes, what);
+        seek(mAt + bytes);
+    }
+
+    void seek(std::uint64_t to)
+    {
+        mAt = to;
+        mIn.clear();
+        if (!mIn.seekg(std::streamoff(to))) fail("byte ", to, " cannot be reached");
+    }
+
+    template <typename... Args>
+    [[noreturn]] void fail(const Args&... args) const
+    {
+        throw InputError(msg(mName, ": ", args..., " (truncated or corrupt OpenVDB file?)"));
+    }
+
+private:
+    void need(std::uint64_t bytes, const std::string& what) const
+    {
+        if (bytes > left())
+            fail(what, " at byte ", mAt, " needs ", bytes, " bytes, ", left(), " are left of the ", mSize, "-byte file");
+    }
+
+    std::istream& mIn;
+    std::uint64_t mSize, mLimit, mAt = 0;
+    const std::string& mName;
+};
+
+/// A MetaMap: a count, then name, type name and a length-prefixed value per entry (OpenVDB reads a
+/// typed value by its type and the rest by the length; each is at most what is left).
+void skipMetadata(LayoutReader& r, const std::string& whose)
+{
+    const std::uint32_t count = r.value<std::uint32_t>(whose + " metadata count");
+    if (count > r.left() / 12) r.fail(whose, " metadata count ", count, " cannot fit in the ", r.left(), " bytes left");
+    for (std::uint32_t m = 0; m < count; ++m) {
+        const std::string name = r.text(whose + " metadata name");
+        r.text(whose + " metadata '" + name + "' type");
+        const std::uint32_t bytes = r.value<std::uint32_t>(whose + " metadata '" + name + "' size");
+        r.skip(bytes, whose + " metadata '" + name + "' value");
+    }
+}
+
+/// What OpenVDB reads of a grid for its metadata alone, before its voxel data: compression flags,
+/// metadata and the transform's map name.
+void checkGridHeader(LayoutReader& r, const std::string& which)
+{
+    r.value<std::uint32_t>(which + " compression flags");
+    skipMetadata(r, which);
+    r.text(which + " transform");
+}
+
+/// A grid's offsets in its file: its start, its voxel data's start, its end.
+struct GridOffsets {
+    std::int64_t grid = 0, block = 0, end = 0;
+};
+
+/// Grid `index`'s descriptor: its name (returned), type name, instance parent and offsets.
+std::string gridDescriptor(LayoutReader& r, std::int32_t index, GridOffsets& at)
+{
+    const std::string name = r.text("grid " + std::to_string(index) + " name");
+    const std::string which = "grid '" + name + "'";
+    r.text(which + " type");
+    r.text(which + " instance parent");
+    at.grid = r.value<std::int64_t>(which + " start");
+    at.block = r.value<std::int64_t>(which + " data start");
+    at.end = r.value<std::int64_t>(which + " end");
+    return which;
+}
+
+/// A grid of a file with offsets: its descriptor, then its header at its start (before its data).
+void checkGrid(LayoutReader& r, std::uint64_t size, std::int32_t index)
+{
+    GridOffsets at;
+    const std::string which = gridDescriptor(r, index, at);
+    if (!(std::int64_t(r.at()) <= at.grid && at.grid <= at.block && at.block <= at.end))
+        r.fail(which, " has offsets out of order: start ", at.grid, ", data ", at.block, ", end ", at.end, " after byte ", r.at());
+    if (std::uint64_t(at.end) > size) r.fail(which, " ends at byte ", at.end, " of a ", size, "-byte file");
+    r.seek(std::uint64_t(at.grid));
+    r.limitTo(std::uint64_t(at.block));
+    checkGridHeader(r, which);
+    r.limitTo(size);
+    r.seek(std::uint64_t(at.end));
+}
+
+} // namespace
+
+void checkVdbLayout(std::istream& in, std::uint64_t size, const std::string& name)
+{
+    LayoutReader r(in, size, name);
+    if (size < 8 || r.value<std::int64_t>("magic") != kVdbMagic) return; // not ours to judge: OpenVDB refuses it
+    const auto format = r.value<std::uint32_t>("format version");
+    if (format < kFirstCheckedFormat) return;
+    r.skip(8, "library version");
+    const auto offsets = r.value<std::uint8_t>("grid offsets flag");
+    r.skip(36, "UUID");
+    skipMetadata(r, "file");
+    const auto grids = r.value<std::int32_t>("grid count");
+    if (grids < 0 || std::uint64_t(grids) > r.left() / 36)
+        r.fail("grid count ", grids, " cannot fit in the ", r.left(), " bytes left");
+    if (offsets != 0) {
+        for (std::int32_t g = 0; g < grids; ++g) checkGrid(r, size, g);
+    } else if (grids > 0) {
+        // A stream (io::Stream): each grid's data follows its header unindexed; the first is checked.
+        GridOffsets unused;
+        checkGridHeader(r, gridDescriptor(r, 0, unused));
+    }
+}
+
+void checkVdbFileLayout(const std::string& path)
+{
+    std::error_code ec;
+    const std::uintmax_t size = std::filesystem::file_size(path, ec);
+    std::ifstream in(path, std::ios::binary);
+    if (ec || !in) throw IoError(msg(path, ": cannot open"));
+    checkVdbLayout(in, std::uint64_t(size), path);
+}
+
+} // namespace splatwarp
