@@ -50,7 +50,7 @@ TEST(GaussianBudget, DeformHonoursTheBudgetAndOneTimesKeepsTheCount)
     TempDir dir;
     const std::string model = dir.file("s.ply"), spec = std::string(SPLATWARP_SOURCE_DIR) + "/samples/specs/bend.json";
     ASSERT_EQ(runCli("-q sample stripes --count 2000 -o " + model), 0);
-    const std::string common = "-q deform " + model + " --spec " + spec + " --iterations 4 ";
+    const std::string common = "-q deform " + model + " --spec " + spec + " --iterations 4 " + kQuickDeform;
     // Without a budget the splits add more than 300 here, so a budget of 2300 binds.
     ASSERT_EQ(runCli(common + "-o " + dir.file("free") + " --max-gaussians none"), 0);
     const std::size_t free = countOf(dir.file("free/deformed.ply"));
@@ -105,7 +105,8 @@ TEST(GaussianBudget, AtOneTimesTheCurveSplitMakesRoomByRemovingTheFaintest)
         for (int a = 0; a < 3; ++a) specked.logScales[3 * i + std::size_t(a)] += std::log(1.0f / 3.0f);
     }
     writePly(dir.file("specked.ply"), specked);
-    const std::string common = "-q deform " + dir.file("specked.ply") + " --spec " + spec + " --iterations 4 --max-gaussians 1x --keep fit ";
+    const std::string common =
+        "-q deform " + dir.file("specked.ply") + " --spec " + spec + " --iterations 4 --max-gaussians 1x --keep fit " + kQuickDeform;
     ASSERT_EQ(runCli(common + "-o " + dir.file("one") + " --curve-split-prune 3"), 0);
     const nlohmann::json one = reportOf(dir.file("one"));
     EXPECT_EQ(countOf(dir.file("one/deformed.ply")), 2000u);
