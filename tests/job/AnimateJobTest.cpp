@@ -130,14 +130,15 @@ TEST(AnimateJob, ResumeRedoesOnlyFramesWhoseFilesOrEntriesAreMissing)
     ASSERT_EQ(runCli(msg("-q animate ", fx.model, " --spec ", fx.spec, " -o ", fx.dir.file("out"), " ", kFlags,
                          " --frames 1-1 --boundary-weight 5"), fx.dir.file("changed.log")), 0);
     EXPECT_NE(readBytes(fx.dir.file("changed.log")).find("1 done, 0 resumed"), std::string::npos);
-    // Each flag against a run without it (the previous flag's run left other settings behind).
+    // Each flag added to the flags of the run before (which differs from it by that flag alone).
+    std::string flags = msg(kFlags, " --frames 2-2");
+    ASSERT_EQ(runCli(msg("-q animate ", fx.model, " --spec ", fx.spec, " -o ", fx.dir.file("out"), " ", flags)), 0);
     for (const char* flag : {"--stall-tolerance 0.5", "--max-mean-step 0.2", "--drop-invalid", "--warm-start",
                              "--fine-cells auto", "--stage1-shape polar",
                              "--endpoint-sigmas 1", "--keep regions", "--validated-split off"}) {
-        ASSERT_EQ(runCli(msg("-q animate ", fx.model, " --spec ", fx.spec, " -o ", fx.dir.file("out"), " ", kFlags,
-                             " --frames 2-2"), fx.dir.file("plain.log")), 0);
-        ASSERT_EQ(runCli(msg("-q animate ", fx.model, " --spec ", fx.spec, " -o ", fx.dir.file("out"), " ", kFlags,
-                             " --frames 2-2 ", flag), fx.dir.file("flag.log")), 0);
+        flags += msg(" ", flag);
+        ASSERT_EQ(runCli(msg("-q animate ", fx.model, " --spec ", fx.spec, " -o ", fx.dir.file("out"), " ", flags),
+                         fx.dir.file("flag.log")), 0) << flags;
         EXPECT_NE(readBytes(fx.dir.file("flag.log")).find("1 done, 0 resumed"), std::string::npos) << flag;
     }
 }

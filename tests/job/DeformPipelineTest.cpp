@@ -274,7 +274,7 @@ TEST(DeformPipeline, FineCellsFromTheCommandLine)
     TempDir dir;
     const DeformJobOptions a = smallJob(dir, "bend.json", 1);
     const std::string base = "-q deform " + a.input + " --spec " + a.specPath + " --nodes 64 --cells 20 --iterations 1 "
-                             "--samples-per-cell 4 --no-eval --device cpu --fine-cells ";
+                             "--samples-per-cell 4 --no-eval --eval-points 5000 --device cpu --fine-cells ";
     auto stage2 = [&](const std::string& mode) {
         const std::string out = dir.file("out-" + mode);
         EXPECT_EQ(runCli(base + mode + " -o " + out), 0) << mode;
@@ -299,7 +299,7 @@ TEST(DeformPipeline, SplitAndPruneFromTheCommandLine)
     TempDir dir;
     const DeformJobOptions a = smallJob(dir, "stretch.json", 1);
     const std::string base = "-q deform " + a.input + " --spec " + a.specPath + " --nodes 64 --cells 20 --iterations 6 "
-                             "--no-eval --device cpu --curve-split off --keep fit ";
+                             "--no-eval --eval-points 5000 --device cpu --curve-split off --keep fit ";
     auto run = [&](const std::string& flags, const std::string& name) {
         const std::string out = dir.file(name);
         EXPECT_EQ(runCli(base + flags + " -o " + out), 0) << flags;

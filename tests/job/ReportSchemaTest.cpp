@@ -101,9 +101,9 @@ TEST(ReportSchema, DeformReportKeysAreDocumentedAndCamelCase)
     ASSERT_EQ(runCli("-q sample stripes --count 1500 -o " + model), 0);
     Paths found;
     ASSERT_EQ(runCli("-q deform " + model + " --spec " + specs + "bend.json -o " + dir.file("bend") +
-                     " --iterations 6 --eval-every 3 --render --vdb --recipe default"), 0);
+                     " --iterations 6 --eval-every 3 --render --vdb --recipe default" + kQuickDeform), 0);
     keyPaths(parseFile(dir.file("bend/report.json")), "", "deform report.json", found);
-    ASSERT_EQ(runCli("-q deform " + model + " --spec " + specs + "rigid.json -o " + dir.file("rigid")), 0);
+    ASSERT_EQ(runCli("-q deform " + model + " --spec " + specs + "rigid.json -o " + dir.file("rigid") + kQuickDeform), 0);
     keyPaths(parseFile(dir.file("rigid/report.json")), "", "deform report.json", found);
     ASSERT_EQ(runCli("-q deform " + model + " --spec " + specs + "twist.json -o " + dir.file("s1") + " --stage1-only"), 0);
     keyPaths(parseFile(dir.file("s1/report.json")), "", "deform report.json", found);

@@ -19,7 +19,7 @@ TEST(IterationsCli, TakesAutoAndWholeNumbersAndRefusesOtherWords)
     so.count = 2000;
     writePly(dir.file("in.ply"), makeDemoModel("stripes", so));
     const std::string base = "-q deform " + dir.file("in.ply") + " --spec " + std::string(SPLATWARP_SOURCE_DIR) +
-                             "/samples/specs/bend.json --nodes 48 --cells 16 --samples-per-cell 4 --no-eval --device cpu ";
+                             "/samples/specs/bend.json --nodes 48 --cells 16 --samples-per-cell 4 --no-eval --eval-points 5000 --device cpu ";
     for (const char* bad : {"sometimes", "-3", "2.5", "10x", "", "AUTO"})
         EXPECT_EQ(runCli(base + "--stage1-only --iterations '" + std::string(bad) + "' -o " + dir.file("bad")), 2) << bad;
     auto stage2 = [&](const std::string& flags, const std::string& name) {
