@@ -155,29 +155,29 @@ double PlyElementValues::get(std::size_t row, int prop) const
     return mAscii[row * np + std::size_t(prop)];
 }
 
-PlyBody::PlyBody(const std::string& path, const std::string& data, const PlyHeader& header) : mPath(path)
+PlyBody::PlyBody(const std::string& path, const std::string& data, const PlyHeader& header, Trailing trailing) : mPath(path)
 {
     mElements.resize(header.elements.size());
     for (std::size_t ei = 0; ei < header.elements.size(); ++ei) mElements[ei].mElement = &header.elements[ei];
     if (header.format == PlyFormat::Ascii)
-        readAscii(data, header);
+        readAscii(data, header, trailing);
     else
-        readBinary(data, header);
+        readBinary(data, header, trailing);
 }
 
-void PlyBody::readAscii(const std::string& data, const PlyHeader& header)
+void PlyBody::readAscii(const std::string& data, const PlyHeader& header, Trailing trailing)
 {
     // The header has one line per '\n' before bodyOffset.
     const int bodyLine = int(std::count(data.begin(), data.begin() + std::ptrdiff_t(header.bodyOffset), '\n')) + 1;
     AsciiTokens tokens(mPath, data, header.bodyOffset, bodyLine);
     const std::size_t bodyBytes = data.size() - header.bodyOffset;
     for (PlyElementValues& v : mElements) readAsciiElement(mPath, *v.mElement, bodyBytes, tokens, v.mAscii);
-    if (!tokens.atEnd())
+    if (trailing == Trailing::Refuse && !tokens.atEnd())
         throw InputError(msg(mPath, ": line ", tokens.line(),
                              ": data after the last element (header counts smaller than the body)"));
 }
 
-void PlyBody::readBinary(const std::string& data, const PlyHeader& header)
+void PlyBody::readBinary(const std::string& data, const PlyHeader& header, Trailing trailing)
 {
     const bool swap = header.format == PlyFormat::BinaryBigEndian;
     std::size_t pos = header.bodyOffset;
@@ -202,7 +202,7 @@ void PlyBody::readBinary(const std::string& data, const PlyHeader& header)
         v.mSwap = swap;
         pos += stride * e.count;
     }
-    if (pos != data.size())
+    if (trailing == Trailing::Refuse && pos != data.size())
         throw InputError(msg(mPath, ": ", data.size() - pos,
                              " bytes after the last element (header counts or types do not match the body)"));
 }

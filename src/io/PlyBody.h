@@ -34,18 +34,22 @@ private:
 /// @brief The body of a PLY file: every element located; scalar elements readable.
 class PlyBody {
 public:
+    /// @brief What follows the last element: refused (a model: header counts that do not match), or
+    ///        allowed (a mesh for Assimp, which reads files that carry a few bytes more).
+    enum class Trailing { Refuse, Allow };
+
     /// @brief Walk the body of `data` (the whole file) laid out by `header`.
     /// @throws InputError naming path, element and record when the body is truncated, has bytes
-    ///         left over, or (ASCII) holds a token that is not a number.
-    PlyBody(const std::string& path, const std::string& data, const PlyHeader& header);
+    ///         left over (Trailing::Refuse), or (ASCII) holds a token that is not a number.
+    PlyBody(const std::string& path, const std::string& data, const PlyHeader& header, Trailing trailing = Trailing::Refuse);
 
     /// @brief The values of the named element.
     /// @throws InputError if there is no such element or it has list properties.
     const PlyElementValues& element(const std::string& name) const;
 
 private:
-    void readAscii(const std::string& data, const PlyHeader& header);
-    void readBinary(const std::string& data, const PlyHeader& header);
+    void readAscii(const std::string& data, const PlyHeader& header, Trailing trailing);
+    void readBinary(const std::string& data, const PlyHeader& header, Trailing trailing);
 
     std::string mPath;
     std::vector<PlyElementValues> mElements;

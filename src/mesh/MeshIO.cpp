@@ -5,10 +5,14 @@
 #include <assimp/postprocess.h>
 #include <assimp/scene.h>
 #include <filesystem>
+#include <fstream>
 #include <map>
+#include <sstream>
 
 #include "core/Error.h"
 #include "image/TextureIO.h"
+#include "io/PlyBody.h"
+#include "io/PlyHeader.h"
 
 namespace splatwarp {
 
@@ -93,14 +97,53 @@ void appendMesh(const aiMesh& m, TriangleMesh& mesh, bool& anyUv, bool& anyColou
     }
 }
 
+/// A PLY mesh's header and body walked by our own (fuzzed) PLY parser before Assimp reads it:
+/// Assimp 5's PLY loader loops forever on a header cut inside an `element` line, and aborts the
+/// process (an assertion in its triangulation) on a body cut inside the vertices or faces.
+void checkPlyMesh(const std::string& path)
+{
+    std::ifstream in(path, std::ios::binary);
+    char magic[3] = {};
+    if (!in.read(magic, 3) || std::string(magic, 3) != "ply") return; // other formats: Assimp's checks
+    in.seekg(0);
+    std::ostringstream bytes;
+    bytes << in.rdbuf();
+    const std::string data = bytes.str();
+    PlyBody(path, data, parsePlyHeader(path, data), PlyBody::Trailing::Allow);
+}
+
+/// Each mesh's primitive types taken from its faces, as Assimp's triangulation asserts they are
+/// (a loader that leaves a polygon flag on a mesh of triangles or of no faces aborts the process
+/// there); a face without indices is refused.
+void setPrimitiveTypes(const aiScene& scene, const std::string& path)
+{
+    for (unsigned i = 0; i < scene.mNumMeshes; ++i) {
+        aiMesh& m = *scene.mMeshes[i];
+        unsigned types = 0;
+        for (unsigned f = 0; f < m.mNumFaces; ++f) {
+            const unsigned n = m.mFaces[f].mNumIndices;
+            if (n == 0) throw InputError(msg(path, ": mesh ", i, " has a face without vertices (a cut or corrupt file?)"));
+            types |= n == 1 ? aiPrimitiveType_POINT : n == 2 ? aiPrimitiveType_LINE : n == 3 ? aiPrimitiveType_TRIANGLE
+                                                                                            : aiPrimitiveType_POLYGON;
+        }
+        m.mPrimitiveTypes = types;
+    }
+}
+
 } // namespace
 
 TriangleMesh readMesh(const std::string& path, const MeshReadOptions& o)
 {
     if (!fs::is_regular_file(path)) throw InputError(msg(path, ": mesh file not found"));
+    checkPlyMesh(path);
     Assimp::Importer importer;
     importer.SetPropertyInteger(AI_CONFIG_PP_SBP_REMOVE, aiPrimitiveType_POINT | aiPrimitiveType_LINE);
-    const aiScene* scene = importer.ReadFile(path, aiProcess_Triangulate | aiProcess_PreTransformVertices | aiProcess_SortByPType);
+    // Read, then validated and post-processed once the primitive types are the faces' own.
+    const aiScene* scene = importer.ReadFile(path, 0);
+    if (!scene || !scene->mRootNode) throw InputError(msg(path, ": cannot read mesh: ", importer.GetErrorString()));
+    setPrimitiveTypes(*scene, path);
+    scene = importer.ApplyPostProcessing(aiProcess_ValidateDataStructure | aiProcess_Triangulate | aiProcess_PreTransformVertices |
+                                         aiProcess_SortByPType);
     if (!scene || !scene->mRootNode) throw InputError(msg(path, ": cannot read mesh: ", importer.GetErrorString()));
     TriangleMesh mesh;
     mesh.name = path;

@@ -128,6 +128,29 @@ TEST(MeshIOTest, BadMeshesNameTheFile)
     EXPECT_THROW(readTexture(dir.file("junk.png")), InputError);
 }
 
+// Assimp 5 loops forever on a PLY header cut inside an element line and aborts the process on a
+// PLY body cut short; both are refused first, naming the file. A few bytes after the last element
+// (some exporters write them) and an OBJ whose last face lost a vertex still load.
+TEST(MeshIOTest, CutMeshesAreRefusedAndNeitherHangNorAbort)
+{
+    test::TempDir dir;
+    const std::string header = "ply\nformat ascii 1.0\nelement vertex 4\nproperty float x\nproperty float y\n"
+                               "property float z\nelement face 2\nproperty list uchar int vertex_indices\nend_header\n";
+    const std::string body = "0 0 0\n1 0 0\n0 1 0\n1 1 0\n3 0 1 2\n3 1 3 2\n";
+    writeFileAtomic(dir.file("whole.ply"), header + body);
+    EXPECT_EQ(readMesh(dir.file("whole.ply")).triangles.size(), 6u);
+    writeFileAtomic(dir.file("trailing.ply"), header + body + "\n\n");
+    EXPECT_EQ(readMesh(dir.file("trailing.ply")).triangles.size(), 6u);
+    writeFileAtomic(dir.file("cuthead.ply"), header.substr(0, header.find("element vertex") + 7));
+    expectErrorNaming(dir.file("cuthead.ply"), "cuthead.ply: PLY header has no 'end_header'");
+    for (const std::size_t cut : {std::size_t(3), std::size_t(14), body.size() - 9}) {
+        writeFileAtomic(dir.file("cutbody.ply"), header + body.substr(0, cut));
+        expectErrorNaming(dir.file("cutbody.ply"), "cutbody.ply: ");
+    }
+    writeFileAtomic(dir.file("lastface.obj"), "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 1 1 0\nf 1 2 3\nf 2 4\n");
+    EXPECT_EQ(readMesh(dir.file("lastface.obj")).triangles.size(), 3u);
+}
+
 TEST(MeshIOTest, SpotAndBunnyLoad)
 {
     SPLATWARP_REQUIRE_DATA(spot, "meshes/spot/spot_triangulated.obj");
