@@ -129,7 +129,7 @@ TEST(MeshIOTest, BadMeshesNameTheFile)
 }
 
 // Assimp 5 loops forever on a PLY header cut inside an element line and aborts the process on a
-// PLY body cut short; both are refused first, naming the file. A few bytes after the last element
+// PLY or OFF body cut short; each is refused first, naming the file. A few bytes after the last element
 // (some exporters write them) and an OBJ whose last face lost a vertex still load.
 TEST(MeshIOTest, CutMeshesAreRefusedAndNeitherHangNorAbort)
 {
@@ -147,6 +147,11 @@ TEST(MeshIOTest, CutMeshesAreRefusedAndNeitherHangNorAbort)
         writeFileAtomic(dir.file("cutbody.ply"), header + body.substr(0, cut));
         expectErrorNaming(dir.file("cutbody.ply"), "cutbody.ply: ");
     }
+    // An OFF that declares two faces and holds one: Assimp leaves the second without indices (and
+    // its triangulation aborted the process on the flags left over); the primitive types now come
+    // from the faces and the empty one is named.
+    writeFileAtomic(dir.file("cut.off"), "OFF\n4 2 0\n0 0 0\n1 0 0\n0 1 0\n1 1 0\n3 0 1 2\n");
+    expectErrorNaming(dir.file("cut.off"), "cut.off: mesh 0 has a face without vertices");
     writeFileAtomic(dir.file("lastface.obj"), "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 1 1 0\nf 1 2 3\nf 2 4\n");
     EXPECT_EQ(readMesh(dir.file("lastface.obj")).triangles.size(), 3u);
 }
