@@ -5,6 +5,7 @@
 #include <fstream>
 #include <iterator>
 #include <jpeglib.h>
+#include <jerror.h>
 #include <png.h>
 #include <vector>
 
@@ -38,6 +39,7 @@ struct JpegError {
     jpeg_error_mgr base;
     std::jmp_buf jump;
     char text[JMSG_LENGTH_MAX];
+    void (*emit)(j_common_ptr, int) = nullptr; ///< libjpeg's own, for every other message
 };
 
 void jpegErrorExit(j_common_ptr info)
@@ -47,12 +49,22 @@ void jpegErrorExit(j_common_ptr info)
     std::longjmp(e->jump, 1);
 }
 
+/// A file cut short is only a warning to libjpeg (JWRN_JPEG_EOF: it fills the rest of the picture
+/// with grey); a texture or a training picture cut in half is a corrupt input, so it is an error.
+void jpegMessage(j_common_ptr info, int level)
+{
+    if (level < 0 && info->err->msg_code == JWRN_JPEG_EOF) jpegErrorExit(info);
+    (*reinterpret_cast<JpegError*>(info->err)->emit)(info, level);
+}
+
 Image decodeJpeg(const unsigned char* bytes, std::size_t size, const std::string& name)
 {
     jpeg_decompress_struct info{};
     JpegError err{};
     info.err = jpeg_std_error(&err.base);
     err.base.error_exit = jpegErrorExit;
+    err.emit = err.base.emit_message;
+    err.base.emit_message = jpegMessage;
     // Only plain data lives across the jump: the image is allocated after the header is read.
     std::vector<std::uint8_t> data;
     int width = 0, height = 0;

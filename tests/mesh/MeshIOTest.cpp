@@ -95,6 +95,21 @@ TEST(MeshIOTest, ObjWithMtlAndPngOrJpegTexture)
     }
 }
 
+// libjpeg only warns on a file cut short and fills the rest with grey: a cut texture or training
+// picture is refused instead, by name.
+TEST(MeshIOTest, ACutJpegIsRefused)
+{
+    test::TempDir dir;
+    Image big(64, 64, 3);
+    for (std::size_t i = 0; i < big.pixels.size(); ++i) big.pixels[i] = float((i * 37) % 251) / 255.0f;
+    writeJpeg(dir.file("whole.jpg"), big);
+    EXPECT_EQ(readTexture(dir.file("whole.jpg")).width, 64);
+    const std::string bytes = test::fileBytes(dir.file("whole.jpg"));
+    writeFileAtomic(dir.file("cut.jpg"), bytes.substr(0, bytes.size() / 2));
+    const std::string e = test::inputErrorMessage([&] { readTexture(dir.file("cut.jpg")); });
+    EXPECT_NE(e.find("cut.jpg: corrupt JPEG: Premature end of JPEG file"), std::string::npos) << e;
+}
+
 TEST(MeshIOTest, PlyVertexColoursAndTextureOption)
 {
     test::TempDir dir;
