@@ -190,12 +190,12 @@ async function drive(page, url, shot, dir) {
     await page.keyboard.down('Control');
     await page.keyboard.press('z');
     await page.keyboard.up('Control');
-    await page.waitForFunction(() => !window.splatwarpEditor.busy);
+    await page.waitForFunction(() => !window.splatwarpEditor.busy, { timeout: 60000 });
     check(JSON.stringify(await page.evaluate(() => window.splatwarpEditor.spec())) === JSON.stringify(spec), 'ctrl-Z undid the drag');
     await page.keyboard.down('Control');
     await page.keyboard.press('y');
     await page.keyboard.up('Control');
-    await page.waitForFunction(() => !window.splatwarpEditor.busy);
+    await page.waitForFunction(() => !window.splatwarpEditor.busy, { timeout: 60000 });
     check(JSON.stringify(await page.evaluate(() => window.splatwarpEditor.spec())) === JSON.stringify(dragged), 'ctrl-Y redid it');
 
     await page.$eval('#keyFrame', (el) => { el.value = '23'; });
