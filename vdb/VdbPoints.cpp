@@ -2,8 +2,6 @@
 /// writing, reading (any codec of P; id restores the order), and the registration as a model format.
 #include "vdb/VdbPoints.h"
 
-#include "vdb/VdbLayout.h"
-
 #include <openvdb/io/Stream.h>
 #include <openvdb/openvdb.h>
 #include <openvdb/points/PointConversion.h>
@@ -15,6 +13,7 @@
 #include <memory>
 #include <sstream>
 
+#include "vdb/VdbLayout.h"
 #include "vdb/VdbLibrary.h"
 #include "core/AtomicFile.h"
 #include "core/Error.h"
