@@ -4,7 +4,7 @@
 ///        metadata, each grid's descriptor and the metadata and transform name at the start of each
 ///        grid, every length and offset against the bytes the file has. OpenVDB trusts them: on a
 ///        file cut short its stream fails at the last grid's end and every later read returns
-///        garbage, so a string length of up to 4 GiB is allocated (a 277 KB volume cut by one byte:
+///        garbage, so a string length of up to 4 GiB is allocated (an 832 KB volume cut by one byte:
 ///        6.7 GB and 15 s before "KeyError: Map"). Needs no OpenVDB header.
 #include <cstdint>
 #include <istream>

@@ -9,6 +9,7 @@
 #include <filesystem>
 #include <fstream>
 #include <mutex>
+#include <sstream>
 #include <sys/stat.h>
 #include <unistd.h>
 
@@ -153,6 +154,18 @@ void AtomicFile::commit()
         unregisterCleanup(mSlot);
     }
     mCommitted = true;
+}
+
+std::string readWholeFile(const std::string& path)
+{
+    std::error_code ec;
+    if (std::filesystem::is_directory(path, ec)) throw IoError(msg(path, ": is a directory, not a file"));
+    std::ifstream in(path, std::ios::binary);
+    if (!in) throw IoError(msg(path, ": cannot open: ", std::strerror(errno)));
+    std::ostringstream ss;
+    ss << in.rdbuf();
+    if (in.bad()) throw IoError(msg(path, ": read failed"));
+    return ss.str();
 }
 
 void writeFileAtomic(const std::string& path, const std::string& contents)

@@ -34,6 +34,10 @@ private:
     bool mCommitted = false;
 };
 
+/// @brief The bytes of a whole file.
+/// @throws IoError when it is a directory, cannot be opened or a read fails
+std::string readWholeFile(const std::string& path);
+
 /// @brief Write a whole string atomically (reports, JSON); checks flush and close.
 void writeFileAtomic(const std::string& path, const std::string& contents);
 

@@ -7,6 +7,7 @@
 #include <limits>
 #include <sstream>
 
+#include "core/AtomicFile.h"
 #include "core/Error.h"
 #include "io/FormatReaders.h"
 #include "io/SogFormat.h"
@@ -14,18 +15,6 @@
 namespace splatwarp {
 
 namespace {
-
-std::string readWholeFile(const std::string& path)
-{
-    std::error_code ec;
-    if (std::filesystem::is_directory(path, ec)) throw IoError(msg(path, ": is a directory, not a file"));
-    std::ifstream in(path, std::ios::binary);
-    if (!in) throw IoError(msg(path, ": cannot open: ", std::strerror(errno)));
-    std::ostringstream ss;
-    ss << in.rdbuf();
-    if (in.bad()) throw IoError(msg(path, ": read failed"));
-    return ss.str();
-}
 
 // Values that are finite on disk but overflow in use: exp(log-scale) squared into a float
 // covariance, squared distances of centres, |q|^2 of a quaternion.

@@ -7,8 +7,8 @@
 #include <filesystem>
 #include <fstream>
 #include <map>
-#include <sstream>
 
+#include "core/AtomicFile.h"
 #include "core/Error.h"
 #include "image/TextureIO.h"
 #include "io/PlyBody.h"
@@ -102,13 +102,9 @@ void appendMesh(const aiMesh& m, TriangleMesh& mesh, bool& anyUv, bool& anyColou
 /// process (an assertion in its triangulation) on a body cut inside the vertices or faces.
 void checkPlyMesh(const std::string& path)
 {
-    std::ifstream in(path, std::ios::binary);
     char magic[3] = {};
-    if (!in.read(magic, 3) || std::string(magic, 3) != "ply") return; // other formats: Assimp's checks
-    in.seekg(0);
-    std::ostringstream bytes;
-    bytes << in.rdbuf();
-    const std::string data = bytes.str();
+    if (!std::ifstream(path, std::ios::binary).read(magic, 3) || std::string(magic, 3) != "ply") return; // Assimp's checks
+    const std::string data = readWholeFile(path);
     PlyBody(path, data, parsePlyHeader(path, data), PlyBody::Trailing::Allow);
 }
 
