@@ -50,6 +50,17 @@ int loadTexture(const aiScene& scene, const std::string& ref, const std::string&
     return loaded[ref];
 }
 
+/// A material's base colour or diffuse texture; empty when it has none. An exporter may write a
+/// texture slot without a source (Assimp's X3D: `<ImageTexture/>`): that is no texture either.
+std::string materialTexture(const aiMaterial& mat)
+{
+    for (const aiTextureType type : {aiTextureType_BASE_COLOR, aiTextureType_DIFFUSE}) {
+        aiString tex;
+        if (mat.GetTexture(type, 0, &tex) == AI_SUCCESS && tex.length > 0) return tex.C_Str();
+    }
+    return {};
+}
+
 std::vector<MeshMaterial> readMaterials(const aiScene& scene, const std::string& path, const MeshReadOptions& o,
                                         TriangleMesh& mesh)
 {
@@ -65,9 +76,9 @@ std::vector<MeshMaterial> readMaterials(const aiScene& scene, const std::string&
         if (std::string(name.C_Str()) != AI_DEFAULT_MATERIAL_NAME &&
             (mat.Get(AI_MATKEY_BASE_COLOR, c) == AI_SUCCESS || mat.Get(AI_MATKEY_COLOR_DIFFUSE, c) == AI_SUCCESS))
             mm.colour = Vec3f(c.r, c.g, c.b);
-        aiString tex;
-        if (mat.GetTexture(aiTextureType_BASE_COLOR, 0, &tex) == AI_SUCCESS || mat.GetTexture(aiTextureType_DIFFUSE, 0, &tex) == AI_SUCCESS)
-            mm.texture = loadTexture(scene, tex.C_Str(), path, mesh, loaded);
+        const std::string tex = materialTexture(mat);
+        if (!tex.empty())
+            mm.texture = loadTexture(scene, tex, path, mesh, loaded);
         else if (!o.texture.empty())
             mm.texture = loadTexture(scene, fs::absolute(o.texture).string(), path, mesh, loaded);
         out.push_back(mm);

@@ -134,6 +134,28 @@ TEST(MeshIOTest, PlyVertexColoursAndTextureOption)
     EXPECT_TRUE(p.textures.empty());
 }
 
+// Assimp's X3D exporter writes `<ImageTexture/>` for a material without a picture: that slot is
+// no texture (it was "texture '' not found"), so --texture applies.
+TEST(MeshIOTest, ATextureSlotWithoutSourceIsNoTexture)
+{
+    test::TempDir dir;
+    writeFileAtomic(dir.file("quad.x3d"),
+                    "<?xml version='1.0' encoding='UTF-8'?>\n<X3D profile='Interchange' version='3.3'><Scene><Shape>"
+                    "<Appearance><ImageTexture/><Material diffuseColor='1 1 1'/></Appearance>"
+                    "<IndexedFaceSet coordIndex='0 1 2 3 -1' texCoordIndex='0 1 2 3 -1'>"
+                    "<Coordinate point='-1 -1 0 1 -1 0 1 1 0 -1 1 0'/><TextureCoordinate point='0 0 1 0 1 1 0 1'/>"
+                    "</IndexedFaceSet></Shape></Scene></X3D>\n");
+    const TriangleMesh bare = readMesh(dir.file("quad.x3d"));
+    EXPECT_EQ(bare.triangleCount(), 2u);
+    EXPECT_TRUE(bare.textures.empty());
+    writePng(dir.file("t.png"), fourTexels());
+    MeshReadOptions o;
+    o.texture = dir.file("t.png");
+    const TriangleMesh textured = readMesh(dir.file("quad.x3d"), o);
+    ASSERT_EQ(textured.textures.size(), 1u);
+    EXPECT_EQ(textured.textures[0].width, 2);
+}
+
 TEST(MeshIOTest, BadMeshesNameTheFile)
 {
     test::TempDir dir;
