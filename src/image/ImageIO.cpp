@@ -13,6 +13,7 @@
 #include <png.h>
 
 #include "core/AtomicFile.h"
+#include "core/Camera.h"
 #include "core/Error.h"
 
 namespace splatwarp {
@@ -38,6 +39,46 @@ void requireColourImage(const std::string& path, const Image& image)
 }
 
 std::uint8_t toByte(float v) { return std::uint8_t(std::lround(std::clamp(v, 0.0f, 1.0f) * 255.0f)); }
+
+/// A PNG's size checked before its pixels are allocated: each side within kMaxImageSide, and pixels
+/// that its bytes can hold. Deflate packs at most 1032 bytes into one (a 258-byte match costs two
+/// bits or more), so a 100-byte file declaring 60000x60000 pixels (libpng allocated 2 GB for it
+/// before failing) is refused here.
+void checkPngSize(const std::string& name, png_image& png, const unsigned char* bytes, std::size_t size)
+{
+    try {
+        checkImageSize(name, png.width, png.height);
+    } catch (...) {
+        png_image_free(&png);
+        throw;
+    }
+    // libpng has read the IHDR, the first chunk: bit depth at byte 24, colour type at byte 25.
+    static const int kSamples[7] = {1, 0, 3, 1, 2, 0, 4};
+    const int depth = bytes[24], type = bytes[25];
+    const std::uint64_t leastBits = std::uint64_t(png.width) * png.height * std::uint64_t(kSamples[type % 7]) * std::uint64_t(depth);
+    constexpr std::uint64_t kDeflateMaxRatio = 1032;
+    if (leastBits / 8 > std::uint64_t(size) * kDeflateMaxRatio) {
+        png_image_free(&png);
+        throw InputError(msg(name, ": a PNG of ", png.width, "x", png.height, " pixels cannot fit in its ", size,
+                             " bytes (truncated or corrupt PNG?)"));
+    }
+}
+
+/// Float slices of R, G, B (and A) into `band`, rows from `top` on; a slice's base is addressed
+/// with absolute (data window) coordinates.
+Imf::FrameBuffer exrFrame(std::vector<float>& band, const Image& image, std::int64_t x0, std::int64_t top)
+{
+    static const char* const kNames[4] = {"R", "G", "B", "A"};
+    const std::size_t xStride = sizeof(float) * std::size_t(image.channels);
+    const std::size_t yStride = xStride * std::size_t(image.width);
+    Imf::FrameBuffer frame;
+    for (int c = 0; c < image.channels; ++c) {
+        char* base = reinterpret_cast<char*>(band.data() + c) - std::ptrdiff_t(x0) * std::ptrdiff_t(xStride) -
+                     std::ptrdiff_t(top) * std::ptrdiff_t(yStride);
+        frame.insert(kNames[c], Imf::Slice(Imf::FLOAT, base, xStride, yStride));
+    }
+    return frame;
+}
 
 } // namespace
 
@@ -76,32 +117,48 @@ void writePng(const std::string& path, const Image& image, const PngWriteOptions
     file.commit();
 }
 
-Image readPng(const std::string& path, PngValues values)
+bool imageSizeAllowed(std::int64_t width, std::int64_t height)
+{
+    return width >= 1 && height >= 1 && width <= kMaxImageSide && height <= kMaxImageSide;
+}
+
+void checkImageSize(const std::string& name, std::int64_t width, std::int64_t height)
+{
+    if (!imageSizeAllowed(width, height))
+        throw InputError(msg(name, ": an image of ", width, "x", height, " pixels (each side must be from 1 to ",
+                             kMaxImageSide, "; a corrupt or forged file?)"));
+}
+
+Image decodePng(const unsigned char* bytes, std::size_t size, const std::string& name, PngValues values)
 {
     png_image png{};
     png.version = PNG_IMAGE_VERSION;
-    if (!png_image_begin_read_from_file(&png, path.c_str())) {
+    const auto fail = [&](const char* what) {
         const std::string why = png.message;
         png_image_free(&png);
-        throw IoError(msg(path, ": cannot read PNG: ", why));
-    }
+        return InputError(msg(name, ": ", what, ": ", why));
+    };
+    if (!png_image_begin_read_from_memory(&png, bytes, size)) throw fail("cannot read PNG");
+    checkPngSize(name, png, bytes, size);
     const bool alpha = (png.format & PNG_FORMAT_FLAG_ALPHA) != 0;
     // 8-bit sRGB output: libpng converts grey, palette and 16-bit files to it.
     png.format = alpha ? PNG_FORMAT_RGBA : PNG_FORMAT_RGB;
     const int channels = alpha ? 4 : 3;
-    std::vector<std::uint8_t> bytes(PNG_IMAGE_SIZE(png));
-    if (!png_image_finish_read(&png, nullptr, bytes.data(), 0, nullptr)) {
-        const std::string why = png.message;
-        png_image_free(&png);
-        throw InputError(msg(path, ": corrupt PNG: ", why));
-    }
+    std::vector<std::uint8_t> data(PNG_IMAGE_SIZE(png));
+    if (!png_image_finish_read(&png, nullptr, data.data(), 0, nullptr)) throw fail("corrupt PNG");
     Image image(int(png.width), int(png.height), channels);
     for (std::size_t i = 0; i < image.pixels.size(); ++i) {
-        const float v = float(bytes[i]) / 255.0f;
+        const float v = float(data[i]) / 255.0f;
         const bool decode = values == PngValues::Linear && int(i % std::size_t(channels)) < 3;
         image.pixels[i] = decode ? srgbToLinear(v) : v;
     }
     return image;
+}
+
+Image readPng(const std::string& path, PngValues values)
+{
+    const std::string bytes = readWholeFile(path);
+    return decodePng(reinterpret_cast<const unsigned char*>(bytes.data()), bytes.size(), path, values);
 }
 
 void writeExr(const std::string& path, const Image& image, ExrPixelType type)
@@ -139,24 +196,27 @@ Image readExr(const std::string& path)
     try {
         Imf::InputFile in(path.c_str());
         const Imath::Box2i dw = in.header().dataWindow();
-        const int width = dw.max.x - dw.min.x + 1, height = dw.max.y - dw.min.y + 1;
+        const std::int64_t x0 = dw.min.x, y0 = dw.min.y;
+        checkImageSize(path, std::int64_t(dw.max.x) - x0 + 1, std::int64_t(dw.max.y) - y0 + 1);
         const Imf::ChannelList& list = in.header().channels();
         for (const char* name : {"R", "G", "B"})
             if (!list.findChannel(name)) throw InputError(msg(path, ": EXR has no '", name, "' channel"));
-        const bool alpha = list.findChannel("A") != nullptr;
-        Image image(width, height, alpha ? 4 : 3);
-        const std::size_t xStride = sizeof(float) * std::size_t(image.channels);
-        const std::size_t yStride = xStride * std::size_t(width);
-        static const char* const kNames[4] = {"R", "G", "B", "A"};
-        Imf::FrameBuffer frame;
-        for (int c = 0; c < image.channels; ++c) {
-            // The slice base is addressed with absolute (data window) coordinates.
-            char* base = reinterpret_cast<char*>(image.pixels.data() + c) - std::ptrdiff_t(dw.min.x) * std::ptrdiff_t(xStride) -
-                         std::ptrdiff_t(dw.min.y) * std::ptrdiff_t(yStride);
-            frame.insert(kNames[c], Imf::Slice(Imf::FLOAT, base, xStride, yStride));
+        Image image;
+        image.width = dw.max.x - dw.min.x + 1;
+        image.height = dw.max.y - dw.min.y + 1;
+        image.channels = list.findChannel("A") != nullptr ? 4 : 3;
+        // Read in bands, the image growing with them: a data window forged larger than the file's
+        // pixels (OpenEXR checks only its offset table first) fails at its first missing band, not
+        // after allocating the whole picture (an 11 KB file cost 6.3 GB).
+        constexpr std::int64_t kBand = 256;
+        std::vector<float> band;
+        for (std::int64_t top = y0; top <= dw.max.y; top += kBand) {
+            const std::int64_t bottom = std::min<std::int64_t>(dw.max.y, top + kBand - 1);
+            band.assign(std::size_t(bottom - top + 1) * std::size_t(image.width) * std::size_t(image.channels), 0.0f);
+            in.setFrameBuffer(exrFrame(band, image, x0, top));
+            in.readPixels(int(top), int(bottom));
+            image.pixels.insert(image.pixels.end(), band.begin(), band.end());
         }
-        in.setFrameBuffer(frame);
-        in.readPixels(dw.min.y, dw.max.y);
         return image;
     } catch (const Error&) {
         throw;

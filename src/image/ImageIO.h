@@ -5,6 +5,7 @@
 /// @note  Renders hold display values (image/Image.h): a PNG stores them as they are (what
 ///        graphdeco's renderer and the splat viewers show), writeImage() stores an EXR as their
 ///        linear decode (displayToLinear()).
+#include <cstddef>
 #include <cstdint>
 #include <string>
 #include <vector>
@@ -37,6 +38,16 @@ void writePng(const std::string& path, const Image& image, const PngWriteOptions
 /// @brief Read any PNG as RGB (or RGBA when the file has alpha), values in [0, 1].
 /// @throws IoError/InputError naming the file.
 Image readPng(const std::string& path, PngValues values = PngValues::Display);
+/// @brief Decode PNG bytes as readPng() does; `name` stands for them in error messages.
+/// @throws InputError for a corrupt PNG, one with a side over kMaxImageSide (core/Camera.h) or more
+///         pixels than its bytes can hold, checked before the pixels are allocated.
+Image decodePng(const unsigned char* bytes, std::size_t size, const std::string& name, PngValues values = PngValues::Display);
+/// @brief True when each side is in [1, kMaxImageSide] (core/Camera.h: the largest picture a
+///        camera file or --size may ask for). Every image reader checks a file's declared size so
+///        before allocating its pixels.
+bool imageSizeAllowed(std::int64_t width, std::int64_t height);
+/// @brief Throws InputError naming `name` unless imageSizeAllowed(width, height).
+void checkImageSize(const std::string& name, std::int64_t width, std::int64_t height);
 
 /// @brief Pixel type of EXR channels.
 enum class ExrPixelType { Half, Float };

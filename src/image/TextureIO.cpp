@@ -10,29 +10,11 @@
 #include <vector>
 
 #include "core/Error.h"
+#include "image/ImageIO.h"
 
 namespace splatwarp {
 
 namespace {
-
-Image decodePng(const unsigned char* bytes, std::size_t size, const std::string& name)
-{
-    png_image png{};
-    png.version = PNG_IMAGE_VERSION;
-    const auto fail = [&](const char* what) {
-        const std::string why = png.message;
-        png_image_free(&png);
-        return InputError(msg(name, ": ", what, ": ", why));
-    };
-    if (!png_image_begin_read_from_memory(&png, bytes, size)) throw fail("cannot read PNG");
-    const bool alpha = (png.format & PNG_FORMAT_FLAG_ALPHA) != 0;
-    png.format = alpha ? PNG_FORMAT_RGBA : PNG_FORMAT_RGB;
-    std::vector<std::uint8_t> data(PNG_IMAGE_SIZE(png));
-    if (!png_image_finish_read(&png, nullptr, data.data(), 0, nullptr)) throw fail("corrupt PNG");
-    Image image(int(png.width), int(png.height), alpha ? 4 : 3);
-    for (std::size_t i = 0; i < image.pixels.size(); ++i) image.pixels[i] = float(data[i]) / 255.0f;
-    return image;
-}
 
 /// libjpeg reports errors through a callback that must not return: jump back to the decoder.
 struct JpegError {
@@ -49,11 +31,13 @@ void jpegErrorExit(j_common_ptr info)
     std::longjmp(e->jump, 1);
 }
 
-/// A file cut short is only a warning to libjpeg (JWRN_JPEG_EOF: it fills the rest of the picture
+/// A file cut short is only a warning to libjpeg (JWRN_JPEG_EOF, or JWRN_HIT_MARKER where a marker
+/// such as the end of image comes before the picture's data does: it fills the rest of the picture
 /// with grey); a texture or a training picture cut in half is a corrupt input, so it is an error.
 void jpegMessage(j_common_ptr info, int level)
 {
-    if (level < 0 && info->err->msg_code == JWRN_JPEG_EOF) jpegErrorExit(info);
+    const int code = info->err->msg_code;
+    if (level < 0 && (code == JWRN_JPEG_EOF || code == JWRN_HIT_MARKER)) jpegErrorExit(info);
     (*reinterpret_cast<JpegError*>(info->err)->emit)(info, level);
 }
 
@@ -75,13 +59,21 @@ Image decodeJpeg(const unsigned char* bytes, std::size_t size, const std::string
     jpeg_create_decompress(&info);
     jpeg_mem_src(&info, bytes, static_cast<unsigned long>(size));
     jpeg_read_header(&info, TRUE);
+    if (!imageSizeAllowed(info.image_width, info.image_height)) {
+        jpeg_destroy_decompress(&info);
+        checkImageSize(name, info.image_width, info.image_height);
+    }
     info.out_color_space = JCS_RGB; // greyscale and YCbCr files alike
     jpeg_start_decompress(&info);
     width = int(info.output_width);
     height = int(info.output_height);
-    data.resize(std::size_t(width) * std::size_t(height) * 3);
+    // The pixels grow with the rows decoded: a header forged larger than the file's data fails at
+    // its first missing row (JWRN_JPEG_EOF), not after allocating the whole picture (a 631-byte file
+    // declaring 65000x65000 pixels cost 12 GB).
+    const std::size_t rowBytes = std::size_t(width) * 3;
     while (info.output_scanline < info.output_height) {
-        JSAMPROW row = data.data() + std::size_t(info.output_scanline) * std::size_t(width) * 3;
+        data.resize(data.size() + rowBytes);
+        JSAMPROW row = data.data() + data.size() - rowBytes;
         jpeg_read_scanlines(&info, &row, 1);
     }
     jpeg_finish_decompress(&info);
@@ -96,7 +88,7 @@ Image decodeJpeg(const unsigned char* bytes, std::size_t size, const std::string
 Image decodeTexture(const unsigned char* bytes, std::size_t size, const std::string& name)
 {
     static const unsigned char kPng[4] = {0x89, 'P', 'N', 'G'};
-    if (size >= 4 && std::equal(kPng, kPng + 4, bytes)) return decodePng(bytes, size, name);
+    if (size >= 4 && std::equal(kPng, kPng + 4, bytes)) return decodePng(bytes, size, name, PngValues::Display);
     if (size >= 3 && bytes[0] == 0xFF && bytes[1] == 0xD8 && bytes[2] == 0xFF) return decodeJpeg(bytes, size, name);
     throw InputError(msg(name, ": not a PNG or JPEG image"));
 }

@@ -1,6 +1,8 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <cstdint>
+#include <cstring>
 #include <filesystem>
 #include <random>
 
@@ -14,6 +16,55 @@ namespace splatwarp {
 namespace {
 
 using test::randomImage;
+
+/// CRC-32 of PNG chunks (ISO 3309), for forging a header that libpng accepts.
+std::uint32_t pngCrc(const std::string& bytes)
+{
+    std::uint32_t c = 0xFFFFFFFFu;
+    for (unsigned char b : bytes) {
+        c ^= b;
+        for (int k = 0; k < 8; ++k) c = (c >> 1) ^ (0xEDB88320u & (0u - (c & 1u)));
+    }
+    return c ^ 0xFFFFFFFFu;
+}
+
+void putBig32(std::string& s, std::size_t at, std::uint32_t v)
+{
+    for (int i = 0; i < 4; ++i) s[at + std::size_t(i)] = char((v >> (24 - 8 * i)) & 0xFF);
+}
+
+/// A small PNG whose IHDR declares width x height (its CRC recomputed), the pixels still 8x8.
+std::string pngDeclaring(const std::string& small, std::uint32_t width, std::uint32_t height)
+{
+    std::string s = small;
+    putBig32(s, 16, width);
+    putBig32(s, 20, height);
+    putBig32(s, 29, pngCrc(s.substr(12, 17)));
+    return s;
+}
+
+/// A small scan-line EXR whose data window declares side x side pixels, with an offset table of
+/// that many chunks all pointing at its one real chunk: what OpenEXR checks before the pixels.
+std::string exrDeclaring(const std::string& small, int side)
+{
+    std::string s = small;
+    for (const std::string name : {"dataWindow", "displayWindow"}) {
+        const std::size_t at = s.find(name + std::string("\0box2i\0", 7)) + name.size() + 7 + 4;
+        const std::int32_t box[4] = {0, 0, side - 1, side - 1};
+        std::memcpy(&s[at], box, sizeof(box));
+    }
+    std::size_t table = 8;
+    for (; table + 16 <= s.size(); ++table) { // the one offset points just past itself
+        std::uint64_t v = 0;
+        std::memcpy(&v, &s[table], 8);
+        if (v == table + 8) break;
+    }
+    const std::size_t chunks = std::size_t(side + 15) / 16; // ZIP: 16 lines a chunk
+    const std::uint64_t offset = table + 8 * chunks;
+    std::string out = s.substr(0, table);
+    for (std::size_t i = 0; i < chunks; ++i) out.append(reinterpret_cast<const char*>(&offset), 8);
+    return out + s.substr(table + 8);
+}
 
 TEST(ImageIOTest, SrgbCurveRoundTripsAndMatchesKnownPoints)
 {
@@ -100,6 +151,36 @@ TEST(ImageIOTest, RenderValuesAreDisplayValuesPngAsIsExrLinear)
     // Out-of-range values (SH can exceed 1) survive the EXR round trip.
     Image bright(1, 1, 3, 1.25f);
     EXPECT_NEAR(linearToDisplay(displayToLinear(bright)).pixels[0], 1.25f, 1e-5);
+}
+
+// A header that declares more pixels than the file holds is refused before the pixels are
+// allocated (a 69-byte PNG cost 2 GB, an 11 KB EXR 6.3 GB): past kMaxImageSide by its size,
+// below it by what the bytes can hold (PNG) or at the first band that is not there (EXR).
+TEST(ImageIOTest, ForgedSizesAreRefusedBeforeTheirPixels)
+{
+    test::TempDir dir;
+    writePng(dir.file("small.png"), randomImage(8, 8, 3, 1));
+    const std::string png = test::fileBytes(dir.file("small.png"));
+    writeFileAtomic(dir.file("huge.png"), pngDeclaring(png, 60000, 60000));
+    std::string e = test::inputErrorMessage([&] { readPng(dir.file("huge.png")); });
+    EXPECT_NE(e.find("huge.png: an image of 60000x60000 pixels (each side must be from 1 to 16384"), std::string::npos) << e;
+    writeFileAtomic(dir.file("big.png"), pngDeclaring(png, 16000, 16000));
+    e = test::inputErrorMessage([&] { readPng(dir.file("big.png")); });
+    EXPECT_NE(e.find("big.png: a PNG of 16000x16000 pixels cannot fit in its"), std::string::npos) << e;
+    // Near deflate's limit (1032 bytes in one), a whole black picture still reads.
+    writePng(dir.file("black.png"), Image(2048, 2048, 3, 0.0f));
+    EXPECT_EQ(readPng(dir.file("black.png")).width, 2048);
+
+    writeExr(dir.file("small.exr"), randomImage(16, 16, 3, 2));
+    const std::string exr = test::fileBytes(dir.file("small.exr"));
+    writeFileAtomic(dir.file("huge.exr"), exrDeclaring(exr, 20001));
+    e = test::inputErrorMessage([&] { readExr(dir.file("huge.exr")); });
+    EXPECT_NE(e.find("huge.exr: an image of 20001x20001 pixels"), std::string::npos) << e;
+    writeFileAtomic(dir.file("big.exr"), exrDeclaring(exr, 16000));
+    EXPECT_THROW(readExr(dir.file("big.exr")), IoError);
+    // The forging keeps a file readable: at its own size it reads back.
+    writeFileAtomic(dir.file("same.exr"), exrDeclaring(exr, 16));
+    EXPECT_EQ(readExr(dir.file("same.exr")).pixels, readExr(dir.file("small.exr")).pixels);
 }
 
 TEST(ImageIOTest, ErrorsNameTheFileAndLeaveNothingBehind)

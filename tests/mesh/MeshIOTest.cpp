@@ -110,6 +110,31 @@ TEST(MeshIOTest, ACutJpegIsRefused)
     EXPECT_NE(e.find("cut.jpg: corrupt JPEG: Premature end of JPEG file"), std::string::npos) << e;
 }
 
+// A header declaring more pixels than the data holds: past kMaxImageSide refused by its size (a
+// 631-byte file declaring 65000x65000 cost 12 GB), below it at the first row that is not there,
+// where libjpeg would fill the rest with grey (its data ends at the end-of-image marker).
+TEST(MeshIOTest, AForgedJpegSizeIsRefused)
+{
+    test::TempDir dir;
+    writeJpeg(dir.file("small.jpg"), fourTexels());
+    const std::string bytes = test::fileBytes(dir.file("small.jpg"));
+    const std::size_t sof = bytes.find("\xFF\xC0"); // baseline frame: length, precision, height, width
+    ASSERT_NE(sof, std::string::npos);
+    const auto declaring = [&](const std::string& name, int side) {
+        std::string s = bytes;
+        for (const std::size_t at : {sof + 5, sof + 7}) {
+            s[at] = char(side >> 8);
+            s[at + 1] = char(side & 0xFF);
+        }
+        writeFileAtomic(dir.file(name), s);
+        return test::inputErrorMessage([&] { readTexture(dir.file(name)); });
+    };
+    std::string e = declaring("huge.jpg", 65000);
+    EXPECT_NE(e.find("huge.jpg: an image of 65000x65000 pixels"), std::string::npos) << e;
+    e = declaring("big.jpg", 16000);
+    EXPECT_NE(e.find("big.jpg: corrupt JPEG: Corrupt JPEG data: premature end of data segment"), std::string::npos) << e;
+}
+
 TEST(MeshIOTest, PlyVertexColoursAndTextureOption)
 {
     test::TempDir dir;
