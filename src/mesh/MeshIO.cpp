@@ -10,6 +10,7 @@
 
 #include "core/AtomicFile.h"
 #include "core/Error.h"
+#include "image/ImageIO.h"
 #include "image/TextureIO.h"
 #include "io/PlyBody.h"
 #include "io/PlyHeader.h"
@@ -30,6 +31,7 @@ int loadTexture(const aiScene& scene, const std::string& ref, const std::string&
     Image image;
     if (const aiTexture* t = scene.GetEmbeddedTexture(ref.c_str())) {
         if (t->mHeight != 0) { // raw texels, BGRA
+            checkImageSize(msg(meshPath, ": embedded texture ", ref), t->mWidth, t->mHeight);
             image = Image(int(t->mWidth), int(t->mHeight), 4);
             for (std::size_t i = 0; i < std::size_t(t->mWidth) * t->mHeight; ++i) {
                 const aiTexel& p = t->pcData[i];
