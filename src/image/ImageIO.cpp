@@ -125,8 +125,8 @@ bool imageSizeAllowed(std::int64_t width, std::int64_t height)
 void checkImageSize(const std::string& name, std::int64_t width, std::int64_t height)
 {
     if (!imageSizeAllowed(width, height))
-        throw InputError(msg(name, ": an image of ", width, "x", height, " pixels (each side must be from 1 to ",
-                             kMaxImageSide, "; a corrupt or forged file?)"));
+        throw InputError(msg(name, ": an image of ", width, "x", height, " pixels: each side must be from 1 to ",
+                             kMaxImageSide, " (downscale a larger picture first; or the file is corrupt)"));
 }
 
 Image decodePng(const unsigned char* bytes, std::size_t size, const std::string& name, PngValues values)
