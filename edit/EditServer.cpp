@@ -5,10 +5,8 @@
 #include <atomic>
 #include <cstdlib>
 #include <filesystem>
-#include <fstream>
 #include <map>
 #include <mutex>
-#include <sstream>
 #include <thread>
 
 #include "core/AtomicFile.h"
@@ -57,14 +55,6 @@ std::string requestToken(const httplib::Request& req)
 
 /// The default spec: its graph block is the session's (the flags --nodes/--k/--seed apply).
 DeformSpec graphSpec() { return DeformSpec{}; }
-
-std::string readWhole(const fs::path& path)
-{
-    std::ifstream in(path, std::ios::binary);
-    std::ostringstream out;
-    out << in.rdbuf();
-    return out.str();
-}
 
 nlohmann::json graphBlock(const GraphOptions& graph) { return {{"nodes", graph.nodes}, {"k", graph.k}, {"seed", graph.seed}}; }
 
@@ -140,7 +130,7 @@ void EditServer::Impl::loadWeb()
             progress(msg("edit: ", path.string(), " is missing: the page will not load (scripts/setup.sh installs it)"));
             continue;
         }
-        web["/" + std::string(name)] = {readWhole(path), type};
+        web["/" + std::string(name)] = {readWholeFile(path.string(), "editor page file"), type};
     }
     const auto index = web.find("/index.html");
     if (index == web.end()) return;

@@ -208,7 +208,7 @@ static int lastFrame(const AnimateJobOptions& options, const AnimSpec& anim)
 int writeFrameSpecs(const AnimateJobOptions& options)
 {
     const DeformJobOptions& o = options.deform;
-    const AnimSpec anim = parseAnimSpec(readTextFile(o.specPath, "animation spec"), o.specPath);
+    const AnimSpec anim = parseAnimSpec(readWholeFile(o.specPath, "animation spec"), o.specPath);
     const int last = lastFrame(options, anim);
     checkInputsOutsideOutputs(o);
     DirectoryGuard dirs;
@@ -226,7 +226,7 @@ int writeFrameSpecs(const AnimateJobOptions& options)
 SequenceResult runAnimateJob(const AnimateJobOptions& options)
 {
     const DeformJobOptions& o = options.deform;
-    const std::string specText = readTextFile(o.specPath, "animation spec");
+    const std::string specText = readWholeFile(o.specPath, "animation spec");
     const AnimSpec anim = parseAnimSpec(specText, o.specPath);
     const int last = lastFrame(options, anim);
     const fs::path dir(o.outDir);

@@ -3,6 +3,7 @@
 #include <algorithm>
 
 #include "job/Sequence.h"
+#include "core/AtomicFile.h"
 #include "core/Error.h"
 
 namespace splatwarp {
@@ -140,7 +141,7 @@ Recipe loadRecipe(const std::string& nameOrPath)
 {
     if (nameOrPath == "paper" || nameOrPath == "default") return builtinRecipe(nameOrPath);
     if (nameOrPath.size() < 5 || nameOrPath.compare(nameOrPath.size() - 5, 5, ".json") != 0) return builtinRecipe(nameOrPath);
-    return parseRecipe(readTextFile(nameOrPath, "recipe"), nameOrPath);
+    return parseRecipe(readWholeFile(nameOrPath, "recipe"), nameOrPath);
 }
 
 std::vector<std::pair<std::string, std::string>> recipeFlags(const Recipe& recipe)

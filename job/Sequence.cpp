@@ -5,10 +5,8 @@
 #include <sys/stat.h>
 #include <cstdio>
 #include <filesystem>
-#include <fstream>
 #include <map>
 #include <set>
-#include <sstream>
 
 #include "core/AtomicFile.h"
 #include "core/Error.h"
@@ -22,7 +20,7 @@ using json = nlohmann::json;
 
 namespace {
 
-json readManifest(const fs::path& path) { return parseManifest(readTextFile(path.string(), "manifest"), path.string()); }
+json readManifest(const fs::path& path) { return parseManifest(readWholeFile(path.string(), "manifest"), path.string()); }
 
 /// Files of an entry with their sizes and digests (paths relative to dir).
 json describeFiles(const std::string& dir, const json& files)
@@ -107,17 +105,7 @@ std::string fnv1a64(const std::string& bytes)
     return out;
 }
 
-std::string readTextFile(const std::string& path, const std::string& what)
-{
-    std::ifstream in(path, std::ios::binary);
-    if (!in) throw IoError(msg(path, ": cannot open ", what));
-    std::ostringstream s;
-    s << in.rdbuf();
-    if (in.bad()) throw IoError(msg(path, ": cannot read ", what));
-    return s.str();
-}
-
-std::string fileDigest(const std::string& path) { return fnv1a64(readTextFile(path, "output file")); }
+std::string fileDigest(const std::string& path) { return fnv1a64(readWholeFile(path, "output file")); }
 
 std::string manifestName(const Shard& shard)
 {

@@ -70,8 +70,6 @@ nlohmann::json mergeManifests(const std::string& dir, const std::function<bool(i
 /// @brief The messages of a merge's failed items (the first five), one indented line each.
 std::string mergeFailures(const nlohmann::json& merged);
 
-/// @brief A whole file as bytes (specs, job lists, manifests). @throws IoError naming it and `what`.
-std::string readTextFile(const std::string& path, const std::string& what);
 
 /// @brief 64-bit FNV-1a of bytes, as 16 hex digits (spec and settings hashes, file digests).
 std::string fnv1a64(const std::string& bytes);

@@ -91,7 +91,7 @@ const CommandRegistrar reg(37, [](CLI::App& app) {
             return;
         }
         if (args->jobsPath.empty() || args->outDir.empty()) throw UsageError("batch needs JOBS.json and -o DIR (or --merge DIR)");
-        const std::string text = readTextFile(args->jobsPath, "job list");
+        const std::string text = readWholeFile(args->jobsPath, "job list");
         const std::vector<BatchJob> jobs = parseJobList(text, args->jobsPath);
         const Shard shard = resolveShard(args->shard, args->shardCount);
         const std::vector<std::string> outputs = checkJobPaths(jobs, args->outDir, args->jobsPath); // before any job runs

@@ -156,15 +156,15 @@ void AtomicFile::commit()
     mCommitted = true;
 }
 
-std::string readWholeFile(const std::string& path)
+std::string readWholeFile(const std::string& path, const std::string& what)
 {
     std::error_code ec;
-    if (std::filesystem::is_directory(path, ec)) throw IoError(msg(path, ": is a directory, not a file"));
+    if (std::filesystem::is_directory(path, ec)) throw IoError(msg(path, ": is a directory, not a ", what));
     std::ifstream in(path, std::ios::binary);
-    if (!in) throw IoError(msg(path, ": cannot open: ", std::strerror(errno)));
+    if (!in) throw IoError(msg(path, ": cannot open ", what, ": ", std::strerror(errno)));
     std::ostringstream ss;
     ss << in.rdbuf();
-    if (in.bad()) throw IoError(msg(path, ": read failed"));
+    if (in.bad()) throw IoError(msg(path, ": cannot read ", what));
     return ss.str();
 }
 

@@ -34,9 +34,9 @@ private:
     bool mCommitted = false;
 };
 
-/// @brief The bytes of a whole file.
+/// @brief The bytes of a whole file; `what` names it in messages ("camera file", "recipe", ...).
 /// @throws IoError when it is a directory, cannot be opened or a read fails
-std::string readWholeFile(const std::string& path);
+std::string readWholeFile(const std::string& path, const std::string& what = "file");
 
 /// @brief Write a whole string atomically (reports, JSON); checks flush and close.
 void writeFileAtomic(const std::string& path, const std::string& contents);

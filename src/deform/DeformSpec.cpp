@@ -1,14 +1,10 @@
 #include "deform/DeformSpec.h"
 
-#include <cerrno>
 #include <cmath>
-#include <cstring>
-#include <filesystem>
-#include <fstream>
 #include <nlohmann/json.hpp>
 #include <set>
-#include <sstream>
 
+#include "core/AtomicFile.h"
 #include "core/Error.h"
 
 namespace splatwarp {
@@ -167,14 +163,7 @@ DeformSpec parseDeformSpec(const std::string& jsonText, const std::string& sourc
 
 DeformSpec loadDeformSpec(const std::string& path)
 {
-    std::error_code ec;
-    if (std::filesystem::is_directory(path, ec)) throw IoError(msg(path, ": is a directory, not a deformation spec file"));
-    std::ifstream in(path, std::ios::binary);
-    if (!in) throw IoError(msg(path, ": cannot open deformation spec: ", std::strerror(errno)));
-    std::ostringstream text;
-    text << in.rdbuf();
-    if (in.bad()) throw IoError(msg(path, ": cannot read deformation spec"));
-    return parseDeformSpec(text.str(), path);
+    return parseDeformSpec(readWholeFile(path, "deformation spec file"), path);
 }
 
 } // namespace splatwarp

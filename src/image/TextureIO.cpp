@@ -2,13 +2,12 @@
 
 #include <csetjmp>
 #include <cstdio>
-#include <fstream>
-#include <iterator>
 #include <jpeglib.h>
 #include <jerror.h>
 #include <png.h>
 #include <vector>
 
+#include "core/AtomicFile.h"
 #include "core/Error.h"
 #include "image/ImageIO.h"
 
@@ -95,10 +94,8 @@ Image decodeTexture(const unsigned char* bytes, std::size_t size, const std::str
 
 Image readTexture(const std::string& path)
 {
-    std::ifstream in(path, std::ios::binary);
-    if (!in) throw IoError(msg(path, ": cannot open texture"));
-    const std::vector<unsigned char> bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
-    return decodeTexture(bytes.data(), bytes.size(), path);
+    const std::string bytes = readWholeFile(path, "picture");
+    return decodeTexture(reinterpret_cast<const unsigned char*>(bytes.data()), bytes.size(), path);
 }
 
 } // namespace splatwarp

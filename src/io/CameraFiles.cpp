@@ -1,10 +1,9 @@
 #include "io/CameraFiles.h"
 
 #include <cmath>
-#include <fstream>
 #include <nlohmann/json.hpp>
-#include <sstream>
 
+#include "core/AtomicFile.h"
 #include "core/Error.h"
 
 namespace splatwarp {
@@ -176,11 +175,7 @@ std::vector<Camera> parseCameraFile(const std::string& jsonText, const std::stri
 
 std::vector<Camera> readCameraFile(const std::string& path, const CameraFileOptions& options)
 {
-    std::ifstream in(path, std::ios::binary);
-    if (!in) throw IoError(msg(path, ": cannot open camera file"));
-    std::stringstream text;
-    text << in.rdbuf();
-    return parseCameraFile(text.str(), path, options);
+    return parseCameraFile(readWholeFile(path, "camera file"), path, options);
 }
 
 } // namespace splatwarp
