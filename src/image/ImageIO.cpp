@@ -46,11 +46,9 @@ std::uint8_t toByte(float v) { return std::uint8_t(std::lround(std::clamp(v, 0.0
 /// failed) is refused here.
 void checkPngSize(const std::string& name, png_image& png, const unsigned char* bytes, std::size_t size)
 {
-    try {
-        checkImageSize(name, png.width, png.height);
-    } catch (...) {
+    if (!imageSizeAllowed(png.width, png.height)) {
         png_image_free(&png);
-        throw;
+        checkImageSize(name, png.width, png.height);
     }
     // libpng has read the IHDR, the first chunk: bit depth at byte 24, colour type at byte 25.
     static const int kSamples[7] = {1, 0, 3, 1, 2, 0, 4};

@@ -1,11 +1,6 @@
 /// readGaussians(): read the file, detect the format from its content, apply the NaN/Inf policy.
-#include <cerrno>
 #include <cmath>
-#include <cstring>
-#include <filesystem>
-#include <fstream>
 #include <limits>
-#include <sstream>
 
 #include "core/AtomicFile.h"
 #include "core/Error.h"
