@@ -49,7 +49,7 @@ json keepJson(const KeepRecord& r)
         k["regions" + name] = c.regionsWon[i];
     }
     if (const auto& g = r.perGaussian)
-        k["perGaussian"] = {{"swapped", g->swapped}, {"tried", g->tried}, {"validationBefore", g->before},
+        k["perGaussian"] = {{"swapped", g->swapped}, {"tried", g->tried}, {"held", g->held}, {"validationBefore", g->before},
                             {"validationAfter", g->after}, {"ms", g->ms}};
     return k;
 }

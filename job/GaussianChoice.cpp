@@ -36,23 +36,35 @@ std::vector<std::size_t> heaviestFirst(const std::vector<StageTwoCandidate>& can
     return order;
 }
 
-/// The candidate whose version of Gaussian i lowers the score most, or none when none lowers it.
-const GaussianCloud* bestFor(const ValidationResiduals& residuals, const std::vector<StageTwoCandidate>& candidates,
-                             const GaussianCloud& kept, std::size_t i)
+/// Gaussian i's pick: the candidate whose version lowers the score most on at least kMinChoicePoints
+/// points (none when none does), and whether a version measured on fewer would have lowered it.
+struct Pick {
+    const GaussianCloud* best = nullptr;
+    bool held = false;
+};
+
+Pick bestFor(const ValidationResiduals& residuals, const std::vector<StageTwoCandidate>& candidates,
+             const GaussianCloud& kept, std::size_t i)
 {
     const std::vector<GaussianRef> ins = versionsOf(candidates, kept, i);
     std::vector<std::vector<GaussianRef>> each;
     for (const GaussianRef& r : ins) each.push_back({r});
     std::vector<double> change(ins.size());
-    residuals.changes({{&kept, i}}, each, change.data());
-    const GaussianCloud* best = nullptr;
+    std::vector<std::size_t> points(ins.size());
+    residuals.changes({{&kept, i}}, each, change.data(), points.data());
+    Pick pick;
     double bestChange = 0.0;
-    for (std::size_t c = 0; c < ins.size(); ++c)
-        if (change[c] < bestChange) {
-            bestChange = change[c];
-            best = ins[c].cloud;
+    for (std::size_t c = 0; c < ins.size(); ++c) {
+        if (!(change[c] < bestChange)) continue;
+        if (points[c] < kMinChoicePoints) {
+            pick.held = true;
+            continue;
         }
-    return best;
+        bestChange = change[c];
+        pick.best = ins[c].cloud;
+    }
+    if (pick.best) pick.held = false;
+    return pick;
 }
 
 /// Which side of one plane between buckets each pick reads: kBelow, kAbove or kBoth. A pick
@@ -98,18 +110,19 @@ GaussianCloud chooseEachGaussian(const Judge& validation, const std::vector<Stag
     report.tried = order.size();
     const bool threaded = validation.points().features.threaded;
     const std::vector<std::uint8_t> sides = sidesOf(residuals, candidates, kept, order, threaded);
-    std::size_t swapped[2] = {0, 0};
-    const auto pick = [&](std::size_t t, std::size_t& count) {
+    std::size_t swapped[2] = {0, 0}, held[2] = {0, 0};
+    const auto pick = [&](std::size_t t, int side) {
         const std::size_t i = order[t];
-        const GaussianCloud* best = bestFor(residuals, candidates, kept, i);
-        if (!best) return;
-        residuals.apply({{&kept, i}}, {{best, i}});
-        kept.assign(i, *best, i);
-        ++count;
+        const Pick p = bestFor(residuals, candidates, kept, i);
+        held[side] += p.held;
+        if (!p.best) return;
+        residuals.apply({{&kept, i}}, {{p.best, i}});
+        kept.assign(i, *p.best, i);
+        ++swapped[side];
     };
     const auto runSide = [&](std::size_t begin, std::size_t end, std::uint8_t side) {
         for (std::size_t t = begin; t < end; ++t)
-            if (sides[t] == side) pick(t, swapped[side]);
+            if (sides[t] == side) pick(t, side);
     };
     constexpr std::size_t kShortRun = 4; // picks: shorter runs between kBoth picks go one at a time (16: 0.4 s slower on guitar)
     for (std::size_t t = 0; t < order.size();) {
@@ -118,15 +131,17 @@ GaussianCloud chooseEachGaussian(const Judge& validation, const std::vector<Stag
         if (threaded && end - t >= kShortRun)
             tbb::parallel_invoke([&] { runSide(t, end, kBelow); }, [&] { runSide(t, end, kAbove); });
         else
-            for (std::size_t u = t; u < end; ++u) pick(u, swapped[sides[u]]);
-        if (end < order.size()) pick(end, swapped[0]);
+            for (std::size_t u = t; u < end; ++u) pick(u, sides[u]);
+        if (end < order.size()) pick(end, 0);
         t = end + 1;
     }
     report.swapped = swapped[0] + swapped[1];
+    report.held = held[0] + held[1];
     report.after = residuals.score();
     report.ms = clock.ms();
     progress(msg("Stage II choice per Gaussian: ", report.swapped, " of ", report.tried, " moving Gaussians swapped, validation ",
-                 report.before, " -> ", report.after));
+                 report.before, " -> ", report.after, "; ", report.held, " not swapped: measured on fewer than ", kMinChoicePoints,
+                 " validation points"));
     return kept;
 }
 

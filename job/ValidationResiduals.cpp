@@ -237,7 +237,7 @@ double ValidationResiduals::change(const std::vector<GaussianRef>& out, const st
 }
 
 void ValidationResiduals::changes(const std::vector<GaussianRef>& out, const std::vector<std::vector<GaussianRef>>& ins,
-                                  double* result) const
+                                  double* result, std::size_t* points) const
 {
     // out's hits found once, each candidate's merged with them: the points and sums of change(out,
     // in) for each, one at a time.
@@ -248,7 +248,9 @@ void ValidationResiduals::changes(const std::vector<GaussianRef>& out, const std
         sh.resize(out.size());
         sideHits(ins[c], inHits, sh);
         double o = 0, f = 0;
+        std::size_t visited = 0;
         forEachPoint(outHits, inHits, out.size(), sh, [&](std::size_t j, double dO, const double* dF) {
+            ++visited;
             o += (std::fabs(mO[j] + dO) - std::fabs(mO[j])) * mWeight[j];
             const double* r = mF.data() + j * std::size_t(mStride);
             double cj = 0;
@@ -256,6 +258,7 @@ void ValidationResiduals::changes(const std::vector<GaussianRef>& out, const std
             f += cj * mWeight[j];
         });
         result[c] = o * mWeightO + f * mWeightF;
+        if (points) points[c] = visited;
     }
 }
 

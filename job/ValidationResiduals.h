@@ -70,9 +70,10 @@ public:
     double change(const std::vector<GaussianRef>& out, const std::vector<GaussianRef>& in) const;
     /// Record that swap.
     void apply(const std::vector<GaussianRef>& out, const std::vector<GaussianRef>& in);
-    /// change(out, ins[c]) for each c into result[c], the same bits, out's hits found once.
+    /// change(out, ins[c]) for each c into result[c], the same bits, out's hits found once; with
+    /// `points`, the number of points that swap changes (out's or ins[c]'s reach) into points[c].
     void changes(const std::vector<GaussianRef>& out, const std::vector<std::vector<GaussianRef>>& ins,
-                 double* result) const;
+                 double* result, std::size_t* points = nullptr) const;
     /// The buckets changes(out, ins) reads; apply({out}, {one of ins}) writes within them.
     BucketRange reads(GaussianRef out, const std::vector<GaussianRef>& ins) const;
     /// Buckets along axis a.

@@ -31,7 +31,39 @@ std::unique_ptr<Judge> weightedJudge(const ChoiceFixture& fx, std::size_t points
     return std::make_unique<Judge>(fx.rest->model, prepareValidationRest(fx.rest->model, h), fx.deformation);
 }
 
+/// `g` with every Gaussian but i made invisible.
+GaussianCloud onlyGaussian(const GaussianCloud& g, std::size_t i)
+{
+    GaussianCloud out = g;
+    for (std::size_t j = 0; j < out.size(); ++j)
+        if (j != i) out.opacities[j] = -30.0f;
+    return out;
+}
+
 } // namespace
+
+// The points a swap changes are those where the old or the new version has weight: counted
+// against the judge's own evaluation of each version alone.
+TEST(ValidationResiduals, ChangesCountThePointsEitherVersionReaches)
+{
+    const ChoiceFixture fx;
+    GaussianCloud other = fx.stage1;
+    const Vec3f m = other.mean(7);
+    other.setMean(7, Vec3f{m.x + 2.0f * other.scale(7).x, m.y, m.z});
+    other.logScales[3 * 11] -= 2.0f; // Gaussian 11 thinner along x
+    ValidationResiduals r(*fx.validation, fx.stage1);
+    for (std::size_t i : {std::size_t(7), std::size_t(11)}) {
+        double change = 0;
+        std::size_t points = 0;
+        r.changes({{&fx.stage1, i}}, {{{&other, i}}}, &change, &points);
+        const auto a = fx.validation->evaluate(onlyGaussian(fx.stage1, i));
+        const auto b = fx.validation->evaluate(onlyGaussian(other, i));
+        std::size_t reached = 0;
+        for (std::size_t p = 0; p < a->opacity.size(); ++p) reached += a->opacity[p] > 0.0f || b->opacity[p] > 0.0f;
+        EXPECT_GT(reached, 0u);
+        EXPECT_EQ(points, reached) << "Gaussian " << i;
+    }
+}
 
 // The residuals' score change for a swap (one Gaussian moved, one split in three) is the
 // difference of the two models' validation scores, on plain and on weighted points.
@@ -116,6 +148,36 @@ TEST(GaussianChoice, EachGaussianTakesTheVersionThatLowersTheScore)
     EXPECT_GT(fromStage1, 9 * kept.size() / 10);
 }
 
+// On too few validation points the same candidates are mostly held back: a Gaussian takes another
+// version only where the change reaches kMinChoicePoints points, which every swap does.
+TEST(GaussianChoice, AVersionMeasuredOnTooFewPointsIsNotTaken)
+{
+    const ChoiceFixture fx;
+    HeldOutOptions h;
+    h.points = 3000;
+    h.seed = 7;
+    const Judge sparse(fx.rest->model, prepareJudgeRest(fx.rest->model, h), fx.deformation);
+    const GaussianCloud start = blankedParity(fx.stage1, 0), fit = blankedParity(fx.stage1, 1);
+    const std::vector<StageTwoCandidate> candidates{{"start", &start}, {"fit", &fit}};
+    GaussianChoiceReport r;
+    const GaussianCloud kept = chooseEachGaussian(sparse, candidates, start, r);
+    EXPECT_GT(r.held, r.tried / 4) << r.swapped;
+    EXPECT_GT(r.swapped, 0u);
+    EXPECT_LE(r.swapped + r.held, r.tried);
+    // Each swap, undone alone on the kept model, reaches enough points.
+    ValidationResiduals residuals(sparse, kept);
+    std::size_t swaps = 0;
+    for (std::size_t i = 0; i < kept.size(); ++i) {
+        if (kept.sameGaussian(i, start, i)) continue;
+        ++swaps;
+        double change = 0;
+        std::size_t points = 0;
+        residuals.changes({{&kept, i}}, {{{&start, i}}}, &change, &points);
+        EXPECT_GE(points, kMinChoicePoints) << "Gaussian " << i;
+    }
+    EXPECT_EQ(swaps, r.swapped);
+}
+
 // The validated split changes only what lowers the validation score: its report's score is the
 // split model's, every split adds two Gaussians, the budget holds, and flags, cells and offsets
 // follow the children.
@@ -145,8 +207,8 @@ TEST(ValidatedSplit, SplitsOnlyWhatTheValidationPointsMeasureToPay)
 }
 
 // The per-Gaussian step (one visit of the points for all candidates) keeps the same Gaussians, to
-// the bit, as the rule written plainly: heaviest first, each candidate scored by change(), the
-// best applied at once.
+// the bit, as the rule written plainly: heaviest first, each candidate scored by change() on at
+// least kMinChoicePoints points, the best applied at once.
 TEST(GaussianChoice, OneVisitForAllCandidatesMatchesTheRuleWrittenPlainly)
 {
     const ChoiceFixture fx;
@@ -177,8 +239,11 @@ TEST(GaussianChoice, OneVisitForAllCandidatesMatchesTheRuleWrittenPlainly)
         double bestChange = 0.0;
         for (const StageTwoCandidate& c : candidates) {
             if (plain.sameGaussian(i, *c.model, i)) continue;
-            const double d = r.change({{&plain, i}}, {{c.model, i}});
-            if (d < bestChange) bestChange = d, best = c.model;
+            double d = 0;
+            std::size_t points = 0;
+            r.changes({{&plain, i}}, {{{c.model, i}}}, &d, &points);
+            EXPECT_EQ(d, r.change({{&plain, i}}, {{c.model, i}}));
+            if (d < bestChange && points >= kMinChoicePoints) bestChange = d, best = c.model;
         }
         if (!best) continue;
         r.apply({{&plain, i}}, {{best, i}});
