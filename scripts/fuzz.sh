@@ -7,7 +7,7 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 SECS="${1:-30}"
 RUNS="${2:--1}"
-TARGETS=(ply_header ply compressed_ply splat spz spz4 gltf vdb_points spec cameras manifest job_list vdb_meta recipe sog vdb_layout)
+TARGETS=(ply_header ply compressed_ply splat spz spz4 gltf vdb_points spec cameras manifest job_list vdb_meta recipe sog vdb_layout picture_size)
 start=$(date +%s)
 cmake -S tests/fuzz -B build-fuzz -G Ninja -DCMAKE_CXX_COMPILER=clang++ >/dev/null
 cmake --build build-fuzz -j"$(nproc)"

@@ -5,6 +5,7 @@
 #include "job/TrainJob.h"
 #include "core/AtomicFile.h"
 #include "core/Error.h"
+#include "core/Memory.h"
 #include "io/GaussianIO.h"
 
 namespace splatwarp::cli {
@@ -53,7 +54,13 @@ const CommandRegistrar reg(70, [](CLI::App& app) {
     sub->add_option("-o,--output", a->output, "Output .ply")->required();
     sub->add_option("--downscale", a->dataset.downscale, "Integer factor the pictures are box-filtered by (3DGS's -r)")
         ->capture_default_str()
-        ->check(inRange(1, 64));
+        ->check(inRange(1, kMaxDownscale));
+    a->dataset.maxMemoryBytes = defaultMemoryBudget();
+    sub->add_option_function<std::string>(
+           "--max-memory", [a](const std::string& text) { a->dataset.maxMemoryBytes = parseByteSize(text, "--max-memory"); },
+           msg("Refuse a folder whose pictures would need more host memory than this at --downscale, sized from their headers "
+               "before any is decoded, and say which --downscale fits: 8G, 512M, ... (default: 3/4 of physical memory, ",
+               formatBytes(double(defaultMemoryBudget())), " here)"));
     sub->add_option("--holdout", a->dataset.holdout, "graphdeco folders: every Nth view is held out for the report (0: none)")
         ->capture_default_str()
         ->check(nonNegative());

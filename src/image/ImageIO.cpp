@@ -13,7 +13,6 @@
 #include <png.h>
 
 #include "core/AtomicFile.h"
-#include "core/Camera.h"
 #include "core/Error.h"
 
 namespace splatwarp {
@@ -113,18 +112,6 @@ void writePng(const std::string& path, const Image& image, const PngWriteOptions
         throw IoError(msg(path, ": cannot write PNG: ", why));
     }
     file.commit();
-}
-
-bool imageSizeAllowed(std::int64_t width, std::int64_t height)
-{
-    return width >= 1 && height >= 1 && width <= kMaxImageSide && height <= kMaxImageSide;
-}
-
-void checkImageSize(const std::string& name, std::int64_t width, std::int64_t height)
-{
-    if (!imageSizeAllowed(width, height))
-        throw InputError(msg(name, ": an image of ", width, "x", height, " pixels: each side must be from 1 to ",
-                             kMaxImageSide, " (downscale a larger picture first; or the file is corrupt)"));
 }
 
 Image decodePng(const unsigned char* bytes, std::size_t size, const std::string& name, PngValues values)

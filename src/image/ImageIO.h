@@ -11,6 +11,7 @@
 #include <vector>
 
 #include "image/Image.h"
+#include "image/PictureSize.h"
 
 namespace splatwarp {
 
@@ -42,12 +43,6 @@ Image readPng(const std::string& path, PngValues values = PngValues::Display);
 /// @throws InputError for a corrupt PNG, one with a side over kMaxImageSide (core/Camera.h) or more
 ///         pixels than its bytes can hold, checked before the pixels are allocated.
 Image decodePng(const unsigned char* bytes, std::size_t size, const std::string& name, PngValues values = PngValues::Display);
-/// @brief True when each side is in [1, kMaxImageSide] (core/Camera.h: the largest picture a
-///        camera file or --size may ask for). Every image reader checks a file's declared size so
-///        before allocating its pixels.
-bool imageSizeAllowed(std::int64_t width, std::int64_t height);
-/// @brief Throws InputError naming `name` unless imageSizeAllowed(width, height).
-void checkImageSize(const std::string& name, std::int64_t width, std::int64_t height);
 
 /// @brief Pixel type of EXR channels.
 enum class ExrPixelType { Half, Float };

@@ -1,5 +1,6 @@
 #include "image/TextureIO.h"
 
+#include <algorithm>
 #include <csetjmp>
 #include <cstdio>
 #include <jpeglib.h>

@@ -6,6 +6,7 @@
 #include <string>
 
 #include "image/Image.h"
+#include "image/PictureSize.h"
 
 namespace splatwarp {
 

@@ -56,3 +56,14 @@ def vdb_file(grids):
 two = vdb_file([(b'density', b'Tree_float_5_4_3'), (b'color', b'Tree_vec3s_5_4_3')])
 w('vdb_layout', 'two-grids.vdb', two)
 w('vdb_layout', 'cut.vdb', two[:-5])
+# picture_size: a PNG (signature, IHDR of 41x19 RGB, an empty IDAT, IEND) and a JPEG's headers
+# (SOI, JFIF APP0, SOF0 of 41x19, a cut SOS), that JPEG with a 5,000-byte comment before its frame.
+import zlib
+def chunk(t, d): return struct.pack('>I', len(d)) + t + d + struct.pack('>I', zlib.crc32(t + d) & 0xffffffff)
+png = b'\x89PNG\r\n\x1a\n' + chunk(b'IHDR', struct.pack('>IIBBBBB', 41, 19, 8, 2, 0, 0, 0)) + chunk(b'IDAT', zlib.compress(bytes(19 * (1 + 41 * 3)))) + chunk(b'IEND', b'')
+w('picture_size', 'rgb.png', png)
+app0 = b'\xff\xe0' + struct.pack('>H', 16) + b'JFIF\x00\x01\x01\x00\x00\x01\x00\x01\x00\x00'
+sof = b'\xff\xc0' + struct.pack('>HBHHB', 17, 8, 19, 41, 3) + b'\x01\x11\x00\x02\x11\x01\x03\x11\x01'
+sos = b'\xff\xda' + struct.pack('>HB', 12, 3) + b'\x01\x00\x02\x11\x03\x11\x00\x3f\x00'
+w('picture_size', 'headers.jpg', b'\xff\xd8' + app0 + sof + sos + b'\xff\xd9')
+w('picture_size', 'comment.jpg', b'\xff\xd8' + app0 + b'\xff\xfe' + struct.pack('>H', 5002) + b'c' * 5000 + sof + sos + b'\xff\xd9')

@@ -135,6 +135,37 @@ TEST(MeshIOTest, AForgedJpegSizeIsRefused)
     EXPECT_NE(e.find("big.jpg: corrupt JPEG: Corrupt JPEG data: premature end of data segment"), std::string::npos) << e;
 }
 
+// readTextureSize() gives what readTexture() decodes, from the header alone: PNG (RGB, RGBA) and
+// JPEG, one with a large segment before its frame header; a file cut before its size, a forged
+// size and a file of neither kind are refused naming the file.
+TEST(MeshIOTest, APicturesSizeIsReadFromItsHeaderAlone)
+{
+    test::TempDir dir;
+    writePng(dir.file("rgb.png"), Image(37, 23, 3, 0.5f));
+    writePng(dir.file("rgba.png"), Image(5, 41, 4, 0.25f));
+    writeJpeg(dir.file("plain.jpg"), Image(41, 19, 3, 0.75f));
+    std::string jpeg = test::fileBytes(dir.file("plain.jpg"));
+    const std::string comment = "\xFF\xFE\x13\x8A" + std::string(5000, 'c'); // COM segment, length 5002
+    writeFileAtomic(dir.file("comment.jpg"), jpeg.substr(0, 2) + comment + jpeg.substr(2));
+    for (const char* name : {"rgb.png", "rgba.png", "plain.jpg", "comment.jpg"}) {
+        const Image decoded = readTexture(dir.file(name));
+        const PictureSize size = readTextureSize(dir.file(name));
+        EXPECT_EQ(size.width, decoded.width) << name;
+        EXPECT_EQ(size.height, decoded.height) << name;
+    }
+    writeFileAtomic(dir.file("cut.jpg"), jpeg.substr(0, 2) + comment.substr(0, 3000));
+    std::string e = test::inputErrorMessage([&] { readTextureSize(dir.file("cut.jpg")); });
+    EXPECT_NE(e.find("cut.jpg: corrupt JPEG: the file ends before its frame header"), std::string::npos) << e;
+    std::string png = test::fileBytes(dir.file("rgb.png"));
+    png[16] = char(0x00), png[17] = char(0x00), png[18] = char(0xFD), png[19] = char(0xE8); // width 65000
+    writeFileAtomic(dir.file("wide.png"), png);
+    e = test::inputErrorMessage([&] { readTextureSize(dir.file("wide.png")); });
+    EXPECT_NE(e.find("wide.png: an image of 65000x23 pixels"), std::string::npos) << e;
+    writeFileAtomic(dir.file("text.png"), "not a picture at all");
+    e = test::inputErrorMessage([&] { readTextureSize(dir.file("text.png")); });
+    EXPECT_NE(e.find("text.png: not a PNG or JPEG image"), std::string::npos) << e;
+}
+
 TEST(MeshIOTest, PlyVertexColoursAndTextureOption)
 {
     test::TempDir dir;

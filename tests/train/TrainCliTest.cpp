@@ -4,6 +4,9 @@
 #include <nlohmann/json.hpp>
 
 #include "core/AtomicFile.h"
+#include "core/Memory.h"
+#include "image/TextureIO.h"
+#include "train/TrainingData.h"
 #include "io/GaussianIO.h"
 #include "mesh/BadMeshes.h"
 #include "support/TestSupport.h"
@@ -51,6 +54,40 @@ TEST(TrainCliTest, FromMeshThenTrainOnItsViews)
     const nlohmann::json t = nlohmann::json::parse(test::fileBytes(dir.file("t.json")));
     EXPECT_EQ(t["format"], "graphdeco");
     EXPECT_EQ(t["testViews"], 2); // views 0 and 3 of 6
+}
+
+// A folder whose pictures would not fit --max-memory is refused before any picture is decoded
+// (the pictures' data is garbage behind valid headers), naming the --downscale that fits; that
+// downscale then passes the check (and reaches the corrupt data).
+TEST(TrainCliTest, PicturesOverTheMemoryBudgetAreRefusedBeforeDecoding)
+{
+    test::TempDir dir;
+    writeFileAtomic(dir.file("box.obj"), colouredBox());
+    ASSERT_EQ(test::runCli("-q from-mesh " + dir.file("box.obj") + " -o " + dir.file("box.ply") +
+                           " --views 4 --test-views 0 --size 96 --iterations 1 --init-gaussians 50 --views-dir " + dir.file("views")),
+              0);
+    std::vector<PictureSize> sizes;
+    for (const auto& e : std::filesystem::directory_iterator(dir.file("views/images"))) {
+        sizes.push_back(readTextureSize(e.path().string()));
+        std::string png = test::fileBytes(e.path().string());
+        for (std::size_t i = 40; i < png.size(); ++i) png[i] = char(i * 7); // past the IHDR: garbage
+        writeFileAtomic(e.path().string(), png);
+    }
+    ASSERT_EQ(sizes.size(), 4u);
+    const double atOne = pictureMemoryBytes(sizes, 1), atThree = pictureMemoryBytes(sizes, 3);
+    const std::size_t budget = std::size_t((pictureMemoryBytes(sizes, 2) + atThree) / 2); // 3 fits, 2 does not
+    ASSERT_GT(pictureMemoryBytes(sizes, 2), double(budget));
+    ASSERT_LT(atThree, double(budget));
+    const std::string log = dir.file("log.txt");
+    const std::string train = "train " + dir.file("views") + " -o " + dir.file("t.ply") + " --iterations 1 --max-memory " +
+                              std::to_string(budget);
+    EXPECT_EQ(test::runCli(train, log), 1);
+    const std::string text = test::fileBytes(log);
+    EXPECT_NE(text.find(msg(dir.file("views"), ": its 4 pictures need ", formatBytes(atOne), " at --downscale 1")), std::string::npos) << text;
+    EXPECT_NE(text.find("(--max-memory): --downscale 3 fits"), std::string::npos) << text;
+    EXPECT_FALSE(std::filesystem::exists(dir.file("t.ply")));
+    EXPECT_EQ(test::runCli(train + " --downscale 3", log), 1);
+    EXPECT_NE(test::fileBytes(log).find(".png: cannot read PNG"), std::string::npos) << test::fileBytes(log);
 }
 
 TEST(TrainCliTest, BadMeshesExitOneNamingTheFile)
