@@ -54,16 +54,17 @@ Pick bestFor(const ValidationResiduals& residuals, const std::vector<StageTwoCan
     residuals.changes({{&kept, i}}, each, change.data(), points.data());
     Pick pick;
     double bestChange = 0.0;
+    bool lowersOnFewPoints = false;
     for (std::size_t c = 0; c < ins.size(); ++c) {
-        if (!(change[c] < bestChange)) continue;
+        if (!(change[c] < 0.0)) continue;
         if (points[c] < kMinChoicePoints) {
-            pick.held = true;
-            continue;
+            lowersOnFewPoints = true;
+        } else if (change[c] < bestChange) {
+            bestChange = change[c];
+            pick.best = ins[c].cloud;
         }
-        bestChange = change[c];
-        pick.best = ins[c].cloud;
     }
-    if (pick.best) pick.held = false;
+    pick.held = !pick.best && lowersOnFewPoints;
     return pick;
 }
 

@@ -20,6 +20,14 @@ void checkImageSize(const std::string& name, std::int64_t width, std::int64_t he
                              kMaxImageSide, " (downscale a larger picture first; or the file is corrupt)"));
 }
 
+PictureFormat pictureFormat(const unsigned char* bytes, std::size_t size)
+{
+    static const unsigned char kPng[4] = {0x89, 'P', 'N', 'G'};
+    if (size >= 4 && std::equal(kPng, kPng + 4, bytes)) return PictureFormat::Png;
+    if (size >= 3 && bytes[0] == 0xFF && bytes[1] == 0xD8 && bytes[2] == 0xFF) return PictureFormat::Jpeg;
+    return PictureFormat::Other;
+}
+
 namespace {
 
 /// The frame header's size of a JPEG file: its segments walked from the start of image to the
@@ -57,8 +65,8 @@ PictureSize pictureSize(std::FILE* f, const std::string& path)
 {
     unsigned char head[24] = {};
     const std::size_t got = std::fread(head, 1, sizeof(head), f);
-    static const unsigned char kPng[8] = {0x89, 'P', 'N', 'G', '\r', '\n', 0x1A, '\n'};
-    if (got >= 8 && std::equal(kPng, kPng + 8, head)) {
+    const PictureFormat format = pictureFormat(head, got);
+    if (format == PictureFormat::Png) {
         // The IHDR chunk comes first: its width and height are bytes 16-23, big-endian.
         if (got < 24 || !std::equal(head + 12, head + 16, "IHDR")) throw InputError(msg(path, ": corrupt PNG: no IHDR chunk first"));
         const auto be32 = [&](int at) {
@@ -67,7 +75,7 @@ PictureSize pictureSize(std::FILE* f, const std::string& path)
         checkImageSize(path, be32(16), be32(20));
         return {int(be32(16)), int(be32(20))};
     }
-    if (got >= 3 && head[0] == 0xFF && head[1] == 0xD8 && head[2] == 0xFF) {
+    if (format == PictureFormat::Jpeg) {
         if (std::fseek(f, 2, SEEK_SET) != 0) throw InputError(msg(path, ": corrupt JPEG: cannot read its segments"));
         return jpegSize(f, path);
     }

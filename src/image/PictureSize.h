@@ -2,6 +2,7 @@
 /// @file PictureSize.h
 /// @brief A picture's size: the limit every image reader checks before allocating pixels, and a
 ///        PNG's or JPEG's size read from its header alone (no pixel decoded).
+#include <cstddef>
 #include <cstdint>
 #include <cstdio>
 #include <string>
@@ -19,6 +20,13 @@ struct PictureSize {
 bool imageSizeAllowed(std::int64_t width, std::int64_t height);
 /// @brief Throws InputError naming `name` unless imageSizeAllowed(width, height).
 void checkImageSize(const std::string& name, std::int64_t width, std::int64_t height);
+
+/// @brief What a picture file's first bytes say it is.
+enum class PictureFormat { Png, Jpeg, Other };
+
+/// @brief PNG by its signature's first 4 bytes, JPEG by its start-of-image marker and the next
+///        marker's 0xFF: what the texture decoder and pictureSize() both tell formats by.
+PictureFormat pictureFormat(const unsigned char* bytes, std::size_t size);
 
 /// @brief A PNG's or JPEG's size from its header, read from `file`'s start; `name` stands for it in
 ///        errors. Reads the PNG's first 24 bytes, or a JPEG's segment headers up to its frame header.

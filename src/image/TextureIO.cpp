@@ -1,6 +1,5 @@
 #include "image/TextureIO.h"
 
-#include <algorithm>
 #include <csetjmp>
 #include <cstdio>
 #include <jpeglib.h>
@@ -87,9 +86,11 @@ Image decodeJpeg(const unsigned char* bytes, std::size_t size, const std::string
 
 Image decodeTexture(const unsigned char* bytes, std::size_t size, const std::string& name)
 {
-    static const unsigned char kPng[4] = {0x89, 'P', 'N', 'G'};
-    if (size >= 4 && std::equal(kPng, kPng + 4, bytes)) return decodePng(bytes, size, name, PngValues::Display);
-    if (size >= 3 && bytes[0] == 0xFF && bytes[1] == 0xD8 && bytes[2] == 0xFF) return decodeJpeg(bytes, size, name);
+    switch (pictureFormat(bytes, size)) {
+    case PictureFormat::Png: return decodePng(bytes, size, name, PngValues::Display);
+    case PictureFormat::Jpeg: return decodeJpeg(bytes, size, name);
+    case PictureFormat::Other: break;
+    }
     throw InputError(msg(name, ": not a PNG or JPEG image"));
 }
 
