@@ -35,7 +35,7 @@ struct StageTwoReport {
     int stoppedAt = -1;      ///< iteration at which the run stopped early (StageTwoOptions::stallStop); -1: it ran to the end
     /// The held-out scores of StageTwoOptions::heldOutStop: (iteration, score), in order.
     std::vector<std::pair<int, double>> heldOutChecks;
-    std::string stopReason;  ///< why it stopped early ("steps rejected in a row", "the energy stalled", "the validation score rose"); empty: it ran to the end
+    std::string stopReason;  ///< why it stopped early ("steps rejected in a row", "the energy stalled", "the validation score rose", "the validation score stays above the start's"); empty: it ran to the end
     std::size_t movingGaussians = 0;
     std::size_t samplesUsed = 0;    ///< samples in cells not skipped
     std::size_t samplesSkipped = 0;

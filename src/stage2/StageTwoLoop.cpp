@@ -156,28 +156,44 @@ void updateCoverage(StageTwoSolver& solver, const StageTwoOptions& o, int it, St
 }
 
 /// StageTwoOptions::heldOutStop: scores the start and then the held iterate every `every`
-/// iterations, and says when the score rose (a non-finite one stops too).
+/// iterations, and says why the run should stop (a non-finite score stops too).
 class HeldOutCheck {
 public:
-    explicit HeldOutCheck(const StageTwoOptions::HeldOutStop& stop) : mStop(stop) {}
+    HeldOutCheck(const StageTwoOptions::HeldOutStop& stop, int iterations) : mStop(stop), mIterations(iterations) {}
 
     /// Whether iteration `it` is scored: 0 (the start, the first check's reference) and every
     /// `every`-th.
     bool due(int it) const { return mStop.on() && it % mStop.every == 0; }
-    /// Score the model held at `it` (a due iteration): whether the score rose.
-    bool rose(int it, const GaussianCloud& held, StageTwoReport& report)
+    /// Score the model held at `it` (a due iteration): why the run stops there, or nullptr.
+    const char* verdict(int it, const GaussianCloud& held, StageTwoReport& report)
     {
         const double score = mStop.score(held);
         report.heldOutChecks.emplace_back(it, score);
         progress(msg("Stage II iteration ", it, ": validation score ", score));
         const bool first = it == mStop.every; // compared with the start's (iteration 0)
-        const bool rose = !(score <= mLast * (1.0 + (first ? mStop.riseFromStart : mStop.rise)));
+        const char* why = nullptr;
+        if (!(score <= mLast * (1.0 + (first ? mStop.riseFromStart : mStop.rise))))
+            why = "the validation score rose";
+        else if (it > mStop.every && !backByTheEnd(it, score))
+            why = "the validation score stays above the start's";
+        if (it == 0) mStart = score;
         mLast = score;
-        return rose;
+        return why;
     }
 
 private:
+    /// Whether a fit scoring worse than its start would, at the pace since the last check, come
+    /// back below the start's score by the last iteration.
+    bool backByTheEnd(int it, double score) const
+    {
+        if (score <= mStart) return true;
+        const double pace = (score - mLast) / mStop.every;
+        return score + pace * (mIterations - it) <= mStart;
+    }
+
     const StageTwoOptions::HeldOutStop& mStop;
+    int mIterations;
+    double mStart = std::numeric_limits<double>::infinity();
     double mLast = std::numeric_limits<double>::infinity();
 };
 
@@ -239,7 +255,7 @@ StageTwoReport runStageTwoLoop(StageTwoSolver& solver, GaussianCloud& cloud, con
         solver.writeTo(*evalCloud);
         return *evalCloud;
     };
-    HeldOutCheck heldOut(o.heldOutStop);
+    HeldOutCheck heldOut(o.heldOutStop, o.iterations);
     const int reportEvery = std::max(o.reportEvery, 1);
     int last = o.iterations;
     for (int it = 0; it <= o.iterations; ++it) {
@@ -265,7 +281,7 @@ StageTwoReport runStageTwoLoop(StageTwoSolver& solver, GaussianCloud& cloud, con
         const char* why = keeper.stalled();
         // The start is scored as given (the keep scores the same bytes again, and its judge
         // remembers them), later iterates as the solver holds them.
-        if (!why && heldOut.due(it) && heldOut.rose(it, it == 0 ? cloud : current(), report)) why = "the validation score rose";
+        if (!why && heldOut.due(it)) why = heldOut.verdict(it, it == 0 ? cloud : current(), report);
         if (why) {
             progress(msg("Stage II: stopping at iteration ", it, " (", why, ")"));
             report.stoppedAt = it;

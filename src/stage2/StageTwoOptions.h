@@ -100,6 +100,12 @@ struct StageTwoOptions {
         /// squash +5% at 10, 3.6% below the start at 50 (stopped at 10: judged +11%); its bend and
         /// twist +9-10%, then worse at 20 (docs/lab/stage2-iterations.md).
         double riseFromStart = 0.15;
+        /// From the second check on, a fit still scoring worse than its start stops too when, at
+        /// its pace since the last check, it would not be back at the start's score by the last
+        /// iteration: the dense spot's twist (199k Gaussians) was +12% at 10, +12% at 20 and
+        /// +10.5% at 40; stopped at 20 it takes half the time and judges 34.53 dB against 34.50
+        /// (docs/lab/stage2-iterations.md). playbot-31k squash's slow start (+5% at 10, +2% at 20)
+        /// is on its way back and goes on.
         bool on() const { return score && every > 0; }
     } heldOutStop;
     /// Without step rejection: return the iterate with the lowest training energy instead of the

@@ -408,6 +408,33 @@ TEST(StageTwoLoop, AFitWorseOnHeldOutPointsThanItsStartStopsAtTheFirstCheck)
     EXPECT_EQ(runStageTwoLoop(t, cloud, o).stoppedAt, 6);
 }
 
+TEST(StageTwoLoop, AFitThatStaysAboveItsStartStopsAtTheSecondCheck)
+{
+    // The dense spot's shape: +12% at the first check (within riseFromStart), then flat. At
+    // that pace it cannot be back at the start's score by the end, so the run stops at the
+    // second check (iteration 4 of 8), though the score did not rise by `rise` (1%).
+    GaussianCloud cloud;
+    StageTwoOptions o = rejecting(8);
+    const auto run = [&](std::vector<double> scoreOfState) {
+        ScriptedSolver s({10, 9, 8, 7, 6, 5, 4, 3, 2});
+        cloud.opacities = {0.0f};
+        o.heldOutStop = {[scoreOfState](const GaussianCloud& m) { return scoreOfState[std::size_t(m.opacities.at(0))]; }, 2};
+        return runStageTwoLoop(s, cloud, o);
+    };
+    const StageTwoReport flat = run({0.5, 0, 0.56, 0, 0.5605, 0, 0.5, 0, 0.1});
+    EXPECT_EQ(flat.stoppedAt, 4);
+    EXPECT_EQ(flat.stopReason, "the validation score stays above the start's");
+    EXPECT_EQ(cloud.opacities, std::vector<float>{4.0f});
+    // Falling: 0.53 at 4, at 0.02 per iteration, would be at 0.45 by 8, and 0.51 at 6 at 0.49...
+    EXPECT_EQ(run({0.5, 0, 0.57, 0, 0.53, 0, 0.51, 0, 0.1}).stoppedAt, -1);
+    // ...but 0.52 at 6, at 0.005 per iteration, only at 0.51.
+    EXPECT_EQ(run({0.5, 0, 0.57, 0, 0.53, 0, 0.52, 0, 0.1}).stoppedAt, 6);
+    // The playbot-31k squash's slow start (+5%, then falling fast enough) runs to the end, and
+    // a fit below its start is left to the `rise` rule.
+    EXPECT_EQ(run({0.5, 0, 0.525, 0, 0.51, 0, 0.504, 0, 0.1}).stoppedAt, -1);
+    EXPECT_EQ(run({0.5, 0, 0.45, 0, 0.452, 0, 0.454, 0, 0.1}).stoppedAt, -1);
+}
+
 TEST(StageTwoLoop, AHeldOutScoreThatKeepsFallingRunsEveryIteration)
 {
     ScriptedSolver s({10, 9, 8, 7, 6, 5, 4});
