@@ -416,9 +416,9 @@ std::vector<Setting> keepSettings()
                  if (!o.keepPerGaussian) out["keepPerGaussian"] = false; // off its default only (older hashes hold)
              }),
         number<int>("--validation-stop", "validationStop", Expert,
-                    "With --keep validated or regions: score Stage II's start, then its fit every K iterations, on the "
-                    "validation points and stop once the score rose by more than 1% of the last check's (at the "
-                    "first check: by more than 15% of the start's), or once a fit still worse than its start would not be back "
+                    "With --keep validated or regions: score Stage II's start, then its fit after two steps and every K "
+                    "iterations, on the validation points and stop once the score rose by more than 1% of the last "
+                    "check's (after two steps and at the K-th iteration: by more than 15% of the start's), or once a fit still worse than its start would not be back "
                     "at the start's score by the last iteration at its pace since the last check (0: run every iteration)",
                     [](DeformJobOptions& o) -> int& { return o.validationStop; }, {0, 1000000}),
         validationDrawsSetting(),

@@ -155,24 +155,24 @@ void updateCoverage(StageTwoSolver& solver, const StageTwoOptions& o, int it, St
     if (!scheduled) ++report.coverageForcedRebuilds;
 }
 
-/// StageTwoOptions::heldOutStop: scores the start and then the held iterate every `every`
-/// iterations, and says why the run should stop (a non-finite score stops too).
+/// StageTwoOptions::heldOutStop: scores the start, the held iterate after `early` steps and then
+/// every `every` iterations, and says why the run should stop (a non-finite score stops too).
 class HeldOutCheck {
 public:
     HeldOutCheck(const StageTwoOptions::HeldOutStop& stop, int iterations) : mStop(stop), mIterations(iterations) {}
 
-    /// Whether iteration `it` is scored: 0 (the start, the first check's reference) and every
-    /// `every`-th.
-    bool due(int it) const { return mStop.on() && it % mStop.every == 0; }
+    /// Whether iteration `it` is scored: 0 (the start, the reference of the next two checks),
+    /// `early` and every `every`-th.
+    bool due(int it) const { return mStop.on() && (it % mStop.every == 0 || isEarly(it)); }
     /// Score the model held at `it` (a due iteration): why the run stops there, or nullptr.
     const char* verdict(int it, const GaussianCloud& held, StageTwoReport& report)
     {
         const double score = mStop.score(held);
         report.heldOutChecks.emplace_back(it, score);
         progress(msg("Stage II iteration ", it, ": validation score ", score));
-        const bool first = it == mStop.every; // compared with the start's (iteration 0)
+        const bool againstStart = isEarly(it) || it == mStop.every;
         const char* why = nullptr;
-        if (!(score <= mLast * (1.0 + (first ? mStop.riseFromStart : mStop.rise))))
+        if (!(score <= (againstStart ? mStart : mLast) * (1.0 + (againstStart ? mStop.riseFromStart : mStop.rise))))
             why = "the validation score rose";
         else if (it > mStop.every && !backByTheEnd(it, score))
             why = "the validation score stays above the start's";
@@ -182,6 +182,7 @@ public:
     }
 
 private:
+    bool isEarly(int it) const { return mStop.early > 0 && it == mStop.early && mStop.early < mStop.every; }
     /// Whether a fit scoring worse than its start would, at the pace since the last check, come
     /// back below the start's score by the last iteration.
     bool backByTheEnd(int it, double score) const

@@ -408,6 +408,37 @@ TEST(StageTwoLoop, AFitWorseOnHeldOutPointsThanItsStartStopsAtTheFirstCheck)
     EXPECT_EQ(runStageTwoLoop(t, cloud, o).stoppedAt, 6);
 }
 
+TEST(StageTwoLoop, AFitFarWorseThanItsStartAfterItsFirstStepsStopsThere)
+{
+    // Dense stripes' shape (200k Gaussians, twist: +4.7% after one step, +40% after two): more
+    // than `riseFromStart` (15%) above the start at the early check (iteration 2, before the
+    // first regular one at 3) stops there; a smaller rise goes on, and the regular check is
+    // still compared with the start.
+    GaussianCloud cloud;
+    StageTwoOptions o = rejecting(8);
+    int scored = 0;
+    const auto run = [&](std::vector<double> scoreOfState, int early) {
+        ScriptedSolver s({10, 9, 8, 7, 6, 5, 4, 3, 2});
+        cloud.opacities = {0.0f};
+        scored = 0;
+        o.heldOutStop = {[&scored, scoreOfState](const GaussianCloud& m) {
+                             ++scored;
+                             return scoreOfState[std::size_t(m.opacities.at(0))];
+                         },
+                         3, early};
+        return runStageTwoLoop(s, cloud, o);
+    };
+    const StageTwoReport steep = run({0.5, 0, 0.6, 0, 0, 0, 0, 0, 0}, 2);
+    EXPECT_EQ(steep.stoppedAt, 2);
+    EXPECT_EQ(steep.stopReason, "the validation score rose");
+    EXPECT_EQ(steep.heldOutChecks.size(), 2u);
+    EXPECT_EQ(cloud.opacities, std::vector<float>{2.0f});
+    EXPECT_EQ(run({0.5, 0, 0.6, 0.3, 0, 0, 0.3, 0, 0}, 0).stoppedAt, -1); // no early check: scored at 0, 3, 6
+    EXPECT_EQ(scored, 3);
+    EXPECT_EQ(run({0.5, 0, 0.55, 0.57, 0, 0, 0.3, 0, 0}, 2).stoppedAt, -1);
+    EXPECT_EQ(run({0.5, 0, 0.55, 0.6, 0, 0, 0.3, 0, 0}, 2).stoppedAt, 3); // > 0.5 x 1.15, < 0.55 x 1.15
+}
+
 TEST(StageTwoLoop, AFitThatStaysAboveItsStartStopsAtTheSecondCheck)
 {
     // The dense spot's shape: +12% at the first check (within riseFromStart), then flat. At
