@@ -418,8 +418,9 @@ std::vector<Setting> keepSettings()
         number<int>("--validation-stop", "validationStop", Expert,
                     "With --keep validated or regions: score Stage II's start, then its fit after two steps and every K "
                     "iterations, on the validation points and stop once the score rose by more than 1% of the last "
-                    "check's (after two steps and at the K-th iteration: by more than 15% of the start's), or once a fit still worse than its start would not be back "
-                    "at the start's score by the last iteration at its pace since the last check (0: run every iteration)",
+                    "check's (after two steps and at the K-th iteration: by more than 15% of the start's), or once a "
+                    "fit still worse than its start would not be back at the start's score by the last iteration at "
+                    "its pace since the last check (0: run every iteration)",
                     [](DeformJobOptions& o) -> int& { return o.validationStop; }, {0, 1000000}),
         validationDrawsSetting(),
         number<float>("--prune-below", "pruneBelow", Expert,
