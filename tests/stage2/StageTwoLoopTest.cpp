@@ -75,6 +75,23 @@ StageTwoOptions rejecting(int iterations, int stallStop = 6)
     return o;
 }
 
+/// 8 iterations with step rejection over falling energies, so that iterate k is held at
+/// iteration k and scores scoreOfState[k] on the held-out points (checked every `every`, early
+/// at `early`); `scored` counts the scores taken.
+StageTwoReport runOnHeldOutScores(GaussianCloud& cloud, const std::vector<double>& scoreOfState, int every, int early = 2,
+                                  int* scored = nullptr)
+{
+    ScriptedSolver s({10, 9, 8, 7, 6, 5, 4, 3, 2});
+    cloud.opacities = {0.0f}; // the start: state 0
+    StageTwoOptions o = rejecting(8);
+    o.heldOutStop = {[&](const GaussianCloud& m) {
+                         if (scored) ++*scored;
+                         return scoreOfState.at(std::size_t(m.opacities.at(0)));
+                     },
+                     every, early};
+    return runStageTwoLoop(s, cloud, o);
+}
+
 /// A run with step rejection over scripted energies whose steps promise slope x their scale.
 struct SlopedRun {
     ScriptedSolver solver;
@@ -415,28 +432,16 @@ TEST(StageTwoLoop, AFitFarWorseThanItsStartAfterItsFirstStepsStopsThere)
     // first regular one at 3) stops there; a smaller rise goes on, and the regular check is
     // still compared with the start.
     GaussianCloud cloud;
-    StageTwoOptions o = rejecting(8);
-    int scored = 0;
-    const auto run = [&](std::vector<double> scoreOfState, int early) {
-        ScriptedSolver s({10, 9, 8, 7, 6, 5, 4, 3, 2});
-        cloud.opacities = {0.0f};
-        scored = 0;
-        o.heldOutStop = {[&scored, scoreOfState](const GaussianCloud& m) {
-                             ++scored;
-                             return scoreOfState[std::size_t(m.opacities.at(0))];
-                         },
-                         3, early};
-        return runStageTwoLoop(s, cloud, o);
-    };
-    const StageTwoReport steep = run({0.5, 0, 0.6, 0, 0, 0, 0, 0, 0}, 2);
+    const StageTwoReport steep = runOnHeldOutScores(cloud, {0.5, 0, 0.6, 0, 0, 0, 0, 0, 0}, 3, 2);
     EXPECT_EQ(steep.stoppedAt, 2);
     EXPECT_EQ(steep.stopReason, "the validation score rose");
     EXPECT_EQ(steep.heldOutChecks.size(), 2u);
     EXPECT_EQ(cloud.opacities, std::vector<float>{2.0f});
-    EXPECT_EQ(run({0.5, 0, 0.6, 0.3, 0, 0, 0.3, 0, 0}, 0).stoppedAt, -1); // no early check: scored at 0, 3, 6
+    int scored = 0; // no early check: scored at 0, 3, 6
+    EXPECT_EQ(runOnHeldOutScores(cloud, {0.5, 0, 0.6, 0.3, 0, 0, 0.3, 0, 0}, 3, 0, &scored).stoppedAt, -1);
     EXPECT_EQ(scored, 3);
-    EXPECT_EQ(run({0.5, 0, 0.55, 0.57, 0, 0, 0.3, 0, 0}, 2).stoppedAt, -1);
-    EXPECT_EQ(run({0.5, 0, 0.55, 0.6, 0, 0, 0.3, 0, 0}, 2).stoppedAt, 3); // > 0.5 x 1.15, < 0.55 x 1.15
+    EXPECT_EQ(runOnHeldOutScores(cloud, {0.5, 0, 0.55, 0.57, 0, 0, 0.3, 0, 0}, 3, 2).stoppedAt, -1);
+    EXPECT_EQ(runOnHeldOutScores(cloud, {0.5, 0, 0.55, 0.6, 0, 0, 0.3, 0, 0}, 3, 2).stoppedAt, 3); // > 0.5 x 1.15, < 0.55 x 1.15
 }
 
 TEST(StageTwoLoop, AFitThatStaysAboveItsStartStopsAtTheSecondCheck)
@@ -445,13 +450,7 @@ TEST(StageTwoLoop, AFitThatStaysAboveItsStartStopsAtTheSecondCheck)
     // that pace it cannot be back at the start's score by the end, so the run stops at the
     // second check (iteration 4 of 8), though the score did not rise by `rise` (1%).
     GaussianCloud cloud;
-    StageTwoOptions o = rejecting(8);
-    const auto run = [&](std::vector<double> scoreOfState) {
-        ScriptedSolver s({10, 9, 8, 7, 6, 5, 4, 3, 2});
-        cloud.opacities = {0.0f};
-        o.heldOutStop = {[scoreOfState](const GaussianCloud& m) { return scoreOfState[std::size_t(m.opacities.at(0))]; }, 2};
-        return runStageTwoLoop(s, cloud, o);
-    };
+    const auto run = [&](const std::vector<double>& scoreOfState) { return runOnHeldOutScores(cloud, scoreOfState, 2); };
     const StageTwoReport flat = run({0.5, 0, 0.56, 0, 0.5605, 0, 0.5, 0, 0.1});
     EXPECT_EQ(flat.stoppedAt, 4);
     EXPECT_EQ(flat.stopReason, "the validation score stays above the start's");
