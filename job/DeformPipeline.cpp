@@ -687,6 +687,8 @@ void prepareJudgeOf(DeformRest& rest, const DeformJobOptions& o)
 void prepareRestOf(DeformRest& rest, const DeformJobOptions& o, const GraphOptions& graph)
 {
     if (o.maxGaussians) o.maxGaussians->limit(rest.model.size()); // refused before any work
+    rest.warnings = outlierWarnings(rest.model);
+    for (const CloudWarning& w : rest.warnings) progress(msg(o.input, ": ", w.message));
     Stopwatch clock;
     rest.graph = DeformationGraph::build(rest.model, graph, o.ed.threaded);
     rest.graphMs = clock.ms();
@@ -761,6 +763,7 @@ FrameResult poseFrame(DeformRest& rest, const DeformSpec& spec, const DeformJobO
     r.inputFormat = rest.read.format;
     r.inputGaussians = rest.model.size();
     r.inputShDegree = rest.model.shDegree;
+    r.inputWarnings = rest.warnings;
     r.specPath = o.specPath;
     r.recipe = o.recipe;
     r.settings = settingsJson(o);

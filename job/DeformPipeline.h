@@ -102,6 +102,7 @@ struct DeformRest {
     ResolvedDevice device; ///< DeformJobOptions::device, resolved once for every frame
     GaussianCloud model;
     ReadReport read;
+    std::vector<CloudWarning> warnings; ///< outliers that weaken a run (printed once, in each report)
     DeformationGraph graph;
     StageOneRig rig;
     std::unique_ptr<StageOneUpdater> stageOne;

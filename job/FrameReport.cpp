@@ -163,6 +163,9 @@ nlohmann::json FrameReport::toJson() const
     j["stage1"]["shape"] = stage1Shape;
     if (stage1Errors) modelErrorsJson(*stage1Errors, j["stage1"]);
     j["input"] = {{"path", inputPath}, {"format", inputFormat}, {"gaussians", inputGaussians}, {"shDegree", inputShDegree}};
+    j["input"]["warnings"] = json::array();
+    for (const CloudWarning& w : inputWarnings)
+        j["input"]["warnings"].push_back({{"kind", w.kind}, {"count", w.count}, {"message", w.message}});
     j["spec"] = specPath;
     if (!recipe.is_null()) j["recipe"] = recipe;
     if (!settings.is_null()) j["settings"] = settings;

@@ -12,6 +12,7 @@
 #include <nlohmann/json.hpp>
 
 #include "deform/CurveSplit.h"
+#include "io/CloudStats.h"
 #include "job/BudgetMerge.h"
 #include "job/GaussianChoice.h"
 #include "job/Judge.h"
@@ -107,6 +108,7 @@ struct FrameReport {
     std::string inputPath, inputFormat, specPath;
     std::size_t inputGaussians = 0;
     int inputShDegree = 0;
+    std::vector<CloudWarning> inputWarnings; ///< what the input holds that weakens the run (far centres)
     nlohmann::json recipe; ///< the recipe's own description (job/Recipe.h), null without one
     nlohmann::json settings; ///< every setting's value (job/DeformSettings.h settingsJson(); animate hashes the same)
     /// The ED solve's and Stage I's records (graph, handles, solver, stage1, their timings), as

@@ -1,8 +1,9 @@
-/// `splatwarp convert IN OUT [--points] [--spz-version 3|4] [--sog-*] [--drop-invalid]`: any model read by
+/// `splatwarp convert IN OUT [--points] [--spz-version 3|4] [--sog-*] [--drop-invalid] [--drop-outliers]`: any model read by
 /// content to the format OUT's extension names (docs/formats.md).
 #include "Command.h"
 #include "core/AtomicFile.h"
 #include "core/Error.h"
+#include "core/Outliers.h"
 #include "core/Progress.h"
 #include "io/GaussianIO.h"
 #include "io/SogIO.h"
@@ -13,10 +14,24 @@ namespace {
 
 struct ConvertArgs {
     std::string input, output;
-    bool dropInvalid = false, points = false;
+    bool dropInvalid = false, dropOutliers = false, points = false;
     int spzVersion = 3;
     SogOptions sog;
 };
+
+/// --drop-outliers: what `info` warns of (core/Outliers.h) removed, and said.
+void dropOutliers(const std::string& input, GaussianCloud& g)
+{
+    const Outliers f = findOutliers(g);
+    const std::vector<std::uint8_t> drop = f.either();
+    const std::size_t n = g.size();
+    g.erase(drop);
+    if (g.empty())
+        throw InputError(msg(input, ": every one of its ", n, " Gaussians is an outlier (--drop-outliers would leave none)"));
+    progress(msg(input, ": dropped ", n - g.size(), " outliers: ", f.farCount, " whose centres lie more than ", f.bulkSize,
+                 " units outside the box of the central 98%, ", f.giantCount, " wider than ", kGiantSigma * f.bulkSize,
+                 " (a standard deviation)"));
+}
 
 void convert(const ConvertArgs& args)
 {
@@ -28,7 +43,8 @@ void convert(const ConvertArgs& args)
     OutputSet outputs({args.input});
     outputs.checkTarget(args.output);
     ReadReport report;
-    const GaussianCloud g = readModel(args.input, args.dropInvalid, &report);
+    GaussianCloud g = readModel(args.input, args.dropInvalid, &report);
+    if (args.dropOutliers) dropOutliers(args.input, g);
     WriteOptions options;
     options.spzVersion = args.spzVersion;
     if (format == "sog")
@@ -59,6 +75,10 @@ const CommandRegistrar reg(21, [](CLI::App& app) {
                     "SOG output: most SH palette entries (splat-transform: up to 65536; time grows with it)")
         ->check(CLI::Range(1, 65536));
     addDropInvalidFlag(sub, args->dropInvalid);
+    sub->add_flag("--drop-outliers", args->dropOutliers,
+                  "Drop the outliers `info` warns of: Gaussians whose centre lies outside the box of the central 98% "
+                  "of centres (per axis) by more than that box's largest side (far floaters, stray points), and those "
+                  "with a standard deviation over half that side (a sky, a blur); says how many");
     sub->callback([args] { convert(*args); });
 });
 

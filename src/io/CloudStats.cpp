@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include "core/Error.h"
+#include "core/Outliers.h"
 #include <cmath>
 #include <limits>
 #include <tbb/blocked_range.h>
@@ -128,6 +129,25 @@ CloudStats computeCloudStats(const GaussianCloud& g, bool threaded)
     return s;
 }
 
+std::vector<CloudWarning> outlierWarnings(const GaussianCloud& g)
+{
+    const Outliers f = findOutliers(g);
+    std::vector<CloudWarning> out;
+    if (f.farCount)
+        out.push_back({"far-centres", f.farCount,
+                       msg(f.farCount, " Gaussians lie far from the rest (their centres more than ", f.bulkSize,
+                           " units outside the box of the central 98%): the model's box is ",
+                           std::round(10.0 * f.boxRatio) / 10.0, "x that size, and deform spends its --cells on it "
+                           "and reads a spec's \"bbox\" units in it (`convert --drop-outliers` drops them)")});
+    if (f.giantCount)
+        out.push_back({"giant-gaussians", f.giantCount,
+                       msg(f.giantCount, " Gaussians are wider than half the bulk (a standard deviation over ",
+                           kGiantSigma * f.bulkSize, " units, the largest ", f.largestSigma,
+                           "): their reach sets the box deform spends its --cells on (`convert --drop-outliers` "
+                           "drops them)")});
+    return out;
+}
+
 std::vector<CloudWarning> cloudWarnings(const GaussianCloud& g, const CloudStats& stats)
 {
     std::vector<CloudWarning> out;
@@ -156,6 +176,7 @@ std::vector<CloudWarning> cloudWarnings(const GaussianCloud& g, const CloudStats
     add("extreme-scales", huge + tiny,
         msg(huge, " Gaussians are larger than 10x the centres' extent (", extent, ") and ", tiny,
             " smaller than 1e-6 of it (largest scale ", stats.scaleMax, ", smallest ", stats.scaleMin, ")"));
+    for (CloudWarning& w : outlierWarnings(g)) out.push_back(std::move(w));
     const double far = std::max(std::max(std::fabs(stats.bboxMin.x), std::fabs(stats.bboxMax.x)),
                                 std::max(std::max(std::fabs(stats.bboxMin.y), std::fabs(stats.bboxMax.y)),
                                          std::max(std::fabs(stats.bboxMin.z), std::fabs(stats.bboxMax.z))));

@@ -23,15 +23,20 @@ struct CloudStats {
 
 /// @brief Something in a cloud other commands refuse, drop or may render badly.
 struct CloudWarning {
-    std::string kind;      ///< "non-finite", "unnormalised-quaternions", "extreme-scales", "extreme-extent"
+    std::string kind;      ///< "non-finite", "unnormalised-quaternions", "extreme-scales", "far-centres", "giant-gaussians", "extreme-extent"
     std::size_t count = 0; ///< Gaussians (or values, for non-finite) concerned
     std::string message;   ///< one line for the user
 };
 
 /// @brief Warnings for what a cloud holds: NaN/Inf values, quaternions far from unit length (or
-///        near zero), scales far beyond the centres' extent (or below 1e-6 of it), centres beyond
-///        1e6 units (float precision). `info` prints them and lists them in --json.
+///        near zero), scales far beyond the centres' extent (or below 1e-6 of it), centres far
+///        from the rest and Gaussians wider than half of it (outlierWarnings()), centres beyond 1e6 units (float precision). `info`
+///        prints them and lists them in --json.
 std::vector<CloudWarning> cloudWarnings(const GaussianCloud& g, const CloudStats& stats);
+
+/// @brief The "far-centres" and "giant-gaussians" warnings (core/Outliers.h), those that apply:
+///        what `info` says and `deform` prints and reports of a model.
+std::vector<CloudWarning> outlierWarnings(const GaussianCloud& g);
 
 /// @brief Compute the statistics (double precision accumulation).
 /// @param threaded run the per-Gaussian reduction with oneTBB (same result as serial up to the

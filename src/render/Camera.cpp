@@ -11,16 +11,6 @@ namespace {
 
 constexpr double kPi = 3.14159265358979323846;
 
-/// Quantile of one coordinate of the centres (nth_element on a copy).
-double coordinateQuantile(const GaussianCloud& g, int axis, double q)
-{
-    std::vector<float> v(g.size());
-    for (std::size_t i = 0; i < g.size(); ++i) v[i] = g.means[3 * i + std::size_t(axis)];
-    const std::size_t k = std::min(v.size() - 1, std::size_t(std::floor(q * double(v.size() - 1) + 0.5)));
-    std::nth_element(v.begin(), v.begin() + std::ptrdiff_t(k), v.end());
-    return v[k];
-}
-
 /// Sign of the automatic up axis: captures sit on a ground patch or a base, so their centres crowd
 /// at the bottom (playbot, y-down: mean 0.38 of the extent below the box middle); a clear skew
 /// (over kAutoUpSkew) points up away from it, anything else keeps +axis (the donut's icing: 0.12).
@@ -105,8 +95,8 @@ std::vector<Camera> orbitCameras(const GaussianCloud& cloud, const OrbitOptions&
     if (o.width <= 0 || o.height <= 0) throw InputError(msg("image size must be positive, got ", o.width, "x", o.height));
     Vec3d lo, hi;
     for (int a = 0; a < 3; ++a) {
-        lo[a] = coordinateQuantile(cloud, a, o.boundsQuantile);
-        hi[a] = coordinateQuantile(cloud, a, 1.0 - o.boundsQuantile);
+        lo[a] = centreQuantile(cloud, a, o.boundsQuantile);
+        hi[a] = centreQuantile(cloud, a, 1.0 - o.boundsQuantile);
     }
     const Vec3d centre = (lo + hi) * 0.5, extent = hi - lo;
     int upAxis = 0;

@@ -5,6 +5,7 @@
 #include <vector>
 
 #include "core/Camera.h"
+#include "core/Outliers.h"
 #include "core/GaussianCloud.h"
 #include "core/SmallMath.h"
 #include "render/SplatProjection.h"
@@ -29,7 +30,7 @@ struct OrbitOptions {
     std::string up = "auto";
     /// Fraction of centres ignored at each end of each axis when bounding the model, so that a few
     /// far floaters of a trained model do not shrink it to a dot.
-    double boundsQuantile = 0.01;
+    double boundsQuantile = kBulkQuantile;
 };
 
 /// @brief Unit vector of an up-axis name ("x", "-y", ...). "auto" is not accepted here.

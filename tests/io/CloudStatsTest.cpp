@@ -149,3 +149,55 @@ TEST(CloudStats, ConvertSplatEqualsDirectRead)
     ASSERT_EQ(runCli("-q convert " + splat + " " + out), 0);
     EXPECT_TRUE(sameBits(readGaussians(splat), readGaussians(out)));
 }
+
+// Far floaters and giants: info warns of them, convert --drop-outliers drops exactly them, deform
+// warns and reports them (core/Outliers.h is tested on its own in tests/core).
+TEST(CloudStats, OutliersAreWarnedOfAndDropped)
+{
+    TempDir dir;
+    GaussianCloud g = randomCloud(3000, 1, 21);
+    for (float& v : g.logScales) v = -3.0f + 0.5f * v; // sigma 0.02-0.14 in a bulk about 4 wide
+    std::vector<std::uint8_t> planted(g.size(), 0);
+    for (std::size_t i = 100; i < 3000; i += 300) {
+        g.setMean(i, Vec3f(float(i) * 0.05f, -40.0f, 3.0f));
+        planted[i] = 1;
+    }
+    for (std::size_t i = 50; i < 3000; i += 1000) { // sigma 50
+        g.logScales[3 * i + 1] = std::log(50.0f);
+        planted[i] = 1;
+    }
+    const std::string path = dir.file("floaters.ply");
+    writePly(path, g);
+
+    const std::string out = dir.file("out.txt");
+    ASSERT_EQ(runCli("-q info --json " + path, out), 0) << readBytes(out);
+    const nlohmann::json j = nlohmann::json::parse(readBytes(out));
+    std::size_t far = 0, giants = 0;
+    for (const auto& w : j.at("warnings")) {
+        if (w.at("kind") == "far-centres") far = w.at("count").get<std::size_t>();
+        if (w.at("kind") == "giant-gaussians") giants = w.at("count").get<std::size_t>();
+    }
+    EXPECT_EQ(far, 10u) << j.dump();
+    EXPECT_EQ(giants, 3u) << j.dump();
+
+    const std::string clean = dir.file("clean.ply");
+    ASSERT_EQ(runCli("convert --drop-outliers " + path + " " + clean, out), 0) << readBytes(out);
+    EXPECT_NE(readBytes(out).find("dropped 13 outliers: 10 whose centres"), std::string::npos) << readBytes(out);
+    GaussianCloud kept = g;
+    kept.erase(planted);
+    EXPECT_TRUE(sameBits(readGaussians(clean), kept));
+    ASSERT_EQ(runCli("-q info --json " + clean, out), 0);
+    EXPECT_EQ(readBytes(out).find("far-centres"), std::string::npos) << readBytes(out);
+    EXPECT_EQ(readBytes(out).find("giant-gaussians"), std::string::npos) << readBytes(out);
+
+    const std::string spec = std::string(SPLATWARP_SOURCE_DIR) + "/samples/specs/bend.json";
+    ASSERT_EQ(runCli("deform " + path + " --spec " + spec + " -o " + dir.file("d") + " --stage1-only --device cpu", out), 0)
+        << readBytes(out);
+    EXPECT_NE(readBytes(out).find("10 Gaussians lie far from the rest"), std::string::npos) << readBytes(out);
+    const nlohmann::json report = nlohmann::json::parse(readBytes(dir.file("d/report.json")));
+    ASSERT_EQ(report.at("input").at("warnings").size(), 2u) << report.at("input").dump();
+    EXPECT_EQ(report.at("input").at("warnings")[0].at("kind"), "far-centres");
+    EXPECT_EQ(report.at("input").at("warnings")[0].at("count"), 10u);
+    EXPECT_EQ(report.at("input").at("warnings")[1].at("kind"), "giant-gaussians");
+    EXPECT_EQ(report.at("input").at("warnings")[1].at("count"), 3u);
+}
