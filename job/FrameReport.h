@@ -108,7 +108,7 @@ struct FrameReport {
     std::string inputPath, inputFormat, specPath;
     std::size_t inputGaussians = 0;
     int inputShDegree = 0;
-    std::vector<CloudWarning> inputWarnings; ///< what the input holds that weakens the run (far centres)
+    std::vector<CloudWarning> inputWarnings; ///< outliers of the input that weaken the run (io/CloudStats.h outlierWarnings())
     nlohmann::json recipe; ///< the recipe's own description (job/Recipe.h), null without one
     nlohmann::json settings; ///< every setting's value (job/DeformSettings.h settingsJson(); animate hashes the same)
     /// The ED solve's and Stage I's records (graph, handles, solver, stage1, their timings), as
