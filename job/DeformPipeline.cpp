@@ -473,6 +473,7 @@ void stageTwoStep(Refine& f)
     if (o.keepValidated) f.startModel = f.fitted;
     StageTwoOptions s2 = o.stage2;
     s2.device = f.rest.device;
+    s2.maxMemoryBytes = o.grid.maxMemoryBytes;
     if (f.validation && o.validationStop > 0) { // the keep's points judge when the fit stops improving
         // The checks between the first (the start, a keep candidate) and the last (the fit) are not
         // scored again: each forgets the one before it, so the remembered evaluations stay the

@@ -233,8 +233,9 @@ std::vector<Setting> gridSettings()
                       [](DeformJobOptions& o) -> float& { return o.grid.cutoff; },
                       {1e-8, 0.999}),
         Setting{"--max-memory", "SIZE", Expert,
-                "Refuse a job whose sample grid (and Stage II) would need more host memory than this, estimated before "
-                "allocating: 8G, 512M, ... (default: 3/4 of physical memory, " + formatBytes(double(defaultMemoryBudget())) + " here)",
+                "Refuse a job whose sample grid, or the (block, Gaussian) pair lists of its field evaluation and Stage "
+                "II, would need more host memory than this, checked before allocating them: 8G, 512M, ... (default: 3/4 "
+                "of physical memory, " + formatBytes(double(defaultMemoryBudget())) + " here)",
                 [](DeformJobOptions& o, const std::string& t) { o.grid.maxMemoryBytes = parseByteSize(t, "--max-memory"); },
                 [](const DeformJobOptions&, json&) {}, // refuses or runs; never changes a byte
                 [](const DeformJobOptions&) { return std::string(); }},

@@ -337,6 +337,12 @@ void evaluateTargets(SampleGrid::Impl& im, const GaussianCloud& cloud, double fi
     fo.threaded = im.options.threaded;
     fo.device = im.options.device;
     const std::size_t m = set.sampleCell.size();
+    FeatureOptions cpu = fo; // its pair lists get what the budget leaves beside the grid (checkMemory())
+    if (im.options.maxMemoryBytes) {
+        const double n3 = std::pow(double(im.options.samplesPerAxis), 3.0); // fine cells count as their samples
+        const double grid = double(m) / n3 * double(sampleGridBytesPerCell(im.options, cloud.shDegree));
+        cpu.maxListBytes = std::size_t(std::max(1.0, double(im.options.maxMemoryBytes) - grid));
+    }
     set.targetF.assign(m * std::size_t(set.featureStride()), 0.0f);
     set.targetO.assign(m, 0.0f);
     const SampleTargetsFunction cuda = sampleTargetsCuda();
@@ -360,7 +366,7 @@ void evaluateTargets(SampleGrid::Impl& im, const GaussianCloud& cloud, double fi
         },
         [&] {
             // A cell's n^3 samples are consecutive: one block each (stage2/BlockFeatures.h).
-            return evaluateBlockFeatures(cloud, set.restPositions.data(), set.sampleCell.data(), m, fo, set.targetF.data(),
+            return evaluateBlockFeatures(cloud, set.restPositions.data(), set.sampleCell.data(), m, cpu, set.targetF.data(),
                                          set.targetO.data());
         },
         &im.stats.device);

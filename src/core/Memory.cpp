@@ -45,6 +45,18 @@ void releaseFreedMemory() noexcept
 
 std::size_t defaultMemoryBudget() { return physicalMemoryBytes() / 4 * 3; }
 
+std::size_t residentMemoryBytes()
+{
+    // statm: size resident shared ... in pages
+    std::FILE* f = std::fopen("/proc/self/statm", "r");
+    if (!f) return 0;
+    unsigned long long size = 0, resident = 0;
+    const int read = std::fscanf(f, "%llu %llu", &size, &resident);
+    std::fclose(f);
+    const long pageSize = ::sysconf(_SC_PAGE_SIZE);
+    return read == 2 && pageSize > 0 ? std::size_t(resident) * std::size_t(pageSize) : 0;
+}
+
 std::size_t parseByteSize(const std::string& text, const std::string& flag)
 {
     char* end = nullptr;

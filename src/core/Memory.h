@@ -19,6 +19,9 @@ std::size_t physicalMemoryBytes();
 /// @brief The default budget of a job: 3/4 of physical memory (0 = no limit when unknown).
 std::size_t defaultMemoryBudget();
 
+/// @brief Resident memory of this process now, in bytes (0 when unknown: not Linux).
+std::size_t residentMemoryBytes();
+
 /// @brief "8G", "512M", "1.5T", "64K" or plain bytes -> bytes (binary units).
 /// @throws UsageError for anything else (named as `flag` in the message).
 std::size_t parseByteSize(const std::string& text, const std::string& flag);

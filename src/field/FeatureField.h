@@ -25,6 +25,10 @@ struct FeatureOptions {
     /// filter is lambda_lpf * spacing^2. 0 = no filter.
     float filterVariance = 0.0f;
     bool threaded = true;          ///< oneTBB over points (results identical to serial)
+    /// Memory the CPU block evaluation's (block, Gaussian) pair lists may take (0: no limit; the
+    /// sample grid's rest targets: what --max-memory leaves beside the grid). Refused past it,
+    /// before allocating them.
+    std::size_t maxListBytes = 0;
     /// Where evaluateFeaturesOn() (field/FeatureDevice.h) runs; evaluateFeatures() is always the
     /// CPU. Library default Cpu; the CLI passes `--device`.
     ResolvedDevice device;

@@ -139,11 +139,18 @@ std::vector<CloudWarning> outlierWarnings(const GaussianCloud& g)
                            " units outside the box of the central 98%): the model's box is ",
                            std::round(10.0 * f.boxRatio) / 10.0, "x that size, and deform spends its --cells on it "
                            "and reads a spec's \"bbox\" units in it (`convert --drop-outliers` drops them)")});
-    if (f.giantCount)
+    const std::string wider = msg(" wider than half the bulk (a standard deviation over ", kGiantSigma * f.bulkSize,
+                                  " units, the largest ", f.largestSigma, ")");
+    if (2 * f.giantCount > g.size()) // not a few stray ones: the file's scales are likely not what they say
         out.push_back({"giant-gaussians", f.giantCount,
-                       msg(f.giantCount, " Gaussians are wider than half the bulk (a standard deviation over ",
-                           kGiantSigma * f.bulkSize, " units, the largest ", f.largestSigma,
-                           "): their reach sets the box deform spends its --cells on (`convert --drop-outliers` "
+                       msg(f.giantCount, " of the ", g.size(), " Gaussians are", wider,
+                           ": a file whose writer stored linear scales where log scales belong looks like this "
+                           "(graphdeco's scale_* are logs); each reaches most of the model, which makes deform "
+                           "slow and may pass --max-memory")});
+    else if (f.giantCount)
+        out.push_back({"giant-gaussians", f.giantCount,
+                       msg(f.giantCount, " Gaussians are", wider,
+                           ": their reach sets the box deform spends its --cells on (`convert --drop-outliers` "
                            "drops them)")});
     return out;
 }

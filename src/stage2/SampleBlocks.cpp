@@ -1,6 +1,7 @@
 #include "stage2/SampleBlocks.h"
 
 #include <algorithm>
+#include <atomic>
 #include <cmath>
 #include <limits>
 
@@ -233,8 +234,23 @@ void BlockIndex::blocksMeeting(const SampleBlocks& blocks, const float* lo, cons
                   out.end());
 }
 
-void BlockCoverage::build(const float* lo, const float* hi, const CoverageSlabs* slabs, std::size_t g, bool threaded,
-                          const std::uint8_t* keep)
+std::uint64_t coveragePairLimit(double room, double bytesEach)
+{
+    if (!(room > 0) || !(bytesEach > 0)) return 0;
+    return std::uint64_t(std::min(double(kMaxCoveragePairs), std::floor(room / bytesEach)));
+}
+
+InputError coverageTooLarge(const std::string& stage, std::uint64_t limit, double bytesEach, const std::string& room)
+{
+    const std::string why = limit >= kMaxCoveragePairs ? std::string("too many for 32-bit indices")
+                                                       : msg(formatBytes(bytesEach), " each: more than fit in ", room);
+    return InputError(msg(stage, ": the Gaussians reach more than ", limit, " (block, Gaussian) pairs of samples (", why,
+                          "). Gaussians far wider than the model do this (`splatwarp info` warns of them); "
+                          "lower --cells, or raise --max-memory if the machine has more"));
+}
+
+bool BlockCoverage::build(const float* lo, const float* hi, const CoverageSlabs* slabs, std::size_t g, bool threaded,
+                          const std::uint8_t* keep, std::uint64_t maxPairs)
 {
     // Gaussian-major: each Gaussian asks the block index (built once: blocks never move) for the
     // blocks its box and slabs meet. The per-block search it replaces tested ~8 scattered
@@ -243,18 +259,44 @@ void BlockCoverage::build(const float* lo, const float* hi, const CoverageSlabs*
     const SampleBlocks& blocks = *mBlocks;
     if (mPerGaussian.size() != g) keep = nullptr;
     mPerGaussian.resize(g);
+    // The pairs so far, counted as the lists are found, so that a coverage past the limit stops
+    // while its lists are still within it (a model of giants reaches billions: killed at 24 GB).
+    maxPairs = std::min(maxPairs, kMaxCoveragePairs);
+    std::uint64_t kept = 0;
+    if (keep)
+        for (std::size_t k = 0; k < g; ++k) kept += keep[k] ? mPerGaussian[k].size() : 0;
+    std::atomic<std::uint64_t> pairs{kept};
+    std::atomic<bool> over{kept > maxPairs};
     parallelForRange(g, 64, threaded, [&](std::size_t k0, std::size_t k1) {
         // Found into scratch, then copied: one allocation of the right size per Gaussian (growing
         // 42k lists by push_back cost the donut's first build ~10 reallocations each).
         std::vector<std::uint32_t> found;
-        for (std::size_t k = k0; k < k1; ++k) {
+        for (std::size_t k = k0; k < k1 && !over.load(std::memory_order_relaxed); ++k) {
             if (keep && keep[k]) continue;
             mIndex.blocksMeeting(blocks, lo + 3 * k, hi + 3 * k, slabs ? slabs + k : nullptr, found);
+            if (pairs.fetch_add(found.size(), std::memory_order_relaxed) + found.size() > maxPairs) {
+                over.store(true, std::memory_order_relaxed);
+                break;
+            }
             std::sort(found.begin(), found.end());
             mPerGaussian[k].assign(found.begin(), found.end());
         }
     });
+    if (over.load()) {
+        clear();
+        return false;
+    }
     flatten(blocks.count(), g, threaded);
+    return true;
+}
+
+void BlockCoverage::clear()
+{
+    std::vector<std::vector<std::uint32_t>>().swap(mPerGaussian);
+    mGaussianOffsets.clear();
+    mBlockOffsets.clear();
+    BigVector<std::uint32_t>().swap(mBlockItems);
+    BigVector<std::uint32_t>().swap(mBlockEntryOf);
 }
 
 void BlockCoverage::flatten(std::size_t nb, std::size_t g, bool threaded)
@@ -265,9 +307,7 @@ void BlockCoverage::flatten(std::size_t nb, std::size_t g, bool threaded)
     constexpr std::size_t kRanges = 8;
     mGaussianOffsets.assign(g + 1, 0);
     for (std::size_t k = 0; k < g; ++k) mGaussianOffsets[k + 1] = mGaussianOffsets[k] + mPerGaussian[k].size();
-    const std::uint64_t pairs = mGaussianOffsets[g];
-    if (pairs > 0xffffffffull)
-        throw InputError(msg("Stage II coverage has ", pairs, " (block, Gaussian) pairs; too many for 32-bit indices"));
+    const std::uint64_t pairs = mGaussianOffsets[g]; // at most kMaxCoveragePairs (build())
     const auto rangeOf = [&](std::size_t r) { return std::make_pair(g * r / kRanges, g * (r + 1) / kRanges); };
     std::vector<std::uint32_t> start(kRanges * nb, 0); // [range][block] entries, then where each range starts
     parallelFor(kRanges, 1, threaded, [&](std::size_t r) {

@@ -7,8 +7,10 @@
 ///        block's samples contiguously, kSimdLanes at a time (structure of arrays, padded).
 #include <cstddef>
 #include <cstdint>
+#include <string>
 #include <vector>
 
+#include "core/Error.h"
 #include "core/Memory.h"
 #include "core/Simd.h"
 #include "stage2/Coverage.h"
@@ -72,6 +74,19 @@ private:
     std::vector<std::uint32_t> mStart, mItems;
 };
 
+/// The most (block, Gaussian) pairs a coverage holds: its entries are 32-bit indices.
+constexpr std::uint64_t kMaxCoveragePairs = 0xffffffffull;
+/// Bytes a pair takes in a coverage: its Gaussian's list and the two block-major lists.
+constexpr std::size_t kCoveragePairBytes = 3 * sizeof(std::uint32_t);
+
+/// @brief The most pairs of bytesEach that fit in `room` bytes (none where room <= 0), at most
+///        kMaxCoveragePairs.
+std::uint64_t coveragePairLimit(double room, double bytesEach);
+
+/// @brief The error of a coverage past its limit = coveragePairLimit(room, bytesEach); `room`
+///        names that memory ("the 2 GiB that --max-memory 8 GiB leaves ...").
+InputError coverageTooLarge(const std::string& stage, std::uint64_t limit, double bytesEach, const std::string& room);
+
 /// @brief Which blocks each moving Gaussian may touch, and the reverse, both lists ascending so
 ///        every sum runs in a fixed order for any thread count.
 class BlockCoverage {
@@ -85,8 +100,11 @@ public:
     /// @param slabs  [g] coverage slabs (a block must also meet all three)
     /// @param keep   [g] or null: where set, the Gaussian keeps its blocks of the last build (of
     ///               the same g)
-    void build(const float* lo, const float* hi, const CoverageSlabs* slabs, std::size_t g, bool threaded,
-               const std::uint8_t* keep = nullptr);
+    /// @param maxPairs  the most pairs it may hold (at most kMaxCoveragePairs)
+    /// @return false when the pairs would pass maxPairs: the build stops as soon as they do, before
+    ///         the block-major lists are allocated, and the coverage is left empty
+    [[nodiscard]] bool build(const float* lo, const float* hi, const CoverageSlabs* slabs, std::size_t g, bool threaded,
+                             const std::uint8_t* keep = nullptr, std::uint64_t maxPairs = kMaxCoveragePairs);
 
     std::uint64_t pairCount() const { return mBlockItems.size(); }
     /// @brief Pairs of Gaussian k: blockEntryOf()[gaussianOffsets()[k] .. gaussianOffsets()[k+1]).
@@ -99,6 +117,7 @@ public:
 
 private:
     void flatten(std::size_t nb, std::size_t g, bool threaded);
+    void clear();
 
     const SampleBlocks* mBlocks = nullptr;
     BlockIndex mIndex; ///< of *mBlocks

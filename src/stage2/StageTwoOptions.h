@@ -122,6 +122,9 @@ struct StageTwoOptions {
 
     int reportEvery = 10;  ///< record the energy at iteration 0 and every this many iterations
     bool threaded = true;  ///< oneTBB (results identical for any thread count)
+    /// Host memory the process may hold (0: no limit; deform's --max-memory): the CPU solver
+    /// refuses a coverage whose lists would pass it, before allocating them.
+    std::size_t maxMemoryBytes = 0;
     /// Where runStageTwo() (stage2/StageTwoDevice.h) runs; optimiseStageTwo() is always the CPU.
     ResolvedDevice device;
 

@@ -150,6 +150,23 @@ TEST(CloudStats, ConvertSplatEqualsDirectRead)
     EXPECT_TRUE(sameBits(readGaussians(splat), readGaussians(out)));
 }
 
+// A model whose linear scales were written where log scales belong: every Gaussian a giant, and the
+// warning names that likely cause instead of suggesting to drop them all.
+TEST(CloudStats, MostlyGiantsPointAtLinearScales)
+{
+    GaussianCloud g = randomCloud(2000, 0, 5);
+    for (float& v : g.means) v *= 0.25f;                       // a bulk about 1 wide
+    for (float& v : g.logScales) v = std::exp(-3.5f + 0.5f * v); // sigma 0.02-0.05 stored as logs: e^0.03
+    std::vector<CloudWarning> w = outlierWarnings(g);
+    ASSERT_EQ(w.size(), 1u);
+    EXPECT_EQ(w[0].kind, "giant-gaussians");
+    EXPECT_EQ(w[0].count, 2000u);
+    EXPECT_NE(w[0].message.find("2000 of the 2000 Gaussians are wider than half the bulk"), std::string::npos) << w[0].message;
+    EXPECT_NE(w[0].message.find("linear scales where log scales belong"), std::string::npos) << w[0].message;
+    for (float& v : g.logScales) v = std::log(v); // the scales as they were meant
+    EXPECT_TRUE(outlierWarnings(g).empty());
+}
+
 // Far floaters and giants: info warns of them, convert --drop-outliers drops exactly them, deform
 // warns and reports them (core/Outliers.h is tested on its own in tests/core).
 TEST(CloudStats, OutliersAreWarnedOfAndDropped)

@@ -89,6 +89,27 @@ TEST(Reliability, MemoryIsEstimatedBeforeAllocating)
     EXPECT_EQ(runCli("-q to-vdb " + f.model + " -o " + out + " --cells 16", f.log), 0) << f.text();
 }
 
+// A model of giants (linear scales written where log scales belong do this) reaches every cell:
+// its pair lists ran deform to 24 GB and the kernel killed it. Now they are refused against
+// --max-memory while they are found, before any is allocated in full.
+TEST(Reliability, PairListsPastTheMemoryBudgetAreRefused)
+{
+    Fixture f;
+    GaussianCloud g = randomCloud(2000, 0, 7);
+    for (float& v : g.logScales) v = 1.0f; // sigma e in a 4-unit cube: each meets every cell
+    const std::string giants = f.dir.file("giants.ply"), out = f.dir.file("out.vdb");
+    writePly(giants, g);
+    // 32^3 cells x 2000 Gaussians = 65.5 M pairs, 786 MB of lists; the grid itself is ~0.1 GB.
+    EXPECT_EQ(runCli("-q to-vdb " + giants + " -o " + out + " --cells 32 --max-memory 400M", f.log), 1);
+    EXPECT_TRUE(f.has("field evaluation: the Gaussians reach more than")) << f.text();
+    EXPECT_TRUE(f.has("that --max-memory leaves for them")) << f.text();
+    EXPECT_FALSE(fs::exists(out));
+    EXPECT_TRUE(noTemporaries(f.dir.path()));
+    // 8^3 cells: 1 M pairs fit.
+    EXPECT_EQ(runCli("-q to-vdb " + giants + " -o " + out + " --cells 8 --max-memory 400M", f.log), 0) << f.text();
+    EXPECT_TRUE(fs::exists(out));
+}
+
 // Group 4: `render --orbit` left the views written before a failure; a bad camera directory too.
 TEST(Reliability, RenderViewsAppearTogetherOrNotAtAll)
 {

@@ -12,6 +12,7 @@
 #include "stage2/SampleBlocks.h"
 #include "stage2/Coverage.h"
 #include "stage2/StageTwoSetup.h"
+#include "stage2/StageTwoDevice.h"
 #include "stage2/StageTwoParams.h"
 #include "stage2/StageTwoTestProblem.h"
 
@@ -99,6 +100,23 @@ std::vector<double> referenceGradients(const Problem& p, const StageTwoSetup& st
         row[kParamLogit] = g.logit;
     }
     return out;
+}
+
+/// The blocks of `cells` cells of `per` samples each, scattered spread(c) about random centres in [-1, 1]^3.
+template <typename Spread>
+SampleBlocks randomCellBlocks(std::mt19937& rng, int cells, int per, const Spread& spread)
+{
+    std::uniform_real_distribution<float> u(-1.0f, 1.0f);
+    std::vector<float> x;
+    std::vector<std::int32_t> cell;
+    for (int c = 0; c < cells; ++c) {
+        const float r = spread(c), cx = u(rng), cy = u(rng), cz = u(rng);
+        for (int s = 0; s < per; ++s) {
+            x.insert(x.end(), {cx + r * u(rng), cy + r * u(rng), cz + r * u(rng)});
+            cell.push_back(c);
+        }
+    }
+    return SampleBlocks::build(x.data(), cell.data(), cell.size());
 }
 
 } // namespace
@@ -230,17 +248,7 @@ TEST(SampleBlocks, TheIndexListsEachMetBlockOnceWhateverItsSize)
 {
     std::mt19937 rng(11);
     std::uniform_real_distribution<float> u(-1.0f, 1.0f);
-    std::vector<float> x;
-    std::vector<std::int32_t> cell;
-    for (int c = 0; c < 600; ++c) {
-        const float spread = c % 50 == 0 ? 0.8f : c % 7 == 0 ? 0.2f : 0.03f;
-        const float cx = u(rng), cy = u(rng), cz = u(rng);
-        for (int s = 0; s < 12; ++s) {
-            x.insert(x.end(), {cx + spread * u(rng), cy + spread * u(rng), cz + spread * u(rng)});
-            cell.push_back(c);
-        }
-    }
-    const SampleBlocks b = SampleBlocks::build(x.data(), cell.data(), cell.size());
+    const SampleBlocks b = randomCellBlocks(rng, 600, 12, [](int c) { return c % 50 == 0 ? 0.8f : c % 7 == 0 ? 0.2f : 0.03f; });
     const BlockIndex index(b);
     std::vector<std::uint32_t> found;
     std::size_t listed = 0;
@@ -267,6 +275,77 @@ TEST(SampleBlocks, TheIndexListsEachMetBlockOnceWhateverItsSize)
         listed += expected.size();
     }
     EXPECT_GT(listed, 4000u);
+}
+
+// A limit below the pairs stops the build and leaves the coverage empty; at the count it is the
+// unlimited coverage, and a rebuild that keeps no lists obeys the limit again.
+TEST(SampleBlocks, TheCoverageStopsAtItsPairLimit)
+{
+    std::mt19937 rng(5);
+    std::uniform_real_distribution<float> u(-1.0f, 1.0f);
+    const SampleBlocks b = randomCellBlocks(rng, 300, 8, [](int) { return 0.04f; });
+    const std::size_t g = 200;
+    std::vector<float> lo(3 * g), hi(3 * g);
+    for (std::size_t k = 0; k < g; ++k)
+        for (int a = 0; a < 3; ++a) {
+            const float c = u(rng), half = k % 10 == 0 ? 3.0f : 0.2f; // every tenth a giant: it meets every block
+            lo[3 * k + std::size_t(a)] = c - half;
+            hi[3 * k + std::size_t(a)] = c + half;
+        }
+    BlockCoverage all(b);
+    ASSERT_TRUE(all.build(lo.data(), hi.data(), nullptr, g, true));
+    const std::uint64_t pairs = all.pairCount();
+    ASSERT_GT(pairs, 20u * b.count()); // the giants alone meet every block
+
+    BlockCoverage limited(b);
+    EXPECT_FALSE(limited.build(lo.data(), hi.data(), nullptr, g, true, nullptr, pairs - 1));
+    EXPECT_EQ(limited.pairCount(), 0u);
+    EXPECT_TRUE(limited.blockOffsets().empty());
+    EXPECT_FALSE(limited.build(lo.data(), hi.data(), nullptr, g, false, nullptr, 0));
+    ASSERT_TRUE(limited.build(lo.data(), hi.data(), nullptr, g, true, nullptr, pairs));
+    EXPECT_EQ(limited.blockItems(), all.blockItems());
+    EXPECT_EQ(limited.blockOffsets(), all.blockOffsets());
+    EXPECT_EQ(limited.blockEntryOf(), all.blockEntryOf());
+
+    // Keeping every list but the first giant's, which grows: the kept lists count toward the limit.
+    std::vector<std::uint8_t> keep(g, 1);
+    keep[0] = 0;
+    for (int a = 0; a < 3; ++a) hi[std::size_t(a)] += 1.0f;
+    EXPECT_TRUE(limited.build(lo.data(), hi.data(), nullptr, g, true, keep.data(), pairs));
+    EXPECT_EQ(limited.pairCount(), pairs); // it met every block already
+    hi[0] = lo[0] - 1.0f;                  // now it meets none: the same limit holds the rest
+    EXPECT_TRUE(limited.build(lo.data(), hi.data(), nullptr, g, true, keep.data(), pairs - 1));
+    EXPECT_EQ(limited.pairCount(), pairs - b.count());
+    EXPECT_FALSE(limited.build(lo.data(), hi.data(), nullptr, g, true, nullptr, pairs - b.count() - 1));
+}
+
+// A budget below what the process holds leaves no room for any pair: the solver refuses its coverage
+// with an InputError naming the stage (the static one first when there are static Gaussians)
+// before allocating it; without a budget the same run goes through.
+TEST(CpuSolver, ACoveragePastTheMemoryBudgetIsRefused)
+{
+    Problem p = makeProblem(0, 3, 41u);
+    GaussianCloud cloud = p.start;
+    StageTwoOptions o = p.options;
+    o.iterations = 2;
+    o.maxMemoryBytes = 1;
+    ASSERT_GT(residentMemoryBytes(), 1u) << "no resident memory figure here";
+    const auto message = [&](const std::vector<std::uint8_t>& moving) {
+        try {
+            runStageTwo(cloud, p.samples, moving, p.cells, o);
+        } catch (const InputError& e) {
+            return std::string(e.what());
+        }
+        return std::string("no error");
+    };
+    const std::string stays = message(p.moving); // every third Gaussian static
+    EXPECT_NE(stays.find("Stage II (the Gaussians that stay): the Gaussians reach more than"), std::string::npos) << stays;
+    EXPECT_NE(stays.find("--max-memory"), std::string::npos) << stays;
+    const std::string moving = message(std::vector<std::uint8_t>(cloud.size(), 1));
+    EXPECT_EQ(moving.find("Stage II: the Gaussians reach more than"), 0u) << moving;
+    EXPECT_EQ(cloud.means, p.start.means); // refused before any step
+    o.maxMemoryBytes = 0;
+    EXPECT_EQ(message(p.moving), "no error");
 }
 
 TEST(SampleBlocks, BoxMeetsSlabsIsASuperset)
