@@ -94,11 +94,10 @@ FeatureStats evaluateSampleBlocks(const GaussianCloud& cloud, const SampleBlocks
         slabs[i] = preparedSlabs(cloud, i, prepared[i], double(options.filterVariance));
     });
     BlockCoverage coverage(blocks);
-    const double room = options.maxListBytes ? double(options.maxListBytes) : double(kMaxCoveragePairs) * kCoveragePairBytes;
-    const std::uint64_t limit = coveragePairLimit(room, double(kCoveragePairBytes));
+    const std::uint64_t limit = coveragePairLimit(options.maxListBytes, 0.0, double(kCoveragePairBytes));
     if (!coverage.build(lo.data(), hi.data(), slabs.data(), n, options.threaded, nullptr, limit))
         throw coverageTooLarge("field evaluation", limit, double(kCoveragePairBytes),
-                               msg("the ", formatBytes(room), " that --max-memory leaves for them"));
+                               msg("the ", formatBytes(double(options.maxListBytes)), " that --max-memory leaves for them"));
     const int stride = cloud.shStride();
     std::vector<std::uint64_t> tested(blocks.count()), counted(blocks.count());
     parallelFor(blocks.count(), 4, options.threaded, [&](std::size_t b) {

@@ -91,17 +91,18 @@ private:
     void keepOutputs(std::size_t b, const float* f, const float* o, const float* gF, const float* gO);
     void backwardGaussian(std::size_t k);
     std::size_t partialStride() const { return kPartial + std::size_t(mStride); }
-    /// What --max-memory leaves beside what the process holds now (no budget: the indices' limit).
-    double memoryRoom() const
+    /// The most coverage pairs of bytesEach that --max-memory leaves room for beside what the
+    /// process holds now, and that room in words for the error.
+    struct PairRoom {
+        std::uint64_t limit;
+        std::string text;
+    };
+    PairRoom pairRoom(double bytesEach) const
     {
-        if (!mOptions.maxMemoryBytes) return double(kMaxCoveragePairs) * pairBytes();
-        return double(mOptions.maxMemoryBytes) - double(residentMemoryBytes());
-    }
-    std::string memoryRoomText() const
-    {
-        return msg("the ", formatBytes(std::max(0.0, memoryRoom())), " that --max-memory ",
-                   formatBytes(double(mOptions.maxMemoryBytes)), " leaves beside the ",
-                   formatBytes(double(residentMemoryBytes())), " this process holds");
+        const double used = double(residentMemoryBytes()), budget = double(mOptions.maxMemoryBytes);
+        return {coveragePairLimit(mOptions.maxMemoryBytes, used, bytesEach),
+                msg("the ", formatBytes(std::max(0.0, budget - used)), " that --max-memory ", formatBytes(budget),
+                    " leaves beside the ", formatBytes(used), " this process holds")};
     }
     /// The most memory a coverage pair takes: its lists, its chunk mask and slot, and a row of
     /// partial sums where it counts (every pair of a model of giants does).
@@ -121,8 +122,7 @@ private:
     double mSetupMs = 0;
     SampleBlocks mBlocks;
     BlockCoverage mCoverage;
-    std::optional<std::uint64_t> mPairLimit; // coveragePairLimit() at the first build
-    std::string mPairRoom;                   // memoryRoomText() then
+    std::optional<PairRoom> mPairRoom; // pairRoom() at the first build
     std::vector<float> mParams, mGrad, mAdamM, mAdamV;      // [G, PER_G]
     std::vector<float> mKeptParams, mKeptM, mKeptV;       // saveIterate()
     std::vector<double> mRowDecrease;                         // [G] step(): each row's first-order decrease
@@ -208,9 +208,9 @@ void CpuSolver::evaluateStatic(const GaussianCloud& cloud, const std::vector<std
         stageTwoCoverageSlabs(p, mSetup.filter[i], 0, 0.0, o, slabs[i]);
     });
     BlockCoverage coverage(mBlocks);
-    const std::uint64_t limit = coveragePairLimit(memoryRoom(), double(kCoveragePairBytes));
-    if (!coverage.build(lo.data(), hi.data(), slabs.data(), n, mOptions.threaded, nullptr, limit))
-        throw coverageTooLarge("Stage II (the Gaussians that stay)", limit, double(kCoveragePairBytes), memoryRoomText());
+    const PairRoom room = pairRoom(double(kCoveragePairBytes));
+    if (!coverage.build(lo.data(), hi.data(), slabs.data(), n, mOptions.threaded, nullptr, room.limit))
+        throw coverageTooLarge("Stage II (the Gaussians that stay)", room.limit, double(kCoveragePairBytes), room.text);
     resizeDiscarding(mStaticF, mBlocks.slots() * stride); // zeroed block by block below (first touches in parallel)
     resizeDiscarding(mStaticO, mBlocks.slots());
     mStaticBlock.assign(nb, 0);
@@ -265,12 +265,9 @@ void CpuSolver::rebuildCoverage(int iteration, bool onlyEscaped)
         stageTwoCoverageBox(p, filter, steps, move, mOptions, &mBoxLo[3 * k], &mBoxHi[3 * k]);
         stageTwoCoverageSlabs(p, filter, steps, move, mOptions, mSlabs[k]);
     });
-    if (!mPairLimit) { // once, before any coverage is held (at a rebuild the one it replaces is resident)
-        mPairLimit = coveragePairLimit(memoryRoom(), pairBytes());
-        mPairRoom = memoryRoomText();
-    }
-    if (!mCoverage.build(mBoxLo.data(), mBoxHi.data(), mSlabs.data(), mG, mOptions.threaded, keep, *mPairLimit))
-        throw coverageTooLarge("Stage II", *mPairLimit, pairBytes(), mPairRoom);
+    if (!mPairRoom) mPairRoom = pairRoom(pairBytes()); // before any coverage is held (at a rebuild, the one it replaces is)
+    if (!mCoverage.build(mBoxLo.data(), mBoxHi.data(), mSlabs.data(), mG, mOptions.threaded, keep, mPairRoom->limit))
+        throw coverageTooLarge("Stage II", mPairRoom->limit, pairBytes(), mPairRoom->text);
     // A rebuild frees and allocates on both threads' malloc arenas; the free fragments stayed
     // resident and Stage II's memory grew over its iterations (lastchance bend, 35 rebuilds: 858 MB
     // at iteration 10, 982 MB at 50; with this 788 and 793 MB).

@@ -234,8 +234,10 @@ void BlockIndex::blocksMeeting(const SampleBlocks& blocks, const float* lo, cons
                   out.end());
 }
 
-std::uint64_t coveragePairLimit(double room, double bytesEach)
+std::uint64_t coveragePairLimit(std::size_t budget, double used, double bytesEach)
 {
+    if (budget == 0) return kMaxCoveragePairs;
+    const double room = double(budget) - used;
     if (!(room > 0) || !(bytesEach > 0)) return 0;
     return std::uint64_t(std::min(double(kMaxCoveragePairs), std::floor(room / bytesEach)));
 }

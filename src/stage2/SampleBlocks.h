@@ -79,12 +79,12 @@ constexpr std::uint64_t kMaxCoveragePairs = 0xffffffffull;
 /// Bytes a pair takes in a coverage: its Gaussian's list and the two block-major lists.
 constexpr std::size_t kCoveragePairBytes = 3 * sizeof(std::uint32_t);
 
-/// @brief The most pairs of bytesEach that fit in `room` bytes (none where room <= 0), at most
-///        kMaxCoveragePairs.
-std::uint64_t coveragePairLimit(double room, double bytesEach);
+/// @brief The most pairs of bytesEach that fit in what `budget` bytes leave beside `used` (none
+///        where nothing is left), at most kMaxCoveragePairs; budget 0: no limit but that one.
+std::uint64_t coveragePairLimit(std::size_t budget, double used, double bytesEach);
 
-/// @brief The error of a coverage past its limit = coveragePairLimit(room, bytesEach); `room`
-///        names that memory ("the 2 GiB that --max-memory 8 GiB leaves ...").
+/// @brief The error of a coverage past its limit (coveragePairLimit()); `room` names the memory
+///        that set it ("the 2 GiB that --max-memory 8 GiB leaves ...").
 InputError coverageTooLarge(const std::string& stage, std::uint64_t limit, double bytesEach, const std::string& room);
 
 /// @brief Which blocks each moving Gaussian may touch, and the reverse, both lists ascending so
