@@ -246,11 +246,26 @@ void OutputSet::checkTarget(const std::string& path)
 {
     checkOutputPath(path);
     checkNotInput(path);
+    prepareFolderOf(path); // first, so that the place below is spelled through the folder as it will be
     const std::string place = placeOf(path);
     for (const auto& [claimed, named] : mClaimed)
         if (claimed == place)
             throw IoError(msg(path, ": is also another output of this command (", named, "); give each output its own path"));
     mClaimed.emplace_back(place, path);
+}
+
+/// The folder an output goes into exists and takes files before any work: a missing one is
+/// created now (and removed again when the command fails), as deform's output folder is, so an
+/// hour of training never ends in "cannot open for writing".
+void OutputSet::prepareFolderOf(const std::string& path)
+{
+    const std::filesystem::path parent = std::filesystem::path(path).parent_path();
+    const std::string folder = parent.empty() ? std::string(".") : parent.string();
+    std::error_code ec;
+    if (!std::filesystem::exists(folder, ec)) createDirectory(folder);
+    if (!std::filesystem::is_directory(folder, ec)) throw IoError(msg(path, ": ", folder, " is not a directory"));
+    if (::access(folder.c_str(), W_OK | X_OK) != 0)
+        throw IoError(msg(path, ": cannot write into ", folder, ": ", std::strerror(errno)));
 }
 
 void OutputSet::checkNotStaged(const std::string& path) const

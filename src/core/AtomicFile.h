@@ -87,8 +87,9 @@ public:
     /// @brief Refuse a destination that is one of the inputs (AtomicFile does; commands call
     ///        checkTarget() first to fail before any work).
     void checkNotInput(const std::string& path) const;
-    /// @brief Before any work: checkOutputPath(), checkNotInput(), and refuse a path that an
-    ///        earlier checkTarget() of this command named already (two outputs on one file).
+    /// @brief Before any work: checkOutputPath(), checkNotInput(), refuse a path that an
+    ///        earlier checkTarget() of this command named already (two outputs on one file), and
+    ///        create the output's folder when it is missing (removed again on failure).
     void checkTarget(const std::string& path);
     /// @brief For AtomicFile: refuse a second write of one path in one command (it would
     ///        silently replace the first output).
@@ -97,6 +98,8 @@ public:
     void stage(const std::string& temp, const std::string& finalPath, int slot);
 
 private:
+    void prepareFolderOf(const std::string& path);
+
     struct Staged {
         std::string temp, final;
         int slot;

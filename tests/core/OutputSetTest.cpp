@@ -181,3 +181,30 @@ TEST(OutputSet, DirectoryGuardRemovesOnlyTheEmptyFoldersItCreated)
     }
     EXPECT_TRUE(fs::is_directory(dir.file("d/e")));
 }
+
+// An output's missing folder is made before the work (a long train or fit ended in "cannot open
+// for writing") and is gone again when the command fails; a file where a folder belongs is refused.
+TEST(OutputSet, AnOutputsMissingFolderIsMadeBeforeTheWorkAndRemovedOnFailure)
+{
+    TempDir dir;
+    {
+        OutputSet outputs;
+        outputs.checkTarget(dir.file("new/deep/a.ply"));
+        EXPECT_TRUE(fs::is_directory(dir.file("new/deep")));
+    } // never committed: the command failed
+    EXPECT_FALSE(fs::exists(dir.file("new")));
+    {
+        OutputSet outputs;
+        outputs.checkTarget(dir.file("new/deep/a.ply"));
+        writeFileAtomic(dir.file("new/deep/a.ply"), "1");
+        outputs.commit();
+    }
+    EXPECT_EQ(slurp(dir.file("new/deep/a.ply")), "1");
+    writeFileAtomic(dir.file("plain"), "x");
+    OutputSet outputs;
+    EXPECT_NE(ioErrorMessage([&] { outputs.checkTarget(dir.file("plain/a.ply")); }).find("is not a directory"),
+              std::string::npos);
+    EXPECT_NE(ioErrorMessage([&] { outputs.checkTarget(dir.file("plain/b/a.ply")); }).find("cannot create"),
+              std::string::npos);
+    EXPECT_EQ(slurp(dir.file("plain")), "x");
+}
