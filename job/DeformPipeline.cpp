@@ -610,14 +610,6 @@ GaussianCloud stageTwo(DeformRest& rest, const Deformation& deformation, const S
     return std::move(f.fitted);
 }
 
-/// Host bytes Stage II adds per sample (positions, static and gradient features, energies, pair
-/// counts; src/stage2), for the memory estimate made before the sample grid allocates.
-std::size_t stageTwoBytesPerSample(int shDegree)
-{
-    const std::size_t stride = std::size_t(3 * (shDegree + 1) * (shDegree + 1));
-    return 12 + 2 * 4 * stride + 2 * 4 + 12 + 4 + 8;
-}
-
 } // namespace
 
 GraphOptions graphOptionsOf(const DeformSpec& spec, const DeformJobOptions& o)

@@ -75,7 +75,15 @@ struct FromVdbOptions {
     double densityScale = 0.0;
     VolumeFitOptions fitting;   ///< the engine (device, iterations, rounds, Stage II options)
     VolumeJudgeOptions judge;
+    /// `--max-memory`: the fit's samples and Stage II's pair lists are refused past it before they
+    /// are allocated; 0: no limit.
+    std::size_t maxMemoryBytes = 0;
 };
+
+/// @brief The least a fit needs per active voxel (its samples at degree 0, without the band; with
+///        --no-fit the voxels' copy): readVolume()'s check before the grid is read
+///        (VolumeReadOptions::bytesPerVoxel).
+std::uint64_t fitBytesPerVoxel(const FromVdbOptions& options);
 
 /// @brief The defaults of a from-vdb fit (Stage II options tuned for fitting from scratch).
 FromVdbOptions defaultFromVdbOptions();

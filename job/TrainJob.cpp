@@ -1,9 +1,11 @@
 #include "job/TrainJob.h"
 
+#include <algorithm>
 #include <filesystem>
 
 #include "core/AtomicFile.h"
 #include "core/Error.h"
+#include "core/Memory.h"
 #include "core/Progress.h"
 #include "image/ImageIO.h"
 #include "io/CameraFileWriter.h"
@@ -44,8 +46,26 @@ nlohmann::json trainReportJson(const TrainOutcome& o, const Dataset& data, const
               {"background", {t.background.x, t.background.y, t.background.z}}, {"seed", t.seed}}}};
 }
 
+namespace {
+
+/// Refuse views that would not fit o.maxMemoryBytes, before rendering any: they are all held while
+/// training (4 floats a pixel), and `--views 100000` grew past 20 GB.
+void checkViewMemory(const std::string& meshPath, const FromMeshOptions& o)
+{
+    if (o.maxMemoryBytes == 0) return;
+    const std::size_t views = std::size_t(o.views.views) + std::size_t(std::max(o.testViews, 0));
+    const double need = double(views) * double(o.views.width) * double(o.views.height) * 4.0 * sizeof(float);
+    if (need <= double(o.maxMemoryBytes)) return;
+    throw InputError(msg(meshPath, ": ", o.views.views, " + ", o.testViews, " views of ", o.views.width, "x", o.views.height,
+                         " need ", formatBytes(need), ", over --max-memory ", formatBytes(double(o.maxMemoryBytes)),
+                         ": fewer --views or --test-views, a smaller --size, or a larger --max-memory"));
+}
+
+} // namespace
+
 TrainOutcome fromMesh(const std::string& meshPath, const FromMeshOptions& o, Dataset& data)
 {
+    checkViewMemory(meshPath, o);
     const TriangleMesh mesh = readMesh(meshPath, o.read);
     progress(msg("from-mesh: ", meshPath, ": ", mesh.vertexCount(), " vertices, ", mesh.triangleCount(), " triangles, ",
                  mesh.textures.size(), " textures"));

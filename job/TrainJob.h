@@ -32,6 +32,8 @@ struct FromMeshOptions {
     MeshRenderOptions render{Vec3f(0.0f, 0.0f, 0.0f), 2}; ///< 2x2 samples (anti-aliased edges); background from train
     std::size_t initGaussians = 20000; ///< surface samples to start from
     TrainOptions train;
+    /// `--max-memory`: views that would not fit are refused before any is rendered; 0: no limit.
+    std::size_t maxMemoryBytes = 0;
 };
 
 /// @brief Read the mesh, render its views, train from surface samples.

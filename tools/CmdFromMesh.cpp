@@ -2,6 +2,7 @@
 #include <filesystem>
 
 #include "Command.h"
+#include "SharedArgs.h"
 #include "TrainArgs.h"
 #include "job/TrainJob.h"
 #include "core/AtomicFile.h"
@@ -49,7 +50,7 @@ const CommandRegistrar reg(71, [](CLI::App& app) {
     sub->add_option("--views", a->options.views.views, "Training views")->capture_default_str()->check(inRange(1, 100000));
     sub->add_option("--test-views", a->options.testViews, "Held-out views (another set of directions)")
         ->capture_default_str()
-        ->check(nonNegative());
+        ->check(inRange(0, 100000));
     sub->add_option("--size", a->size, "Square view size in pixels")->capture_default_str()->check(inRange(8, kMaxImageSide));
     sub->add_option("--fov", a->options.views.fovDeg, "Vertical field of view, degrees")->capture_default_str()->check(openInterval(0.0, 180.0));
     sub->add_option("--samples", a->options.render.samples, "Mesh samples per pixel axis (anti-aliasing)")
@@ -63,6 +64,10 @@ const CommandRegistrar reg(71, [](CLI::App& app) {
         ->capture_default_str()
         ->check(positive());
     sub->add_option("--views-dir", a->viewsDir, "Also write the views used: DIR/cameras.json + DIR/images/*.png (held-out ones under DIR/test)");
+    addMaxMemoryOption(sub, a->options.maxMemoryBytes,
+                       msg("Refuse views that would need more host memory than this (all are held while training, "
+                           "4 floats a pixel), before any is rendered: 8G, 512M, ... (default: 3/4 of physical memory, ",
+                           formatBytes(double(defaultMemoryBudget())), " here)"));
     addTrainFlags(sub, a->flags);
     sub->callback([a] { run(*a); });
 });

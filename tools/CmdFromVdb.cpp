@@ -83,6 +83,11 @@ void addFitOptions(CLI::App* sub, FromVdbArgs& a)
     sub->add_option("--eval-points", a.job.judge.points, "Held-out points of the error in report.json")
         ->capture_default_str()
         ->check(positive());
+    addMaxMemoryOption(sub, a.job.maxMemoryBytes,
+                       msg("Refuse a volume whose fit would need more host memory than this, checked before the "
+                           "grid is read (its active voxels), before the training samples are made (with the band) "
+                           "and before Stage II's pair lists are: 8G, 512M, ... (default: 3/4 of physical memory, ",
+                           formatBytes(double(defaultMemoryBudget())), " here)"));
 }
 
 const CommandRegistrar reg(45, [](CLI::App& app) {
@@ -107,6 +112,8 @@ const CommandRegistrar reg(45, [](CLI::App& app) {
         a->job.meaning = parseVolumeMeaning(a->as);
         a->job.fit = !a->noFit;
         a->job.fitting.stage2.device = resolveDevice(a->device);
+        a->read.memoryLimit = a->job.maxMemoryBytes;
+        a->read.bytesPerVoxel = fitBytesPerVoxel(a->job);
         // Every output checked before the fit, and all of them appear together or not at all.
         OutputSet outputs({a->input});
         const std::string report = a->report.empty() ? besideOutput(a->output, ".report.json") : a->report;

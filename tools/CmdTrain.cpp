@@ -1,6 +1,7 @@
 /// `splatwarp train DATA -o MODEL.ply`: 3D Gaussian Splatting from posed pictures (train/Trainer.h).
 #include "Command.h"
 #include "ReadArgs.h"
+#include "SharedArgs.h"
 #include "TrainArgs.h"
 #include "job/TrainJob.h"
 #include "core/AtomicFile.h"
@@ -55,12 +56,11 @@ const CommandRegistrar reg(70, [](CLI::App& app) {
     sub->add_option("--downscale", a->dataset.downscale, "Integer factor the pictures are box-filtered by (3DGS's -r)")
         ->capture_default_str()
         ->check(inRange(1, kMaxDownscale));
-    a->dataset.maxMemoryBytes = defaultMemoryBudget();
-    sub->add_option_function<std::string>(
-           "--max-memory", [a](const std::string& text) { a->dataset.maxMemoryBytes = parseByteSize(text, "--max-memory"); },
-           msg("Refuse a folder whose pictures would need more host memory than this at --downscale, sized from their headers "
-               "before any is decoded, and say which --downscale fits: 8G, 512M, ... (default: 3/4 of physical memory, ",
-               formatBytes(double(defaultMemoryBudget())), " here)"));
+    addMaxMemoryOption(sub, a->dataset.maxMemoryBytes,
+                       msg("Refuse a folder whose pictures would need more host memory than this at --downscale, sized "
+                           "from their headers before any is decoded, and say which --downscale fits: 8G, 512M, ... "
+                           "(default: 3/4 of physical memory, ",
+                           formatBytes(double(defaultMemoryBudget())), " here)"));
     sub->add_option("--holdout", a->dataset.holdout, "graphdeco folders: every Nth view is held out for the report (0: none)")
         ->capture_default_str()
         ->check(nonNegative());

@@ -5,9 +5,9 @@
 #include <string>
 
 #include "Command.h"
+#include "SharedArgs.h"
 #include "job/DeformSettings.h"
 #include "vdb/SampleGrid.h"
-#include "core/Memory.h"
 
 namespace splatwarp::cli {
 
@@ -31,11 +31,7 @@ inline void addGridOptions(CLI::App* sub, SampleGridOptions& grid)
     sub->add_option("--cutoff", grid.cutoff, deformSetting("--cutoff").help)
         ->capture_default_str()
         ->check(inRange(1e-8, 0.999));
-    grid.maxMemoryBytes = defaultMemoryBudget();
-    sub->add_option_function<std::string>(
-           "--max-memory", [&grid](const std::string& text) { grid.maxMemoryBytes = parseByteSize(text, "--max-memory"); },
-           deformSetting("--max-memory").help)
-        ->type_name("SIZE");
+    addMaxMemoryOption(sub, grid.maxMemoryBytes, deformSetting("--max-memory").help);
 }
 
 } // namespace splatwarp::cli

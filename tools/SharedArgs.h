@@ -2,11 +2,13 @@
 /// @file SharedArgs.h
 /// @brief Flags that several commands take besides deform's (whose flags are its settings table,
 ///        job/DeformSettings.h, where their help comes from): `--device` (every command that
-///        computes on a device), `--max-mean-step` and the coverage flags (from-vdb's Stage II).
+///        computes on a device), `--max-memory`, `--max-mean-step` and the coverage flags (from-vdb's
+///        Stage II).
 #include <string>
 
 #include "Command.h"
 #include "core/Device.h"
+#include "core/Memory.h"
 #include "job/DeformSettings.h"
 #include "stage2/StageTwoOptions.h"
 
@@ -23,6 +25,15 @@ inline void addDeviceOption(CLI::App* sub, Device& device, const std::string& wh
            deviceHelp(what))
         ->default_str("auto")
         ->check(CLI::IsMember({"auto", "cpu", "cuda"}));
+}
+
+/// @brief `--max-memory SIZE` (8G, 512M, ...) into `bytes`, which starts at defaultMemoryBudget().
+inline void addMaxMemoryOption(CLI::App* sub, std::size_t& bytes, const std::string& help)
+{
+    bytes = defaultMemoryBudget();
+    sub->add_option_function<std::string>(
+           "--max-memory", [&bytes](const std::string& text) { bytes = parseByteSize(text, "--max-memory"); }, help)
+        ->type_name("SIZE");
 }
 
 /// @brief `--max-mean-step` into the Stage II options (default: the options' value).

@@ -379,10 +379,8 @@ void evaluateTargets(SampleGrid::Impl& im, const GaussianCloud& cloud, double fi
 std::size_t sampleGridBytesPerCell(const SampleGridOptions& o, int shDegree)
 {
     const std::size_t perCell = std::size_t(o.samplesPerAxis) * o.samplesPerAxis * o.samplesPerAxis;
-    const std::size_t stride = std::size_t(3 * (shDegree + 1) * (shDegree + 1));
-    // rest + warped positions, targets F and O, sample cell; cell: coords, gradient, skip, index voxel.
-    const std::size_t perSample = 12 + 12 + 4 * stride + 4 + 4 + o.extraBytesPerSample;
-    return perCell * perSample + 12 + 36 + 1 + 8;
+    const std::size_t perSample = SampleSet::bytesPerSample(shDegree) + o.extraBytesPerSample;
+    return perCell * perSample + 12 + 36 + 1 + 8; // a cell: coords, gradient, skip, index voxel
 }
 
 openvdb::Coord SampleGrid::Impl::cellOf(const Vec3d& p) const

@@ -16,6 +16,7 @@
 #include "vdb/VdbLibrary.h"
 #include "core/AtomicFile.h"
 #include "core/Error.h"
+#include "core/Memory.h"
 #include "core/ParallelFor.h"
 #include "sh/SphericalHarmonics.h"
 
@@ -33,9 +34,6 @@ namespace {
 /// The SH degrees splatwarp writes and fits (3DGS's 0..3).
 constexpr int kMaxShDegree = 3;
 
-/// Estimated peak bytes of a fit per active voxel (samples with their band, Stage II pairs and state).
-constexpr std::uint64_t kFitBytesPerVoxel = 1024;
-
 std::uint64_t availableMemory()
 {
     std::ifstream in("/proc/meminfo");
@@ -50,10 +48,13 @@ std::uint64_t availableMemory()
 void checkMemory(const std::string& where, std::uint64_t voxels, const VolumeReadOptions& o)
 {
     const std::uint64_t limit = o.memoryLimit > 0 ? o.memoryLimit : availableMemory();
-    const double need = double(voxels) * double(kFitBytesPerVoxel);
+    const double need = double(voxels) * double(o.bytesPerVoxel);
     if (need > double(limit))
-        throw InputError(msg(where, ": ", voxels, " active voxels need about ", need / double(1 << 30),
-                             " GiB to fit, more than the ", double(limit) / double(1 << 30), " GiB available"));
+        throw InputError(msg(where, ": ", voxels, " active voxels need at least ", formatBytes(need), " to fit (",
+                             o.bytesPerVoxel, " B each), more than ",
+                             o.memoryLimit > 0 ? msg("--max-memory ", formatBytes(double(limit)),
+                                                     " (fewer samples per voxel need less)")
+                                               : msg("the ", formatBytes(double(limit)), " available")));
 }
 
 std::string gridList(const openvdb::GridPtrVec& grids)
@@ -273,7 +274,17 @@ openvdb::MaskGrid::Ptr sampleMask(const openvdb::FloatGrid& density, int band)
     return mask;
 }
 
+std::size_t samplesIn(const openvdb::MaskGrid& mask, int perAxis)
+{
+    return std::size_t(mask.activeVoxelCount()) * std::size_t(perAxis) * std::size_t(perAxis) * std::size_t(perAxis);
+}
+
 } // namespace
+
+std::size_t Volume::sampleCount(int band, int perAxis) const
+{
+    return samplesIn(*sampleMask(*mImpl->density, band), perAxis);
+}
 
 void Volume::sample(const float* points, std::size_t m, float* density, float* features) const
 {
@@ -326,6 +337,9 @@ SampleSet Volume::sampleSet(int band, int perAxis) const
     const Impl& v = *mImpl;
     const openvdb::MaskGrid::Ptr mask = sampleMask(*v.density, band);
     SampleSet s;
+    const std::size_t m = samplesIn(*mask, perAxis);
+    s.restPositions.reserve(3 * m); // grown by push_back they held up to twice this
+    s.sampleCell.reserve(m);
     s.shDegree = v.info.shDegree;
     // Cells are 2^3-voxel blocks, their samples consecutive: the engine's sample blocks (up to 64
     // consecutive samples of one cell) are then compact boxes, which its coverage culls well.

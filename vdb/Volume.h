@@ -18,9 +18,12 @@ namespace splatwarp {
 struct VolumeReadOptions {
     std::string grid;      ///< FloatGrid to fit; "" = `density`, else the file's only FloatGrid
     std::string colorGrid; ///< Vec3 colour grid; "" = `color` or `Cd` when present; "none" = ignore colour
-    /// Refuse grids whose fit would need more than this many bytes (estimated per active voxel);
-    /// 0 = the memory the system reports available.
+    /// Refuse grids whose fit would need more than this many bytes (bytesPerVoxel per active
+    /// voxel), checked before the grid is read; 0 = the memory the system reports available.
     std::uint64_t memoryLimit = 0;
+    /// What the fit needs at least per active voxel (from-vdb sets it from its samples per voxel;
+    /// the default is its own at 2: 8 samples of a degree-0 field).
+    std::uint64_t bytesPerVoxel = 1024;
 };
 
 /// @brief What was read.
@@ -60,6 +63,8 @@ public:
     ///        voxels of one, targets = the trilinear field there (= the voxel values at perAxis 1);
     ///        cells = 2^3-voxel blocks (samples of a cell consecutive), identity gradients, none skipped.
     SampleSet sampleSet(int band, int perAxis = 1) const;
+    /// @brief How many samples sampleSet(band, perAxis) holds, counted without building it.
+    std::size_t sampleCount(int band, int perAxis = 1) const;
     /// @brief Held-out points: uniform in the voxels of sampleSet(band) (continuous positions).
     std::vector<float> heldOutPoints(std::size_t count, std::uint32_t seed, int band) const;
     /// @brief World bounds of the trilinear field: the active voxels' centres plus one voxel (the

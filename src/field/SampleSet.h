@@ -33,6 +33,11 @@ struct SampleSet {
     std::size_t sampleCount() const { return targetO.size(); }
     std::size_t cellCount() const { return cellSkip.size(); }
     int featureStride() const { return 3 * (shDegree + 1) * (shDegree + 1); }
+    /// Bytes each sample holds here: rest and warped positions, targets F and O, its cell.
+    static std::size_t bytesPerSample(int shDegree)
+    {
+        return 12 + 12 + 4 * std::size_t(3 * (shDegree + 1) * (shDegree + 1)) + 4 + 4;
+    }
     bool uniform() const { return cellAxis.empty(); }
     /// Samples per axis of cell c.
     int axisOf(std::size_t c) const { return uniform() ? samplesPerAxis : int(cellAxis[c]); }

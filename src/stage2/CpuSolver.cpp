@@ -210,7 +210,8 @@ void CpuSolver::evaluateStatic(const GaussianCloud& cloud, const std::vector<std
     BlockCoverage coverage(mBlocks);
     const PairRoom room = pairRoom(double(kCoveragePairBytes));
     if (!coverage.build(lo.data(), hi.data(), slabs.data(), n, mOptions.threaded, nullptr, room.limit))
-        throw coverageTooLarge("Stage II (the Gaussians that stay)", room.limit, double(kCoveragePairBytes), room.text);
+        throw coverageTooLarge("Stage II (the Gaussians that stay)", room.limit, double(kCoveragePairBytes), room.text,
+                               mOptions.memoryAdvice);
     resizeDiscarding(mStaticF, mBlocks.slots() * stride); // zeroed block by block below (first touches in parallel)
     resizeDiscarding(mStaticO, mBlocks.slots());
     mStaticBlock.assign(nb, 0);
@@ -267,7 +268,7 @@ void CpuSolver::rebuildCoverage(int iteration, bool onlyEscaped)
     });
     if (!mPairRoom) mPairRoom = pairRoom(pairBytes()); // before any coverage is held (at a rebuild, the one it replaces is)
     if (!mCoverage.build(mBoxLo.data(), mBoxHi.data(), mSlabs.data(), mG, mOptions.threaded, keep, mPairRoom->limit))
-        throw coverageTooLarge("Stage II", mPairRoom->limit, pairBytes(), mPairRoom->text);
+        throw coverageTooLarge("Stage II", mPairRoom->limit, pairBytes(), mPairRoom->text, mOptions.memoryAdvice);
     // A rebuild frees and allocates on both threads' malloc arenas; the free fragments stayed
     // resident and Stage II's memory grew over its iterations (lastchance bend, 35 rebuilds: 858 MB
     // at iteration 10, 982 MB at 50; with this 788 and 793 MB).

@@ -242,13 +242,13 @@ std::uint64_t coveragePairLimit(std::size_t budget, double used, double bytesEac
     return std::uint64_t(std::min(double(kMaxCoveragePairs), std::floor(room / bytesEach)));
 }
 
-InputError coverageTooLarge(const std::string& stage, std::uint64_t limit, double bytesEach, const std::string& room)
+InputError coverageTooLarge(const std::string& stage, std::uint64_t limit, double bytesEach, const std::string& room,
+                            const std::string& advice)
 {
     const std::string why = limit >= kMaxCoveragePairs ? std::string("too many for 32-bit indices")
                                                        : msg(formatBytes(bytesEach), " each: more than fit in ", room);
     return InputError(msg(stage, ": the Gaussians reach more than ", limit, " (block, Gaussian) pairs of samples (", why,
-                          "). Gaussians far wider than the model do this (`splatwarp info` warns of them); "
-                          "lower --cells, or raise --max-memory if the machine has more"));
+                          "). ", advice.empty() ? std::string(kCoverageAdvice) : advice));
 }
 
 bool BlockCoverage::build(const float* lo, const float* hi, const CoverageSlabs* slabs, std::size_t g, bool threaded,

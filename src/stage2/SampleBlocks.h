@@ -83,9 +83,15 @@ constexpr std::size_t kCoveragePairBytes = 3 * sizeof(std::uint32_t);
 ///        where nothing is left), at most kMaxCoveragePairs; budget 0: no limit but that one.
 std::uint64_t coveragePairLimit(std::size_t budget, double used, double bytesEach);
 
+/// @brief What a coverage past its limit tells deform's and to-vdb's users to change.
+constexpr const char* kCoverageAdvice = "Gaussians far wider than the model do this (`splatwarp info` warns of them); "
+                                        "lower --cells, or raise --max-memory if the machine has more";
+
 /// @brief The error of a coverage past its limit (coveragePairLimit()); `room` names the memory
-///        that set it ("the 2 GiB that --max-memory 8 GiB leaves ...").
-InputError coverageTooLarge(const std::string& stage, std::uint64_t limit, double bytesEach, const std::string& room);
+///        that set it ("the 2 GiB that --max-memory 8 GiB leaves ..."), `advice` what to change
+///        (kCoverageAdvice: deform's and to-vdb's).
+InputError coverageTooLarge(const std::string& stage, std::uint64_t limit, double bytesEach, const std::string& room,
+                            const std::string& advice = kCoverageAdvice);
 
 /// @brief Which blocks each moving Gaussian may touch, and the reverse, both lists ascending so
 ///        every sum runs in a fixed order for any thread count.

@@ -5,6 +5,12 @@
 
 namespace splatwarp {
 
+std::size_t stageTwoBytesPerSample(int shDegree)
+{
+    const std::size_t stride = std::size_t(3 * (shDegree + 1) * (shDegree + 1));
+    return 12 + 2 * 4 * stride + 2 * 4 + 12 + 4 + 8;
+}
+
 StageTwoReport optimiseStageTwo(GaussianCloud& cloud, const SampleSet& samples, const std::vector<std::uint8_t>& moving,
                                 const std::vector<std::int32_t>& gaussianCell, const StageTwoOptions& options,
                                 const std::function<void(int, const GaussianCloud&)>& onEval, int evalEvery)

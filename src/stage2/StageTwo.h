@@ -52,6 +52,10 @@ struct StageTwoReport {
     double msRejected = 0;
 };
 
+/// @brief Host bytes Stage II adds per sample (positions, static and gradient features, energies,
+///        pair counts), for the memory estimates made before a sample set is allocated.
+std::size_t stageTwoBytesPerSample(int shDegree);
+
 /// @brief Run Stage II.
 /// @param cloud         in: the Stage I result; out: the fitted model (static Gaussians bit-exact)
 /// @param samples       the warped sampled field (targets, warped positions, cells)

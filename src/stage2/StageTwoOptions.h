@@ -3,6 +3,7 @@
 /// @brief Every parameter of the Stage II optimiser with its documented default; shared by the
 ///        CLI, the JSON spec and the tests (paper Sec. 3.2).
 #include <functional>
+#include <string>
 
 #include "core/Device.h"
 #include "field/GaussianMath.h"
@@ -125,6 +126,9 @@ struct StageTwoOptions {
     /// Host memory the process may hold (0: no limit; deform's --max-memory): the CPU solver
     /// refuses a coverage whose lists would pass it, before allocating them.
     std::size_t maxMemoryBytes = 0;
+    /// What that refusal tells the user to change, in the command's own flags (empty: deform's,
+    /// kCoverageAdvice).
+    std::string memoryAdvice;
     /// Where runStageTwo() (stage2/StageTwoDevice.h) runs; optimiseStageTwo() is always the CPU.
     ResolvedDevice device;
 

@@ -110,6 +110,26 @@ TEST(Reliability, PairListsPastTheMemoryBudgetAreRefused)
     EXPECT_TRUE(fs::exists(out));
 }
 
+// An output in a folder that did not exist failed only when written, after the whole fit: the
+// folder is made first, and removed again when the command fails.
+TEST(Reliability, AnOutputsMissingFolderIsMadeFirstAndRemovedOnFailure)
+{
+    Fixture f;
+    EXPECT_EQ(runCli("-q to-vdb " + f.model + " -o " + f.dir.file("new/deep/out.vdb") + " --cells 8", f.log), 0) << f.text();
+    EXPECT_TRUE(fs::is_regular_file(f.dir.file("new/deep/out.vdb")));
+    EXPECT_EQ(runCli("-q from-vdb " + f.dir.file("new/deep/out.vdb") + " -o " + f.dir.file("fit/m.ply") + " --report " +
+                         f.dir.file("reports/m.json") + " --iterations 2 --eval-points 1000",
+                     f.log),
+              0)
+        << f.text();
+    EXPECT_TRUE(fs::is_regular_file(f.dir.file("fit/m.ply")));
+    EXPECT_TRUE(fs::is_regular_file(f.dir.file("reports/m.json")));
+    EXPECT_EQ(runCli("-q to-vdb " + f.dir.file("absent.ply") + " -o " + f.dir.file("gone/out.vdb"), f.log), 1);
+    EXPECT_FALSE(fs::exists(f.dir.file("gone")));
+    EXPECT_EQ(runCli("-q convert " + f.model + " " + f.dir.file("m.ply/x.ply"), f.log), 1);
+    EXPECT_TRUE(f.has("is not a directory")) << f.text();
+}
+
 // Group 4: `render --orbit` left the views written before a failure; a bad camera directory too.
 TEST(Reliability, RenderViewsAppearTogetherOrNotAtAll)
 {
@@ -120,6 +140,9 @@ TEST(Reliability, RenderViewsAppearTogetherOrNotAtAll)
     EXPECT_EQ(runCli("-q render " + f.model + " --orbit 3 --size 16x16 -o " + views, f.log), 1);
     EXPECT_FALSE(fs::exists(fs::path(views) / "view_000.png")) << f.text();
     EXPECT_TRUE(noTemporaries(f.dir.path()));
+    // 1e8 views were placed before the first render: 22 GB, killed by the kernel.
+    EXPECT_EQ(runCli("-q render " + f.model + " --orbit 100000000 --size 16x16 -o " + f.dir.file("many"), f.log), 2);
+    EXPECT_FALSE(fs::exists(f.dir.file("many")));
     EXPECT_EQ(runCli("-q render " + f.model + " --orbit 2 --size 16x16 -o " + f.dir.file("new/views"), f.log), 0);
     EXPECT_TRUE(fs::exists(f.dir.file("new/views/view_001.png")));
 }

@@ -82,6 +82,15 @@ TEST(FromVdbCli, BadInputsExitOneAndWriteNothing)
     writeDenseGrids(dir.file("negative.vdb"), {negative});
     expectRefused(dir, dir.file("negative.vdb"), "'density' has negative values");
 
+    // --max-memory: the grid's voxels (the least its fit needs) before it is read, then its
+    // training samples with their band; --no-fit needs neither.
+    writeDenseGrids(dir.file("fog.vdb"), {smallFog()});
+    expectRefused(dir, dir.file("fog.vdb"), "need at least", "--max-memory 64K"); // 8 samples a voxel: ~1 KB
+    expectRefused(dir, dir.file("fog.vdb"), "training samples (1^3 per voxel, with a band of 2)",
+                  "--max-memory 64K --samples-per-voxel 1"); // 124 B a voxel, and the process holds more than 64K
+    EXPECT_EQ(runCli("-q from-vdb " + dir.file("fog.vdb") + " -o " + dir.file("base.ply") + " --no-fit --max-memory 64K"), 0);
+    EXPECT_EQ(runCli("from-vdb " + dir.file("fog.vdb") + " -o " + dir.file("x.ply") + " --max-memory lots"), 2);
+
     writeDenseGrids(dir.file("two.vdb"), {smallFog("a"), smallFog("b")});
     expectRefused(dir, dir.file("two.vdb"), "a (float), b (float)");
     expectRefused(dir, dir.file("two.vdb"), "'c'", "--grid c");

@@ -8,6 +8,9 @@
 #include <iostream>
 
 #include "job/FromVdb.h"
+#include "core/Error.h"
+#include "core/Memory.h"
+#include "stage2/StageTwo.h"
 #include "vdb/SampleGrid.h"
 #include "vdb/VdbExport.h"
 #include "field/FieldTestModels.h"
@@ -118,6 +121,44 @@ TEST(FromVdb, RoundTripOfAGeneratedModel)
     const FieldErrorReport lFit = fieldError(original, fit.splats, pts.data(), pts.data(), nullptr, p, lattice);
     EXPECT_LT(lFit.opacity, 0.6 * lInit.opacity) << "init " << lInit.opacity << " fit " << lFit.opacity;
     EXPECT_LT(lFit.color, 0.7 * lInit.color) << "init " << lInit.color << " fit " << lFit.color;
+}
+
+std::string inputErrorOf(const Volume& volume, const FromVdbOptions& o)
+{
+    try {
+        fromVdb(volume, o);
+    } catch (const InputError& e) {
+        return e.what();
+    }
+    return "";
+}
+
+// A 10.8 M-voxel volume's fit passed the read check (1 KB a voxel) and took 19.3 GB: its samples
+// are now refused past --max-memory before they are made.
+TEST(FromVdb, AFitPastItsMemoryBudgetIsRefusedBeforeItsSamples)
+{
+    const OneGaussian truth;
+    TempDir dir;
+    writeDenseGrids(dir.file("g.vdb"), {gaussianGrid(truth, 20)});
+    const Volume volume = readVolume(dir.file("g.vdb"));
+    FromVdbOptions o = fieldOptions(40, 2);
+    o.samplesPerAxis = 2;
+    const std::size_t m = volume.sampleCount(o.band, o.samplesPerAxis);
+    EXPECT_EQ(m, volume.sampleSet(o.band, o.samplesPerAxis).sampleCount());
+    const double need = double(m) * double(SampleSet::bytesPerSample(0) + stageTwoBytesPerSample(0));
+    o.maxMemoryBytes = residentMemoryBytes() + std::size_t(need / 2);
+    const std::string samples = inputErrorOf(volume, o);
+    EXPECT_NE(samples.find("training samples"), std::string::npos) << samples;
+    EXPECT_NE(samples.find("lower --samples-per-voxel or --band"), std::string::npos) << samples;
+    // (Stage II's pair lists past the budget: CpuSolver.ACoveragePastTheMemoryBudgetIsRefused,
+    // with from-vdb's advice.)
+    // Within the budget the fit is the one without any.
+    o.maxMemoryBytes = residentMemoryBytes() + std::size_t(40 * need);
+    const FromVdbResult within = fromVdb(volume, o);
+    o.maxMemoryBytes = 0;
+    const FromVdbResult free = fromVdb(volume, o);
+    EXPECT_EQ(within.splats.means, free.splats.means);
+    EXPECT_EQ(within.splats.opacities, free.splats.opacities);
 }
 
 // A uniform slab of extinction sigma and thickness L transmits exp(-sigma l) straight through, l the

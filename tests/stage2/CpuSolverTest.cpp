@@ -341,8 +341,12 @@ TEST(CpuSolver, ACoveragePastTheMemoryBudgetIsRefused)
     const std::string stays = message(p.moving); // every third Gaussian static
     EXPECT_NE(stays.find("Stage II (the Gaussians that stay): the Gaussians reach more than"), std::string::npos) << stays;
     EXPECT_NE(stays.find("--max-memory"), std::string::npos) << stays;
+    EXPECT_NE(stays.find("lower --cells"), std::string::npos) << stays; // deform's advice unless told otherwise
+    o.memoryAdvice = "Lower --samples-per-voxel."; // from-vdb's flags
     const std::string moving = message(std::vector<std::uint8_t>(cloud.size(), 1));
     EXPECT_EQ(moving.find("Stage II: the Gaussians reach more than"), 0u) << moving;
+    EXPECT_NE(moving.find("). Lower --samples-per-voxel."), std::string::npos) << moving;
+    EXPECT_EQ(moving.find("--cells"), std::string::npos) << moving;
     EXPECT_EQ(cloud.means, p.start.means); // refused before any step
     o.maxMemoryBytes = 0;
     EXPECT_EQ(message(p.moving), "no error");

@@ -90,6 +90,26 @@ TEST(TrainCliTest, PicturesOverTheMemoryBudgetAreRefusedBeforeDecoding)
     EXPECT_NE(test::fileBytes(log).find(".png: cannot read PNG"), std::string::npos) << test::fileBytes(log);
 }
 
+// from-mesh holds every view while it trains: `--views 100000` grew past 20 GB. Views past
+// --max-memory are refused before any is rendered.
+TEST(TrainCliTest, FromMeshViewsOverTheMemoryBudgetAreRefusedBeforeRendering)
+{
+    test::TempDir dir;
+    writeFileAtomic(dir.file("box.obj"), colouredBox());
+    const std::string log = dir.file("log.txt");
+    const std::string run = "from-mesh " + dir.file("box.obj") + " -o " + dir.file("out/box.ply") +
+                            " --size 64 --iterations 1 --init-gaussians 50 --test-views 2 --max-memory 1M --views ";
+    // (30 + 2) views of 64x64 at 16 B a pixel: 2 MiB.
+    EXPECT_EQ(test::runCli(run + "30", log), 1);
+    const std::string text = test::fileBytes(log);
+    EXPECT_NE(text.find("box.obj: 30 + 2 views of 64x64 need 2 MiB, over --max-memory 1 MiB"), std::string::npos) << text;
+    EXPECT_EQ(text.find("rendered"), std::string::npos) << text;
+    EXPECT_FALSE(std::filesystem::exists(dir.file("out")));
+    EXPECT_EQ(test::runCli(run + "10", log), 0) << test::fileBytes(log); // 12 views: 0.75 MiB
+    EXPECT_TRUE(std::filesystem::exists(dir.file("out/box.ply")));
+    EXPECT_EQ(test::runCli("from-mesh " + dir.file("box.obj") + " -o " + dir.file("x.ply") + " --test-views 100001", log), 2);
+}
+
 TEST(TrainCliTest, BadMeshesExitOneNamingTheFile)
 {
     test::TempDir dir;
