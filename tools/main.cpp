@@ -23,11 +23,15 @@
 
 namespace splatwarp::cli {
 
-/// The flags of the command that ran that bound its memory, for the out-of-memory message.
+/// The flags of the command that ran that bound its memory, for the out-of-memory message: the
+/// counts the user set (`sample --count 4e9`, `deform --nodes 2e9`) first, then its memory flags.
 std::string memoryHint(const CLI::App& app)
 {
     for (const CLI::App* sub : app.get_subcommands()) {
         std::vector<std::string> flags;
+        for (const char* name : {"--count", "--nodes", "--gaussians", "--init-gaussians", "--random-points", "--views",
+                                 "--test-views", "--samples-per-voxel", "--eval-points", "--orbit"})
+            if (const CLI::Option* given = sub->get_option_no_throw(name); given && given->count() > 0) flags.push_back(name);
         for (const char* name : {"--cells", "--samples-per-cell", "--points", "--size", "--max-memory"})
             if (sub->get_option_no_throw(name)) flags.push_back(name);
         if (!sub->get_subcommands().empty()) return memoryHint(*sub);

@@ -72,6 +72,10 @@ TEST(CliEdges, OutOfMemoryNamesTheFlagsOfTheCommandThatRan)
     expectHintNamesItsOwnFlags(dir, "render", renderLog);
     EXPECT_EQ(renderLog.find("--cells"), std::string::npos) << renderLog;
     EXPECT_FALSE(std::filesystem::exists(dir.file("r.png")));
+    // A count the user set is named first (sample has no memory flag of its own).
+    const auto [sampleRc, sampleLog] = runUnderTwoGigabytes(dir, "sample stripes --count 400000000 -o " + dir.file("big.ply"));
+    EXPECT_EQ(sampleRc, 1) << sampleLog;
+    EXPECT_NE(sampleLog.find("out of memory (lower or check --count)"), std::string::npos) << sampleLog;
 }
 
 TEST(CliEdges, AZeroCameraAngleIsRefused)
