@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <numeric>
+#include <utility>
 
 #include "job/Judge.h"
 #include "core/Error.h"
@@ -28,7 +29,7 @@ Image montage(const std::vector<Image>& truth, const std::vector<Image>& splats,
               const MeshJudgeReport& r)
 {
     if (rows.empty()) return Image();
-    const int w = truth.front().width, h = truth.front().height, pad = 4;
+    const int w = truth[rows.front()].width, h = truth[rows.front()].height, pad = 4;
     Image sheet(2 * w + 3 * pad, int(rows.size()) * (h + pad) + pad, 3, 0.02f);
     for (std::size_t k = 0; k < rows.size(); ++k) {
         const int top = pad + int(k) * (h + pad);
@@ -68,20 +69,27 @@ MeshJudgeReport judgeAgainstMesh(const TriangleMesh& restMesh, const GaussianClo
     }
     RenderOptions splatRender;
     splatRender.background = o.render.background;
-    std::vector<Image> truth, splats;
-    for (const Camera& c : cameras) {
-        truth.push_back(renderMesh(mesh, c, o.render));
-        splats.push_back(renderGaussians(deformed, c, splatRender));
-        r.names.push_back(c.name);
-        r.psnr.push_back(psnr(splats.back(), truth.back()));
-        r.ssim.push_back(ssim(splats.back(), truth.back()));
+    // Only the montage's views keep their pictures: all of them were held (200 views of 4096^2,
+    // mesh and splats: 107 GB).
+    const std::size_t keep = std::size_t(std::max(0, o.worst));
+    const auto worse = [&](std::size_t a, std::size_t b) { return std::make_pair(r.psnr[a], a) < std::make_pair(r.psnr[b], b); };
+    std::vector<Image> truth(cameras.size()), splats(cameras.size());
+    std::vector<std::size_t> order; // the worst views so far, worst first
+    for (std::size_t v = 0; v < cameras.size(); ++v) {
+        truth[v] = renderMesh(mesh, cameras[v], o.render);
+        splats[v] = renderGaussians(deformed, cameras[v], splatRender);
+        r.names.push_back(cameras[v].name);
+        r.psnr.push_back(psnr(splats[v], truth[v]));
+        r.ssim.push_back(ssim(splats[v], truth[v]));
+        order.insert(std::upper_bound(order.begin(), order.end(), v, worse), v);
+        if (order.size() > keep) {
+            truth[order.back()] = Image();
+            splats[order.back()] = Image();
+            order.pop_back();
+        }
     }
     r.meanPsnr = std::accumulate(r.psnr.begin(), r.psnr.end(), 0.0) / double(r.psnr.size());
     r.meanSsim = std::accumulate(r.ssim.begin(), r.ssim.end(), 0.0) / double(r.ssim.size());
-    std::vector<std::size_t> order(cameras.size());
-    std::iota(order.begin(), order.end(), 0);
-    std::stable_sort(order.begin(), order.end(), [&](std::size_t a, std::size_t b) { return r.psnr[a] < r.psnr[b]; });
-    order.resize(std::min(order.size(), std::size_t(std::max(0, o.worst))));
     r.montage = montage(truth, splats, order, r);
     return r;
 }

@@ -1,5 +1,7 @@
 #include <gtest/gtest.h>
 
+#include <algorithm>
+
 #include <cmath>
 #include <filesystem>
 #include <nlohmann/json.hpp>
@@ -79,6 +81,17 @@ TEST(MeshJudgeTest, RigidSpecGivesTheRestPsnr)
     EXPECT_GT(rest.meanPsnr, 15.0);
     EXPECT_EQ(rest.psnr.size(), 12u);
     EXPECT_EQ(rest.montage.height, 6 * (64 + 4) + 4); // the six worst views
+    // Only the montage's views keep their pictures while the rest are judged: its rows are the
+    // first six of the montage that keeps all twelve, worst first.
+    MeshJudgeOptions all = o;
+    all.worst = 12;
+    const MeshJudgeReport every = judgeAgainstMesh(mesh, splats, splats, parseDeformSpec(kAllFixed, "fixed"), all);
+    ASSERT_EQ(every.montage.height, 12 * (64 + 4) + 4);
+    ASSERT_EQ(every.montage.width, rest.montage.width);
+    const std::size_t rowFloats = std::size_t(rest.montage.width) * 3;
+    const std::size_t sixRows = std::size_t(6 * (64 + 4) + 4) * rowFloats;
+    EXPECT_TRUE(std::equal(rest.montage.pixels.begin(), rest.montage.pixels.begin() + std::ptrdiff_t(sixRows - 4 * rowFloats),
+                           every.montage.pixels.begin()));
 
     // The splats moved by exactly the rigid motion the spec asks for.
     const DeformSpec rigid = parseDeformSpec(kRigid, "rigid");
