@@ -1,5 +1,6 @@
 #include "job/AnimateJob.h"
 
+#include <algorithm>
 #include <cstdio>
 #include <filesystem>
 #include <optional>
@@ -24,17 +25,20 @@ using json = nlohmann::json;
 
 namespace {
 
-/// The frame previews side by side (when every one exists as a regular file).
+/// The frame previews side by side (when every one exists as a regular file), as many as
+/// stripFrames() shows.
 void writeStrip(const std::string& dir, const json& items)
 {
-    std::vector<Image> frames;
+    std::vector<fs::path> previews;
     for (const json& i : items) {
-        const fs::path p = fs::path(dir) / frameFile("preview", i.get<int>());
+        previews.push_back(fs::path(dir) / frameFile("preview", i.get<int>()));
         std::error_code ec;
-        if (!fs::is_regular_file(fs::symlink_status(p, ec))) return;
-        frames.push_back(readPng(p.string()));
+        if (!fs::is_regular_file(fs::symlink_status(previews.back(), ec))) return;
     }
-    if (frames.empty()) return;
+    if (previews.empty()) return;
+    std::vector<Image> frames{readPng(previews.front().string())};
+    const std::vector<std::size_t> shown = stripFrames(previews.size(), frames.front().width);
+    for (std::size_t k = 1; k < shown.size(); ++k) frames.push_back(readPng(previews[shown[k]].string()));
     const int w = frames[0].width, h = frames[0].height, c = frames[0].channels;
     Image strip(w * int(frames.size()), h, c);
     for (std::size_t f = 0; f < frames.size(); ++f) {
@@ -62,6 +66,19 @@ void finishSequence(const std::string& dir, const json& entries, bool zip, bool 
     }
     writeZip((fs::path(dir) / "sequence.zip").string(), dir, members);
 }
+
+} // namespace
+
+std::vector<std::size_t> stripFrames(std::size_t count, int frameWidth)
+{
+    const std::size_t fit = std::max<std::size_t>(1, std::size_t(kMaxImageSide / std::max(frameWidth, 1)));
+    const std::size_t n = std::min(count, fit);
+    std::vector<std::size_t> shown(n);
+    for (std::size_t k = 0; k < n; ++k) shown[k] = n == 1 ? 0 : k * (count - 1) / (n - 1);
+    return shown;
+}
+
+namespace {
 
 /// The files frame f may list: its own numbered outputs.
 bool isFrameFile(int f, const std::string& rel)

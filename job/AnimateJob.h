@@ -6,6 +6,7 @@
 ///        preview/frame.0000.png and preview/strip.png (--render), sequence.zip (--zip) and the
 ///        manifest (job/Sequence.h) with shards and resume.
 #include <string>
+#include <vector>
 
 #include <nlohmann/json.hpp>
 
@@ -39,5 +40,10 @@ nlohmann::json mergeAnimate(const std::string& dir, bool zip);
 /// @brief Output file of a frame relative to DIR: "frames/deformed.0007.ply" (kind "deformed"),
 ///        "vdb/field.0007.vdb", "preview/frame.0007.png", "frames/baseline.0007.ply".
 std::string frameFile(const std::string& kind, int frame);
+
+/// @brief Which of `count` frame previews preview/strip.png shows: every one while the strip fits
+///        kMaxImageSide (the widest picture our readers take; 102 frames at 160 px), else as many
+///        spread evenly over the run, the first and the last included.
+std::vector<std::size_t> stripFrames(std::size_t count, int frameWidth);
 
 } // namespace splatwarp

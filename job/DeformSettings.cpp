@@ -489,7 +489,7 @@ std::vector<Setting> outputSettings()
                "Also write images: deform's compare.png (rest | Stage I | Stage II from a few orbit views) and "
                "stretched.png (the same three, close up on the most stretched cell holding matter, the rest moved "
                "rigidly there; report.json \"stretched\" says where); animate's preview/frame.0000.png ... and "
-               "preview/strip.png (all frames side by side)",
+               "preview/strip.png (the frames side by side; past 102 frames, 102 spread over the run)",
                [](DeformJobOptions& o) -> bool& { return o.render; }),
     };
 }

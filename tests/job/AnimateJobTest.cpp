@@ -357,3 +357,25 @@ TEST(Batch, RunsEveryJobRecordsFailuresAndResumes)
     EXPECT_EQ(runCli(msg("batch ", fx.dir.file("kinds.json"), " -o ", fx.dir.file("c")), fx.dir.file("3.log")), 1);
     EXPECT_NE(readBytes(fx.dir.file("3.log")).find("\"kind\" must be one of deform, animate, to-vdb"), std::string::npos);
 }
+
+// A render farm's 10,000-frame run joined every preview into one strip 1.6 M pixels wide (about
+// 8 GB of floats, and a PNG our own readers refuse): the strip now shows as many frames as fit
+// kMaxImageSide, spread evenly over the run.
+TEST(AnimateJob, TheStripShowsAsManyFramesAsFitTheWidestPicture)
+{
+    const std::vector<std::size_t> few = stripFrames(3, 160);
+    EXPECT_EQ(few, (std::vector<std::size_t>{0, 1, 2}));
+    const std::vector<std::size_t> all = stripFrames(102, 160); // 102 x 160 = 16,320 pixels
+    ASSERT_EQ(all.size(), 102u);
+    for (std::size_t k = 0; k < all.size(); ++k) EXPECT_EQ(all[k], k);
+    const std::vector<std::size_t> many = stripFrames(10000, 160);
+    ASSERT_EQ(many.size(), std::size_t(kMaxImageSide / 160));
+    EXPECT_EQ(many.front(), 0u);
+    EXPECT_EQ(many.back(), 9999u);
+    for (std::size_t k = 1; k < many.size(); ++k) {
+        EXPECT_GT(many[k], many[k - 1]);
+        EXPECT_LE(many[k] - many[k - 1], 100u); // evenly: 9999 / 101 = 99 frames apart
+        EXPECT_GE(many[k] - many[k - 1], 98u);
+    }
+    EXPECT_EQ(stripFrames(5, 20000), (std::vector<std::size_t>{0})); // wider than any strip: the first frame
+}
