@@ -110,6 +110,27 @@ TEST(TrainCliTest, FromMeshViewsOverTheMemoryBudgetAreRefusedBeforeRendering)
     EXPECT_EQ(test::runCli("from-mesh " + dir.file("box.obj") + " -o " + dir.file("x.ply") + " --test-views 100001", log), 2);
 }
 
+// --random-points 3e8 filled the machine before the first step: a start larger than the cap that
+// densification keeps is a usage error, in train and in from-mesh.
+TEST(TrainCliTest, AStartLargerThanMaxGaussiansIsAUsageError)
+{
+    test::TempDir dir;
+    writeFileAtomic(dir.file("box.obj"), colouredBox());
+    const std::string log = dir.file("log.txt");
+    const std::string mesh = "from-mesh " + dir.file("box.obj") + " -o " + dir.file("box.ply") +
+                             " --views 4 --test-views 0 --size 32 --iterations 1 --max-gaussians 1000 --init-gaussians ";
+    EXPECT_EQ(test::runCli(mesh + "1001", log), 2);
+    EXPECT_NE(test::fileBytes(log).find("--init-gaussians 1001 is more than --max-gaussians 1000"), std::string::npos)
+        << test::fileBytes(log);
+    ASSERT_EQ(test::runCli("-q " + mesh + "1000 --views-dir " + dir.file("views"), log), 0) << test::fileBytes(log);
+    const std::string train = "train " + dir.file("views") + " -o " + dir.file("t.ply") + " --iterations 1 --max-gaussians 1000 --random-points ";
+    EXPECT_EQ(test::runCli(train + "1001", log), 2);
+    EXPECT_NE(test::fileBytes(log).find("--random-points 1001 is more than --max-gaussians 1000"), std::string::npos)
+        << test::fileBytes(log);
+    EXPECT_FALSE(std::filesystem::exists(dir.file("t.ply")));
+    EXPECT_EQ(test::runCli("-q " + train + "1000", log), 0) << test::fileBytes(log);
+}
+
 TEST(TrainCliTest, BadMeshesExitOneNamingTheFile)
 {
     test::TempDir dir;
