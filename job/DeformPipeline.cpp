@@ -651,6 +651,40 @@ void prepareGridOf(DeformRest& rest, const DeformJobOptions& o)
     rest.latticeMs = clock.ms();
 }
 
+/// Draws of the judge's rule behind the keep's validation points; 0 without the keep.
+int validationDrawsOf(const DeformRest& rest, const DeformJobOptions& o)
+{
+    if (!o.keepValidated) return 0;
+    return o.validationDraws > 0 ? o.validationDraws : autoValidationDraws(rest.model.size());
+}
+
+/// Peak bytes per --eval-points point: the judge's and the training lattice's points, and the
+/// validation points of every 10 draws (2 per point at the 20 draws of small models). Measured
+/// (deform bend, 100k against 1M points): lastchance.splat (SH 0) 278 + 347 B a draw-ten;
+/// train-1000 (SH 3, 48 feature floats) 4.64 times that, taken as linear in the floats.
+double bytesPerEvalPoint(int featureFloats, bool judge, int draws)
+{
+    const double grow = 1.0 + (4.64 - 1.0) * double(featureFloats - 3) / 45.0;
+    return grow * ((judge ? 278.0 : 0.0) + 347.0 * double(draws) / 10.0);
+}
+
+/// Refuse held-out and validation points past --max-memory before any is drawn: --eval-points
+/// 4000000 took train-1000's deform to 19.2 GB (8 M validation points at SH 3).
+void checkPointMemory(const DeformRest& rest, const DeformJobOptions& o)
+{
+    const int draws = validationDrawsOf(rest, o);
+    if (o.grid.maxMemoryBytes == 0 || (!judges(o) && draws == 0)) return;
+    const double need = double(o.heldOut.points) * bytesPerEvalPoint(rest.model.shStride(), judges(o), draws);
+    const double used = double(residentMemoryBytes()), budget = double(o.grid.maxMemoryBytes);
+    if (used + need <= budget) return;
+    throw InputError(msg("held-out and validation points: --eval-points ", o.heldOut.points,
+                         draws > 0 ? msg(" with ", draws, " validation draws") : std::string(), " need about ",
+                         formatBytes(need), ", more than the ", formatBytes(std::max(budget - used, 0.0)),
+                         " that --max-memory ", formatBytes(budget), " leaves beside the ", formatBytes(used),
+                         " this process holds; lower --eval-points", draws > 0 ? " or --validation-draws" : "",
+                         ", or raise --max-memory"));
+}
+
 /// The selector's validation points at rest (the keep's).
 void prepareValidationOf(DeformRest& rest, const DeformJobOptions& o)
 {
@@ -658,7 +692,7 @@ void prepareValidationOf(DeformRest& rest, const DeformJobOptions& o)
     Stopwatch clock;
     HeldOutOptions validation = heldOutOn(rest, o);
     validation.seed ^= kValidationSeedXor;
-    const int draws = o.validationDraws > 0 ? o.validationDraws : autoValidationDraws(rest.model.size());
+    const int draws = validationDrawsOf(rest, o);
     rest.validation = prepareValidationRest(rest.model, validation, draws);
     rest.validationMs = clock.ms();
     progress(msg("validation: ", rest.validation->unrotated.size(), " points from ", draws, " draws of the judge's rule (",
@@ -693,6 +727,7 @@ void prepareRestOf(DeformRest& rest, const DeformJobOptions& o, const GraphOptio
     stageOneOptions.device = rest.device;
     rest.stageOne = std::make_unique<StageOneUpdater>(rest.model, rest.rig, rest.graph, stageOneOptions);
     if (o.stage1Only) return;
+    checkPointMemory(rest, o);
     // The three need only the rest model. On the CPU they run at once, each filling the cores the
     // others' serial parts leave idle (guitar: 1.3 cores busy on average one after another); each
     // is deterministic for any schedule, so the bytes are the same.

@@ -130,6 +130,21 @@ TEST(Reliability, AnOutputsMissingFolderIsMadeFirstAndRemovedOnFailure)
     EXPECT_TRUE(f.has("is not a directory")) << f.text();
 }
 
+// --eval-points also sizes the keep's validation points: 4 M points took train-1000's deform to
+// 19.2 GB in 170 s. Points past --max-memory are refused before any is drawn.
+TEST(Reliability, HeldOutPointsPastTheMemoryBudgetAreRefused)
+{
+    Fixture f;
+    const std::string spec = std::string(SPLATWARP_SOURCE_DIR) + "/samples/specs/bend.json";
+    const std::string run = "-q deform " + f.model + " --spec " + spec + " -o " + f.dir.file("out") + " --cells 8 --iterations 2";
+    EXPECT_EQ(runCli(run + " --eval-points 100000000 --max-memory 4G", f.log), 1);
+    EXPECT_TRUE(f.has("held-out and validation points: --eval-points 100000000 with 20 validation draws need about")) << f.text();
+    EXPECT_TRUE(f.has("lower --eval-points or --validation-draws")) << f.text();
+    EXPECT_FALSE(fs::exists(f.dir.file("out")));
+    EXPECT_EQ(runCli(run + " --eval-points 100000000 --max-memory 4G --keep fit --no-eval", f.log), 0) << f.text(); // no points drawn
+    EXPECT_EQ(runCli(run + " --eval-points 20000 --max-memory 4G", f.log), 0) << f.text();
+}
+
 // Group 4: `render --orbit` left the views written before a failure; a bad camera directory too.
 TEST(Reliability, RenderViewsAppearTogetherOrNotAtAll)
 {
@@ -167,8 +182,11 @@ TEST(Reliability, DeformOutputsAppearTogetherAndReplaceStaleOnes)
     const std::string spec = f.dir.file("none.json"), out = f.dir.file("out");
     writeBytes(spec, R"({"version": 1, "units": "bbox", "graph": {"nodes": 16, "k": 4},
       "handles": [{"box": {"min": [-0.1, -0.1, -0.1], "max": [0.3, 1.1, 1.1]}, "fixed": true}]})");
-    // Fails in the sample grid, after Stage I has produced baseline.ply.
-    EXPECT_EQ(runCli("-q deform " + f.model + " --spec " + spec + " -o " + out + " --iterations 1 --max-memory 1K", f.log), 1);
+    // Fails in the sample grid, after Stage I has produced baseline.ply (no held-out or validation
+    // points: their own check would refuse 1K first).
+    EXPECT_EQ(runCli("-q deform " + f.model + " --spec " + spec + " -o " + out + " --iterations 1 --max-memory 1K --no-eval --keep fit",
+                     f.log),
+              1);
     EXPECT_TRUE(f.has("sample grid")) << f.text();
     EXPECT_FALSE(fs::exists(out));
     fs::create_directories(out);
