@@ -676,6 +676,9 @@ class Editor {
                 $('progress').value = p.total ? p.done / p.total : 0;
                 this.setStatus(`refine: ${p.state} ${p.phase || ''} ${p.done}/${p.total}, ${(p.elapsedMs / 1000).toFixed(1)} s` + (p.error ? `: ${p.error}` : ''));
             }
+            // Save and refine are open again as soon as the run ended, not once its model arrived:
+            // a click in between did nothing (the browser test's save timed out under load).
+            this.updateButtons();
             if (this.progress.state === 'done') {
                 this.refined = decodeModel(await (await api('/api/refined')).arrayBuffer());
                 $('viewRefined').disabled = false;

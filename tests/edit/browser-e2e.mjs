@@ -216,6 +216,7 @@ async function drive(page, url, shot, dir) {
     await page.waitForFunction(() => window.splatwarpEditor.progress.state !== 'running' && window.splatwarpEditor.progress.state !== 'idle', { timeout: 120000 });
     check(await page.evaluate(() => window.splatwarpEditor.progress.state) === 'done', 'refine finished');
     await page.$eval('#saveName', (el) => { el.value = 'e2e'; });
+    await page.waitForFunction(() => !document.querySelector('#save').disabled, { timeout: 60000 });
     await page.click('#save');
     await page.waitForFunction(() => window.splatwarpEditor.lastSave, { timeout: 60000 });
     const saved = await page.evaluate(() => window.splatwarpEditor.lastSave);
