@@ -675,14 +675,12 @@ void checkPointMemory(const DeformRest& rest, const DeformJobOptions& o)
     const int draws = validationDrawsOf(rest, o);
     if (o.grid.maxMemoryBytes == 0 || (!judges(o) && draws == 0)) return;
     const double need = double(o.heldOut.points) * bytesPerEvalPoint(rest.model.shStride(), judges(o), draws);
-    const double used = double(residentMemoryBytes()), budget = double(o.grid.maxMemoryBytes);
-    if (used + need <= budget) return;
+    const MemoryRoom room = memoryRoom(o.grid.maxMemoryBytes);
+    if (need <= room.left()) return;
     throw InputError(msg("held-out and validation points: --eval-points ", o.heldOut.points,
                          draws > 0 ? msg(" with ", draws, " validation draws") : std::string(), " need about ",
-                         formatBytes(need), ", more than the ", formatBytes(std::max(budget - used, 0.0)),
-                         " that --max-memory ", formatBytes(budget), " leaves beside the ", formatBytes(used),
-                         " this process holds; lower --eval-points", draws > 0 ? " or --validation-draws" : "",
-                         ", or raise --max-memory"));
+                         formatBytes(need), ", more than ", room.text(), "; lower --eval-points",
+                         draws > 0 ? " or --validation-draws" : "", ", or raise --max-memory"));
 }
 
 /// The selector's validation points at rest (the keep's).

@@ -83,12 +83,11 @@ void checkSampleMemory(const Volume& volume, const FromVdbOptions& o)
     if (o.maxMemoryBytes == 0) return;
     const std::size_t m = volume.sampleCount(o.band, o.samplesPerAxis);
     const double need = double(m) * double(fitBytesPerSample(volume.info().shDegree));
-    const double used = double(residentMemoryBytes()), budget = double(o.maxMemoryBytes);
-    if (used + need <= budget) return;
+    const MemoryRoom room = memoryRoom(o.maxMemoryBytes);
+    if (need <= room.left()) return;
     throw InputError(msg(volume.info().path, ": ", m, " training samples (", o.samplesPerAxis, "^3 per voxel, with a band of ",
-                         o.band, ") need about ", formatBytes(need), ", more than the ", formatBytes(std::max(budget - used, 0.0)),
-                         " that --max-memory ", formatBytes(budget), " leaves beside the ", formatBytes(used),
-                         " this process holds; lower --samples-per-voxel or --band, or raise --max-memory"));
+                         o.band, ") need about ", formatBytes(need), ", more than ", room.text(),
+                         "; lower --samples-per-voxel or --band, or raise --max-memory"));
 }
 
 } // namespace

@@ -26,9 +26,7 @@ void run(FromMeshArgs a)
     outputs.checkTarget(a.output);
     if (!a.flags.report.empty()) outputs.checkTarget(a.flags.report);
     a.options.train = a.flags.options();
-    if (a.options.initGaussians > a.options.train.maxGaussians)
-        throw UsageError(msg("--init-gaussians ", a.options.initGaussians, " is more than --max-gaussians ",
-                             a.options.train.maxGaussians, " (the most Gaussians training holds); lower it or raise --max-gaussians"));
+    checkStartWithinCap("--init-gaussians", a.options.initGaussians, a.options.train.maxGaussians);
     a.options.views.width = a.options.views.height = a.size;
     Dataset data;
     const TrainOutcome out = fromMesh(a.mesh, a.options, data);

@@ -35,10 +35,7 @@ void run(const TrainArgs& a)
     outputs.checkTarget(a.output);
     if (!a.flags.report.empty()) outputs.checkTarget(a.flags.report);
     const TrainOptions options = a.flags.options();
-    // --random-points 3e8 filled the machine before the first step; densification stops at the cap.
-    if (a.init.empty() && a.randomCount > options.maxGaussians)
-        throw UsageError(msg("--random-points ", a.randomCount, " is more than --max-gaussians ", options.maxGaussians,
-                             " (the most Gaussians training holds); lower it or raise --max-gaussians"));
+    if (a.init.empty()) checkStartWithinCap("--random-points", a.randomCount, options.maxGaussians);
     DatasetOptions dataset = a.dataset;
     dataset.background = options.background;
     const Dataset data = readDataset(a.data, dataset);

@@ -9,6 +9,15 @@
 
 namespace splatwarp::cli {
 
+/// @brief A start of `count` Gaussians (the value of `flag`) must fit the cap densification keeps:
+///        --random-points 3e8 filled the machine before the first step. @throws UsageError
+inline void checkStartWithinCap(const char* flag, std::size_t count, std::size_t maxGaussians)
+{
+    if (count > maxGaussians)
+        throw UsageError(msg(flag, " ", count, " is more than --max-gaussians ", maxGaussians,
+                             " (the most Gaussians training holds); lower it or raise --max-gaussians"));
+}
+
 struct TrainFlags {
     int iterations = 30000;
     int shDegree = 3;

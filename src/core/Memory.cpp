@@ -1,5 +1,6 @@
 #include "core/Memory.h"
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
@@ -55,6 +56,14 @@ std::size_t residentMemoryBytes()
     std::fclose(f);
     const long pageSize = ::sysconf(_SC_PAGE_SIZE);
     return read == 2 && pageSize > 0 ? std::size_t(resident) * std::size_t(pageSize) : 0;
+}
+
+MemoryRoom memoryRoom(std::size_t budget) { return {double(budget), double(residentMemoryBytes())}; }
+
+std::string MemoryRoom::text() const
+{
+    return "the " + formatBytes(std::max(0.0, left())) + " that --max-memory " + formatBytes(budget) + " leaves beside the " +
+           formatBytes(used) + " this process holds";
 }
 
 std::size_t parseByteSize(const std::string& text, const std::string& flag)

@@ -22,6 +22,17 @@ std::size_t defaultMemoryBudget();
 /// @brief Resident memory of this process now, in bytes (0 when unknown: not Linux).
 std::size_t residentMemoryBytes();
 
+/// @brief What a --max-memory budget leaves beside what this process holds, read once
+///        (memoryRoom()), for estimates made before an allocation.
+struct MemoryRoom {
+    double budget = 0, used = 0;
+    /// Bytes left; negative when the process already holds more than the budget.
+    double left() const { return budget - used; }
+    /// "the 2 GiB that --max-memory 8 GiB leaves beside the 6 GiB this process holds"
+    std::string text() const;
+};
+MemoryRoom memoryRoom(std::size_t budget);
+
 /// @brief "8G", "512M", "1.5T", "64K" or plain bytes -> bytes (binary units).
 /// @throws UsageError for anything else (named as `flag` in the message).
 std::size_t parseByteSize(const std::string& text, const std::string& flag);

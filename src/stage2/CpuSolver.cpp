@@ -99,10 +99,8 @@ private:
     };
     PairRoom pairRoom(double bytesEach) const
     {
-        const double used = double(residentMemoryBytes()), budget = double(mOptions.maxMemoryBytes);
-        return {coveragePairLimit(mOptions.maxMemoryBytes, used, bytesEach),
-                msg("the ", formatBytes(std::max(0.0, budget - used)), " that --max-memory ", formatBytes(budget),
-                    " leaves beside the ", formatBytes(used), " this process holds")};
+        const MemoryRoom room = memoryRoom(mOptions.maxMemoryBytes);
+        return {coveragePairLimit(mOptions.maxMemoryBytes, room.used, bytesEach), room.text()};
     }
     /// The most memory a coverage pair takes: its lists, its chunk mask and slot, and a row of
     /// partial sums where it counts (every pair of a model of giants does).
