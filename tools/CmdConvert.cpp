@@ -68,12 +68,15 @@ const CommandRegistrar reg(21, [](CLI::App& app) {
     sub->add_flag("--points", args->points, "Write a .vdb output as an OpenVDB point grid (Houdini GSplat attributes)");
     sub->add_option("--spz-version", args->spzVersion, "Version of a .spz output: 3 (gzip, default) or 4 (zstd)")
         ->check(CLI::IsMember({3, 4}));
-    sub->add_option("--sog-seed", args->sog.seed, "SOG output: seed of the SH palette's k-means (same seed, same bytes)");
+    sub->add_option("--sog-seed", args->sog.seed, "SOG output: seed of the SH palette's k-means (same seed, same bytes)")
+        ->capture_default_str();
     sub->add_option("--sog-iterations", args->sog.iterations, "SOG output: k-means iterations of the SH palette")
-        ->check(CLI::Range(1, 1000));
+        ->check(CLI::Range(1, 1000))
+        ->capture_default_str();
     sub->add_option("--sog-palette", args->sog.maxPalette,
                     "SOG output: most SH palette entries (splat-transform: up to 65536; time grows with it)")
-        ->check(CLI::Range(1, 65536));
+        ->check(CLI::Range(1, 65536))
+        ->capture_default_str();
     addDropInvalidFlag(sub, args->dropInvalid);
     sub->add_flag("--drop-outliers", args->dropOutliers,
                   "Drop the outliers `info` warns of: Gaussians whose centre lies outside the box of the central 98% "

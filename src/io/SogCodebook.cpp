@@ -1,10 +1,6 @@
-/// The codebooks of SOG: a 256-entry scalar codebook (log scales, f_dc, the SH palette's values)
-/// and the k-means palette of higher SH. splat-transform quantises scalars with a histogram
-/// dynamic programme and clusters SH with randomly seeded k-means; ours are plain Lloyd
-/// iterations, deterministic (the scalar one needs no seed, the palette one takes it).
-#include <tbb/blocked_range.h>
-#include <tbb/parallel_for.h>
-
+/// The scalar codebook of SOG: 256 entries for log scales, f_dc and the SH palette's values.
+/// splat-transform quantises scalars with a histogram dynamic programme; ours is plain Lloyd
+/// iterations over the sorted values, deterministic without a seed. The SH palette: SogKmeans.cpp.
 #include <algorithm>
 #include <cmath>
 #include <limits>
@@ -18,19 +14,6 @@ namespace {
 
 constexpr int kCodebookSize = 256;
 constexpr int kScalarIterations = 64;
-
-// splitmix64: a portable generator (std distributions differ between standard libraries).
-struct SplitMix {
-    std::uint64_t state;
-    std::uint64_t next()
-    {
-        std::uint64_t z = (state += 0x9e3779b97f4a7c15ull);
-        z = (z ^ (z >> 30)) * 0xbf58476d1ce4e5b9ull;
-        z = (z ^ (z >> 27)) * 0x94d049bb133111ebull;
-        return z ^ (z >> 31);
-    }
-    std::size_t below(std::size_t n) { return std::size_t(next() % n); }
-};
 
 // Lloyd on sorted values: each entry owns the values between the midpoints to its neighbours, so
 // an iteration is a binary search per boundary and a mean from prefix sums.
@@ -103,67 +86,6 @@ std::size_t paletteSize(std::size_t n, std::size_t cap)
     std::size_t k = 1;
     while (k * 2 <= std::min<std::size_t>(n, 64 * 1024)) k *= 2;
     return std::max<std::size_t>(1, std::min(k, cap));
-}
-
-namespace {
-
-void assignNearest(const std::vector<float>& points, std::size_t n, std::size_t d, Palette& p)
-{
-    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n, 256), [&](const tbb::blocked_range<std::size_t>& r) {
-        for (std::size_t i = r.begin(); i < r.end(); ++i) {
-            const float* x = &points[i * d];
-            float best = std::numeric_limits<float>::infinity();
-            for (std::size_t c = 0; c < p.count; ++c) {
-                const float* y = &p.centroids[c * d];
-                float s = 0;
-                for (std::size_t j = 0; j < d && s < best; ++j) s += (x[j] - y[j]) * (x[j] - y[j]);
-                if (s < best) best = s, p.labels[i] = std::uint32_t(c);
-            }
-        }
-    });
-}
-
-// Centroids to the means of their points, in a fixed order (the same sums on any thread count).
-void updateCentroids(const std::vector<float>& points, std::size_t n, std::size_t d, Palette& p, SplitMix& rng)
-{
-    std::vector<double> sums(p.count * d, 0.0);
-    std::vector<std::size_t> counts(p.count, 0);
-    for (std::size_t i = 0; i < n; ++i) {
-        ++counts[p.labels[i]];
-        for (std::size_t j = 0; j < d; ++j) sums[p.labels[i] * d + j] += points[i * d + j];
-    }
-    for (std::size_t c = 0; c < p.count; ++c) {
-        if (counts[c] == 0) { // an empty cluster restarts at a point
-            std::copy_n(&points[rng.below(n) * d], d, &p.centroids[c * d]);
-            continue;
-        }
-        for (std::size_t j = 0; j < d; ++j) p.centroids[c * d + j] = float(sums[c * d + j] / double(counts[c]));
-    }
-}
-
-} // namespace
-
-Palette kmeans(const std::vector<float>& points, std::size_t n, int dims, std::size_t k, int iterations,
-               std::uint64_t seed)
-{
-    const std::size_t d = std::size_t(dims);
-    Palette p;
-    p.count = std::max<std::size_t>(1, std::min(k, n));
-    p.centroids.resize(p.count * d);
-    SplitMix rng{seed};
-    std::vector<std::size_t> pick(n);
-    std::iota(pick.begin(), pick.end(), std::size_t(0));
-    for (std::size_t i = 0; i < p.count; ++i) { // partial Fisher-Yates: distinct starting points
-        std::swap(pick[i], pick[i + rng.below(n - i)]);
-        std::copy_n(&points[pick[i] * d], d, &p.centroids[i * d]);
-    }
-    p.labels.assign(n, 0);
-    assignNearest(points, n, d, p);
-    for (int it = 0; it < iterations; ++it) {
-        updateCentroids(points, n, d, p, rng);
-        assignNearest(points, n, d, p); // labels always name their nearest final centroid
-    }
-    return p;
 }
 
 std::pair<int, int> imageSize(std::size_t n)

@@ -12,6 +12,7 @@
 
 #include "core/AtomicFile.h"
 #include "core/Error.h"
+#include "core/Progress.h"
 #include "io/FormatReaders.h"
 #include "io/SogFormat.h"
 #include "io/SogIO.h"
@@ -104,8 +105,11 @@ json packShN(const GaussianCloud& g, const std::vector<std::size_t>& order, cons
         for (int c = 0; c < 3; ++c)
             for (int j = 0; j < coeffs; ++j)
                 points[t * std::size_t(dims) + std::size_t(c * coeffs + j)] = g.shOf(order[t])[3 * (j + 1) + c];
-    const sog::Palette p = sog::kmeans(points, order.size(), dims, sog::paletteSize(order.size(), options.maxPalette),
-                                       options.iterations, options.seed);
+    const std::size_t entries = sog::paletteSize(order.size(), options.maxPalette);
+    if (order.size() >= 100000) // seconds to minutes
+        progress(msg("SOG: clustering the SH of ", order.size(), " Gaussians into ", entries, " palette entries (",
+                     options.iterations, " k-means rounds)"));
+    const sog::Palette p = sog::kmeans(points, order.size(), dims, entries, options.iterations, options.seed);
     const sog::Codebook book = sog::quantize256(p.centroids);
     const int rows = int((p.count + sog::kPaletteRow - 1) / sog::kPaletteRow);
     centroids = blank({}, sog::kPaletteRow * coeffs, rows);

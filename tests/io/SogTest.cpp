@@ -9,6 +9,8 @@
 #include <filesystem>
 #include <fstream>
 #include <functional>
+#include <limits>
+#include <random>
 #include <set>
 
 #include "PlyTestFiles.h"
@@ -161,6 +163,55 @@ TEST(SogTest, SameInputAndSeedGiveSameBytes)
     const std::string first = encodeSog("m.sog", src, a);
     EXPECT_EQ(first, encodeSog("m.sog", src, a));
     EXPECT_NE(first, encodeSog("m.sog", src, b)); // the seed does reach the palette
+}
+
+// The palette's labels are what a scan over every centroid gives (the lowest index of the least
+// float sum of squares, summed in dimension order): the ranking by matrix product only narrows
+// the scan. Ties (repeated points, so repeated centroids), points between two centroids, data far
+// from the origin (large |x| against small distances), more centroids than a block of points, and
+// every point a centroid (the midpoints, moved by a few float steps, then lie between two of them).
+TEST(SogTest, PaletteLabelsAreTheScansNearestCentroid)
+{
+    std::mt19937 rng(11);
+    std::normal_distribution<float> noise(0.0f, 1.0f);
+    struct Case {
+        std::size_t n, k;
+        int dims;
+        float offset, spread;
+    };
+    for (const Case& c : {Case{3000, 256, 9, 0.0f, 1.0f}, Case{2000, 4096, 24, 0.0f, 0.05f},
+                          Case{2500, 512, 45, 1000.0f, 0.01f}, Case{1500, 64, 3, -5.0f, 1e-6f}, Case{800, 800, 9, 0.0f, 1.0f},
+                          Case{800, 800, 24, 3.0f, 0.001f}}) {
+        std::vector<float> points(c.n * std::size_t(c.dims));
+        for (float& v : points) v = c.offset + c.spread * noise(rng);
+        for (std::size_t i = c.n / 2; i < c.n; i += 3) // repeats, and midpoints of two points
+            for (int j = 0; j < c.dims; ++j) {
+                const std::size_t a = (i * 7) % (c.n / 2), b = (i * 13 + 1) % (c.n / 2);
+                points[i * std::size_t(c.dims) + std::size_t(j)] = i % 2 ? points[a * std::size_t(c.dims) + std::size_t(j)]
+                    : 0.5f * (points[a * std::size_t(c.dims) + std::size_t(j)] + points[b * std::size_t(c.dims) + std::size_t(j)]) +
+                        1e-7f * c.spread * noise(rng);
+            }
+        for (int iterations : {0, 2, 8}) { // later rounds spare up to 70% of the points here
+            const sog::Palette p = sog::kmeans(points, c.n, c.dims, c.k, iterations, 5);
+            std::size_t wrong = 0;
+            for (std::size_t i = 0; i < c.n; ++i) {
+                const float* x = &points[i * std::size_t(c.dims)];
+                float best = std::numeric_limits<float>::infinity();
+                std::uint32_t label = 0;
+                for (std::size_t k = 0; k < p.count; ++k) {
+                    float s = 0;
+                    for (int j = 0; j < c.dims; ++j) {
+                        const float diff = x[j] - p.centroids[k * std::size_t(c.dims) + std::size_t(j)];
+                        s += diff * diff;
+                    }
+                    if (s < best) best = s, label = std::uint32_t(k);
+                }
+                wrong += p.labels[i] != label;
+            }
+            EXPECT_EQ(wrong, 0u) << c.n << " points of " << c.dims << " dims, " << c.k << " centroids, offset "
+                                 << c.offset << ", " << iterations << " iterations";
+        }
+    }
 }
 
 TEST(SogTest, FolderFormReadsAsTheBundle)
