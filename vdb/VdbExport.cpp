@@ -8,6 +8,7 @@
 #include <tbb/parallel_reduce.h>
 
 #include "vdb/SampleGridImpl.h"
+#include "vdb/VdbLayout.h"
 #include "vdb/VdbLibrary.h"
 #include "core/AtomicFile.h"
 #include "core/Error.h"
@@ -123,6 +124,7 @@ void writeCheckedVdb(const std::string& path, const std::string& temp, const ope
     }
     os.close();
     if (!os) throw IoError(msg(path, ": write failed (disk full or file size limit?)"));
+    settleVdbFileUuid(temp);
 }
 
 } // namespace

@@ -1,9 +1,12 @@
 #include "vdb/VdbLayout.h"
 
+#include <cctype>
+#include <cstdio>
 #include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <system_error>
+#include <vector>
 
 #include "core/Error.h"
 
@@ -172,6 +175,103 @@ void checkVdbFileLayout(const std::string& path)
     std::ifstream in(path, std::ios::binary);
     if (ec || !in) throw IoError(msg(path, ": cannot open"));
     checkVdbLayout(in, std::uint64_t(size), path);
+}
+
+namespace {
+
+constexpr std::size_t kUuidAt = 8 + 4 + 8 + 1; ///< after magic, format, library version, offsets flag
+constexpr std::size_t kUuidSize = 36;
+
+bool holdsUuid(const char* header, std::size_t size)
+{
+    std::int64_t magic = 0;
+    if (size < kUuidAt + kUuidSize) return false;
+    std::memcpy(&magic, header, sizeof magic);
+    if (magic != kVdbMagic) return false;
+    for (std::size_t i = 0; i < kUuidSize; ++i) {
+        const char c = header[kUuidAt + i];
+        const bool dash = i == 8 || i == 13 || i == 18 || i == 23;
+        if (dash ? c != '-' : !std::isxdigit(static_cast<unsigned char>(c))) return false;
+    }
+    return true;
+}
+
+// Two 64-bit lanes over 8-byte words (a tail zero-padded), each word mixed by multiplication: a
+// tag, not a defence against forgery.
+class TagHash {
+public:
+    void add(const char* data, std::size_t n)
+    {
+        std::size_t i = 0;
+        for (; mFill == 0 && i + 8 <= n; i += 8) { // whole words (little-endian, as OpenVDB's files)
+            std::memcpy(&mWord, data + i, 8);
+            flush();
+        }
+        for (; i < n; ++i) {
+            mWord |= std::uint64_t(static_cast<unsigned char>(data[i])) << (8 * mFill);
+            if (++mFill == 8) flush();
+        }
+        mLength += n;
+    }
+    std::string uuid()
+    {
+        if (mFill) flush();
+        const std::uint64_t a = mix(mA ^ mLength), b = mix(mB + mLength);
+        char text[kUuidSize + 1];
+        std::snprintf(text, sizeof text, "%08x-%04x-8%03x-%04x-%012llx", unsigned(a >> 32), unsigned((a >> 16) & 0xffff),
+                      unsigned(a & 0xfff), unsigned(0x8000 | ((b >> 48) & 0x3fff)),
+                      static_cast<unsigned long long>(b & 0xffffffffffffull));
+        return text;
+    }
+
+private:
+    static std::uint64_t mix(std::uint64_t z)
+    {
+        z = (z ^ (z >> 30)) * 0xbf58476d1ce4e5b9ull;
+        z = (z ^ (z >> 27)) * 0x94d049bb133111ebull;
+        return z ^ (z >> 31);
+    }
+    void flush()
+    {
+        mA = (mA ^ mWord) * 0x100000001b3ull;
+        mB = ((mB ^ mWord) * 0x9e3779b97f4a7c15ull);
+        mB = (mB << 29) | (mB >> 35);
+        mWord = 0;
+        mFill = 0;
+    }
+    std::uint64_t mA = 0xcbf29ce484222325ull, mB = 0x84222325cbf29ce4ull, mWord = 0, mLength = 0;
+    int mFill = 0;
+};
+
+} // namespace
+
+void settleVdbUuid(std::string& bytes)
+{
+    if (!holdsUuid(bytes.data(), bytes.size())) return;
+    TagHash hash;
+    hash.add(bytes.data(), kUuidAt);
+    hash.add(bytes.data() + kUuidAt + kUuidSize, bytes.size() - kUuidAt - kUuidSize);
+    bytes.replace(kUuidAt, kUuidSize, hash.uuid());
+}
+
+void settleVdbFileUuid(const std::string& path)
+{
+    std::fstream file(path, std::ios::binary | std::ios::in | std::ios::out);
+    if (!file) throw IoError(msg(path, ": cannot open to settle its UUID"));
+    std::vector<char> chunk(std::size_t(1) << 20);
+    file.read(chunk.data(), std::streamsize(kUuidAt + kUuidSize));
+    const std::size_t head = std::size_t(file.gcount());
+    if (!holdsUuid(chunk.data(), head)) return;
+    TagHash hash;
+    hash.add(chunk.data(), kUuidAt);
+    while (file.read(chunk.data(), std::streamsize(chunk.size())) || file.gcount() > 0)
+        hash.add(chunk.data(), std::size_t(file.gcount()));
+    file.clear();
+    const std::string uuid = hash.uuid();
+    file.seekp(std::streamoff(kUuidAt));
+    file.write(uuid.data(), std::streamsize(uuid.size()));
+    file.close();
+    if (!file) throw IoError(msg(path, ": cannot rewrite its header (disk full?)"));
 }
 
 } // namespace splatwarp

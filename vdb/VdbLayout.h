@@ -23,4 +23,16 @@ void checkVdbLayout(std::istream& in, std::uint64_t size, const std::string& nam
 /// @throws IoError when it cannot be opened, InputError as checkVdbLayout()
 void checkVdbFileLayout(const std::string& path);
 
+/// @brief Replace the random UUID OpenVDB writes into a file's header (a fresh one each write, so
+///        the same grids never gave the same bytes) with one derived from the rest of the file: 128
+///        bits of a word-wise hash, as an RFC 9562 version-8 UUID. Equal files get equal tags, and
+///        different files different ones (OpenVDB's delayed loading and Houdini tell files apart
+///        by it). Bytes that do not start with a VDB header and a 36-character UUID are left as
+///        they are.
+void settleVdbUuid(std::string& bytes);
+
+/// @brief settleVdbUuid() of a file written in place (read once; the header rewritten).
+/// @throws IoError when the file cannot be read or rewritten
+void settleVdbFileUuid(const std::string& path);
+
 } // namespace splatwarp

@@ -198,7 +198,9 @@ void writeVdbPoints(const std::string& path, const GaussianCloud& g)
     } catch (const openvdb::Exception& e) {
         throw IoError(msg(path, ": cannot write the point grid: ", e.what()));
     }
-    writeFileAtomic(path, os.str());
+    std::string bytes = os.str();
+    settleVdbUuid(bytes);
+    writeFileAtomic(path, bytes);
 }
 
 GaussianCloud readVdbPoints(const std::string& name, const std::string& data, ReadReport& report)

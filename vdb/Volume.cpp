@@ -464,6 +464,7 @@ void writeDenseGrids(const std::string& path, const std::vector<DenseGrid>& grid
     } catch (const openvdb::Exception& e) {
         throw IoError(msg(path, ": cannot write the VDB file: ", e.what()));
     }
+    settleVdbFileUuid(file.tempPath());
     file.commit();
 }
 

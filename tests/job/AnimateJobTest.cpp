@@ -82,7 +82,8 @@ TEST(AnimateJob, FrameEqualsDeformWithItsSpecAndShardsEqualTheWholeRun)
     const std::string deformed = readBytes(fx.dir.file("d1/deformed.ply"));
     ASSERT_FALSE(deformed.empty());
     EXPECT_TRUE(fx.frame("whole", 1) == deformed) << "frame 1 differs from deform with its spec";
-    // .vdb files carry a random UUID (never byte-equal); the sequence naming is what matters.
+    // A .vdb names the model it samples in its metadata ("source"), so frames and deform's field
+    // differ there; a rerun's are the same bytes (VdbExport.CliToVdbAndExternalTools).
     EXPECT_GT(fs::file_size(fx.dir.file("whole/vdb/field.0001.vdb")), 1000u);
     EXPECT_FALSE(fx.frame("whole", 0) == fx.frame("whole", 2));
 

@@ -113,4 +113,37 @@ TEST(VdbLayout, ForgedLengthsAndOffsetsAreRefusedBeforeAnyAllocation)
 }
 
 } // namespace
+// OpenVDB writes a fresh random UUID each time; settled, the same grids give the same bytes and
+// the file still reads. The tag follows the content (another file, another tag), sits where
+// OpenVDB reads it (vdb_print's "uuid"), and bytes without a VDB header are left alone.
+TEST(VdbLayout, TheUuidFollowsTheContent)
+{
+    test::TempDir a, b;
+    std::string first = smallVolume(a), second = smallVolume(b);
+    ASSERT_NE(first, second) << "OpenVDB wrote the same UUID twice: this test no longer tests anything";
+    settleVdbUuid(first);
+    settleVdbUuid(second);
+    EXPECT_EQ(first, second);
+
+    settleVdbFileUuid(a.file("v.vdb"));
+    EXPECT_EQ(test::fileBytes(a.file("v.vdb")), first);
+    openvdb::io::File file(a.file("v.vdb"));
+    file.open();
+    const std::string uuid = file.getUniqueTag();
+    EXPECT_EQ(uuid, first.substr(21, 36));
+    EXPECT_EQ(uuid[14], '8'); // RFC 9562 version 8 (custom)
+    EXPECT_EQ(layoutError(first), "");
+    EXPECT_EQ(file.readGrid("density")->activeVoxelCount(), 20u);
+    file.close();
+
+    std::string other = first;
+    other[other.size() - 1] ^= 1;
+    settleVdbUuid(other);
+    EXPECT_NE(other.substr(21, 36), uuid);
+
+    std::string notVdb(100, 'x');
+    settleVdbUuid(notVdb);
+    EXPECT_EQ(notVdb, std::string(100, 'x'));
+}
+
 } // namespace splatwarp

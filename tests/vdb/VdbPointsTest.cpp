@@ -41,6 +41,8 @@ TEST(VdbPoints, RoundTripKeepsOrderAndValues)
     const GaussianCloud src = readGaussians(fixture("random200-sh3.ply"));
     const std::string path = dir.file("m.vdb");
     writeGaussians(path, src);
+    writeGaussians(dir.file("again.vdb"), src);
+    EXPECT_TRUE(fileBytes(path) == fileBytes(dir.file("again.vdb"))); // the UUID follows the content
     ReadReport report;
     const GaussianCloud back = readGaussians(path, {}, &report);
     EXPECT_EQ(report.format, "vdb-points");
