@@ -8,8 +8,12 @@
 #if defined(__GNUC__) && !defined(__clang__) && defined(__x86_64__) && !defined(__CUDACC__) && \
     !defined(SPLATWARP_NO_SIMD_CLONES)
 #define SPLATWARP_SIMD_CLONES __attribute__((target_clones("avx2", "default")))
+/// Also AVX-512 (which brings FMA): only for loops whose rounding may differ between machines,
+/// such as a ranking that an exact comparison settles afterwards.
+#define SPLATWARP_SIMD_CLONES_ANY_ROUNDING __attribute__((target_clones("avx512f", "avx2", "default")))
 #else
 #define SPLATWARP_SIMD_CLONES
+#define SPLATWARP_SIMD_CLONES_ANY_ROUNDING
 #endif
 
 namespace splatwarp {

@@ -89,7 +89,7 @@ SPLATWARP_SIMD_CLONES float leastOf(const float* values, std::size_t n)
 // readable) and the centroids of ct (tiles of 16 centroids, each d rows of their 16 coordinates j
 // side by side, read in order; kPad a multiple of 16). Four points and sixteen centroids at a
 // time, their sums in registers. Only the ranking uses it: its rounding may differ by clone.
-__attribute__((target_clones("avx512f", "avx2", "default"))) void blockDots(
+SPLATWARP_SIMD_CLONES_ANY_ROUNDING void blockDots(
     const float* __restrict x, std::size_t m, std::size_t d, const float* __restrict ct, std::size_t kPad,
     float* __restrict dots)
 {
