@@ -168,13 +168,15 @@ std::string readWholeFile(const std::string& path, const std::string& what)
     return ss.str();
 }
 
-void writeFileAtomic(const std::string& path, const std::string& contents)
+void writeFileAtomic(const std::string& path, const std::string& contents) { writeFileAtomic(path, {std::string_view(contents)}); }
+
+void writeFileAtomic(const std::string& path, std::initializer_list<std::string_view> pieces)
 {
     AtomicFile file(path);
     {
         std::ofstream out(file.tempPath(), std::ios::binary);
         if (!out) throw IoError(msg(path, ": cannot open for writing: ", std::strerror(errno)));
-        out << contents;
+        for (const std::string_view piece : pieces) out.write(piece.data(), std::streamsize(piece.size()));
         out.close();
         if (!out) throw IoError(msg(path, ": write failed (disk full or file size limit?)"));
     }

@@ -2,7 +2,9 @@
 /// @file AtomicFile.h
 /// @brief Write-to-temporary-then-rename, so a failed job never leaves a half-written output, and
 ///        OutputSet, so a command's outputs appear together or not at all.
+#include <initializer_list>
 #include <string>
+#include <string_view>
 #include <unordered_map>
 #include <vector>
 
@@ -40,6 +42,8 @@ std::string readWholeFile(const std::string& path, const std::string& what = "fi
 
 /// @brief Write a whole string atomically (reports, JSON); checks flush and close.
 void writeFileAtomic(const std::string& path, const std::string& contents);
+/// @brief writeFileAtomic() of pieces written one after another (no concatenated copy).
+void writeFileAtomic(const std::string& path, std::initializer_list<std::string_view> pieces);
 
 /// @brief Throws IoError when path must not be replaced by a regular file (see AtomicFile).
 void checkOutputPath(const std::string& path);

@@ -66,21 +66,41 @@ json positionBounds(const GaussianCloud& g, const char* which)
     return json{b.x, b.y, b.z};
 }
 
-std::string container(const json& doc, std::string bin)
+// The file before its BIN chunk's data (header, JSON chunk, BIN chunk header) and that data: a
+// write streams the two, so the buffer is not copied behind a header.
+struct GlbBytes {
+    std::string head, bin;
+};
+
+GlbBytes container(const json& doc, std::string bin)
 {
     std::string text = doc.dump();
     text.append((4 - text.size() % 4) % 4, ' ');
     bin.append((4 - bin.size() % 4) % 4, '\0');
-    std::string out = "glTF";
-    putLe32(out, 2);
-    putLe32(out, std::uint32_t(12 + 8 + text.size() + 8 + bin.size()));
-    putLe32(out, std::uint32_t(text.size()));
-    putLe32(out, 0x4E4F534A);
-    out += text;
-    putLe32(out, std::uint32_t(bin.size()));
-    putLe32(out, 0x004E4942);
-    out += bin;
-    return out;
+    std::string head = "glTF";
+    putLe32(head, 2);
+    putLe32(head, std::uint32_t(12 + 8 + text.size() + 8 + bin.size()));
+    putLe32(head, std::uint32_t(text.size()));
+    putLe32(head, 0x4E4F534A);
+    head += text;
+    putLe32(head, std::uint32_t(bin.size()));
+    putLe32(head, 0x004E4942);
+    return {std::move(head), std::move(bin)};
+}
+
+// The cloud without its higher SH (those are turned as they are copied): glTF's axes for a tenth
+// of the copy.
+GaussianCloud turnedFrame(const GaussianCloud& ply)
+{
+    GaussianCloud g;
+    g.means = ply.means;
+    g.rotations = ply.rotations;
+    g.logScales = ply.logScales;
+    g.opacities = ply.opacities;
+    g.sh.resize(3 * ply.size());
+    for (std::size_t i = 0; i < ply.size(); ++i) std::memcpy(&g.sh[3 * i], ply.shOf(i), 3 * sizeof(float));
+    turnAboutZ(g);
+    return g;
 }
 
 } // namespace
@@ -101,18 +121,20 @@ void turnAboutZ(GaussianCloud& g)
     }
 }
 
-std::string encodeGlb(const std::string& path, const GaussianCloud& ply)
+namespace {
+
+GlbBytes glbBytes(const std::string& path, const GaussianCloud& ply)
 {
     ply.checkConsistent();
     checkFiniteForWriting(path, ply);
-    GaussianCloud g = ply;
-    turnAboutZ(g);
-    if (g.empty()) throw InputError(msg(path, ": refusing to write a .glb without Gaussians"));
-    const std::size_t perGaussian = 4 * (3 + 4 + 3 + 1 + 3 * std::size_t(g.shCoeffs()));
+    if (ply.empty()) throw InputError(msg(path, ": refusing to write a .glb without Gaussians"));
+    const GaussianCloud g = turnedFrame(ply);
+    const std::size_t perGaussian = 4 * (3 + 4 + 3 + 1 + 3 * std::size_t(ply.shCoeffs()));
     if (g.size() > (0xffffffffu - 4096u) / perGaussian)
         throw InputError(msg(path, ": ", g.size(), " Gaussians exceed the 4 GiB a .glb can hold"));
     GlbBuilder b;
     b.n = g.size();
+    b.bin.reserve(perGaussian * g.size() + 4); // grown by doubling, the old and new buffers overlapped
     b.doc = {{"asset", {{"version", "2.0"}, {"generator", "splatwarp"}}},
              {"extensionsUsed", {"KHR_gaussian_splatting"}},
              {"scene", 0}, {"scenes", {{{"nodes", {0}}}}}, {"nodes", {{{"mesh", 0}}}},
@@ -129,19 +151,33 @@ std::string encodeGlb(const std::string& path, const GaussianCloud& ply)
     attrs[k + "OPACITY"] = b.add(column(g, 1, [](const GaussianCloud& c, std::size_t i, int) {
         return float(sigmoid(double(c.opacities[i])));
     }), 1);
-    for (int l = 0, j = 0; l <= g.shDegree; ++l)
+    for (int l = 0, j = 0; l <= ply.shDegree; ++l)
         for (int m = 0; m < 2 * l + 1; ++m, ++j) {
-            std::vector<float> v(3 * g.size());
-            for (std::size_t i = 0; i < g.size(); ++i) std::memcpy(&v[3 * i], g.shOf(i) + 3 * j, 3 * sizeof(float));
+            const float sign = j % 2 ? -1.0f : 1.0f; // turnAboutZ()'s (-1)^j
+            std::vector<float> v(3 * ply.size());
+            for (std::size_t i = 0; i < ply.size(); ++i)
+                for (int c = 0; c < 3; ++c) v[3 * i + std::size_t(c)] = sign * ply.shOf(i)[3 * j + c];
             attrs[msg(k, "SH_DEGREE_", l, "_COEF_", m)] = b.add(v, 3);
         }
     b.doc["buffers"] = {{{"byteLength", b.bin.size()}}};
     b.doc["meshes"] = {{{"primitives", {{{"attributes", attrs}, {"mode", 0},
         {"extensions", {{"KHR_gaussian_splatting", {{"kernel", "ellipse"}, {"colorSpace", "srgb_rec709_display"},
                                                     {"projection", "perspective"}, {"sortingMethod", "cameraDistance"}}}}}}}}}};
-    return container(b.doc, b.bin);
+    return container(b.doc, std::move(b.bin));
 }
 
-void writeGlb(const std::string& path, const GaussianCloud& g) { writeFileAtomic(path, encodeGlb(path, g)); }
+} // namespace
+
+std::string encodeGlb(const std::string& path, const GaussianCloud& ply)
+{
+    const GlbBytes bytes = glbBytes(path, ply);
+    return bytes.head + bytes.bin;
+}
+
+void writeGlb(const std::string& path, const GaussianCloud& g)
+{
+    const GlbBytes bytes = glbBytes(path, g);
+    writeFileAtomic(path, {bytes.head, bytes.bin});
+}
 
 } // namespace splatwarp

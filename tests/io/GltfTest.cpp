@@ -106,6 +106,9 @@ TEST(Gltf, OwnGlbDecodesToSourceAndCarriesTheExtension)
     const GaussianCloud src = readGaussians(fixture("random200-sh3.ply"));
     const std::string glb = encodeGlb("x.glb", src);
     expectSameModel(src, readGaussiansFromBytes("x.glb", glb));
+    TempDir dir; // the file is written in two pieces (no concatenated copy): the same bytes
+    writeGaussians(dir.file("x.glb"), src);
+    EXPECT_TRUE(fileBytes(dir.file("x.glb")) == glb);
     const nlohmann::json doc = jsonOf(glb);
     EXPECT_EQ(doc["extensionsUsed"][0], "KHR_gaussian_splatting");
     const auto& prim = doc["meshes"][0]["primitives"][0];
