@@ -7,6 +7,7 @@
 #include <cmath>
 #include <cstring>
 #include <limits>
+#include <string_view>
 
 #include <nlohmann/json.hpp>
 
@@ -63,7 +64,7 @@ double component(const View& v, std::size_t i, int c)
 struct Glb {
     std::string path;
     json doc;
-    std::string bin;
+    std::string_view bin; ///< into the file's bytes, which outlive it (a copy was the file's size again)
 };
 
 Glb parseContainer(const std::string& path, const std::string& data, ReadReport& report)
@@ -87,7 +88,7 @@ Glb parseContainer(const std::string& path, const std::string& data, ReadReport&
             }
             haveJson = true;
         } else if (type == kChunkBin && g.bin.empty()) {
-            g.bin = data.substr(at + 8, size);
+            g.bin = std::string_view(data).substr(at + 8, size);
         }
         at += 8 + size;
     }
@@ -210,10 +211,10 @@ GaussianCloud readPrimitive(const Glb& g, const json& prim, ReadReport& report)
 }
 
 // Appends `part`; primitives of different SH degrees meet at the lower one.
-void appendCloud(GaussianCloud& out, const GaussianCloud& part, ReadReport& report)
+void appendCloud(GaussianCloud& out, GaussianCloud part, ReadReport& report)
 {
     if (out.empty()) {
-        out = part;
+        out = std::move(part);
         return;
     }
     const int d = std::min(out.shDegree, part.shDegree);
@@ -271,7 +272,7 @@ GaussianCloud readGlbDocument(const std::string& path, const std::string& data, 
         if (n == 0) continue;
         primitives += n;
         if (!isIdentity(inst.transform)) applyNodeTransform(path, inst.transform, part);
-        appendCloud(out, part, report);
+        appendCloud(out, std::move(part), report);
     }
     if (primitives == 0) throw InputError(msg(path, ": .glb without KHR_gaussian_splatting primitives"));
     turnAboutZ(out);
