@@ -9,6 +9,7 @@
 #include <vector>
 
 #include "core/Error.h"
+#include "core/Hash.h"
 
 namespace splatwarp {
 
@@ -216,7 +217,7 @@ public:
     std::string uuid()
     {
         if (mFill) flush();
-        const std::uint64_t a = mix(mA ^ mLength), b = mix(mB + mLength);
+        const std::uint64_t a = mix64(mA ^ mLength), b = mix64(mB + mLength);
         char text[kUuidSize + 1];
         std::snprintf(text, sizeof text, "%08x-%04x-8%03x-%04x-%012llx", unsigned(a >> 32), unsigned((a >> 16) & 0xffff),
                       unsigned(a & 0xfff), unsigned(0x8000 | ((b >> 48) & 0x3fff)),
@@ -225,12 +226,6 @@ public:
     }
 
 private:
-    static std::uint64_t mix(std::uint64_t z)
-    {
-        z = (z ^ (z >> 30)) * 0xbf58476d1ce4e5b9ull;
-        z = (z ^ (z >> 27)) * 0x94d049bb133111ebull;
-        return z ^ (z >> 31);
-    }
     void flush()
     {
         mA = (mA ^ mWord) * 0x100000001b3ull;

@@ -16,6 +16,7 @@
 #include <limits>
 #include <numeric>
 
+#include "core/Hash.h"
 #include "core/Simd.h"
 #include "io/SogFormat.h"
 
@@ -29,15 +30,13 @@ constexpr float kInf = std::numeric_limits<float>::infinity();
 // splitmix64: a portable generator (std distributions differ between standard libraries).
 struct SplitMix {
     std::uint64_t state;
-    std::uint64_t next()
-    {
-        std::uint64_t z = (state += 0x9e3779b97f4a7c15ull);
-        z = (z ^ (z >> 30)) * 0xbf58476d1ce4e5b9ull;
-        z = (z ^ (z >> 27)) * 0x94d049bb133111ebull;
-        return z ^ (z >> 31);
-    }
+    std::uint64_t next() { return mix64(state += 0x9e3779b97f4a7c15ull); }
     std::size_t below(std::size_t n) { return std::size_t(next() % n); }
 };
+
+// The slack, in units of (|x| + |c|)^2, that covers the ranking's rounding and the scan's for d
+// dimensions (CentroidTable says why): 4 (d + 8) float epsilons.
+float scanTolerance(std::size_t d) { return 4.0f * float(d + 8) * std::numeric_limits<float>::epsilon() / 2.0f; }
 
 // The scan's distance: a float sum of squares in dimension order, left once it reaches `limit`
 // (the sum only grows, so whether it ends below `limit` is the same).
@@ -139,7 +138,7 @@ SPLATWARP_SIMD_CLONES bool anyBelow(const float* values, std::size_t n, float li
 // (3d + 8) that the bounds of the product, the centring and the sum add up to.
 struct CentroidTable {
     CentroidTable(const std::vector<float>& centroids, std::size_t k, std::size_t d)
-        : raw(centroids.data()), k(k), d(d), tol(4.0f * float(d + 8) * std::numeric_limits<float>::epsilon() / 2.0f)
+        : raw(centroids.data()), k(k), d(d), tol(scanTolerance(d))
     {
         const Eigen::Map<const RowMatrix> c(raw, Eigen::Index(k), Eigen::Index(d));
         mean = c.colwise().mean();
@@ -193,7 +192,7 @@ public:
         double second = 0;
         for (std::size_t c = 0; c < p.count; ++c)
             if (c != far) second = std::max(second, drift[c]);
-        const float tol = 4.0f * float(mD + 8) * std::numeric_limits<float>::epsilon() / 2.0f;
+        const float tol = scanTolerance(mD);
         std::vector<std::uint8_t> open(mN, 0);
         tbb::parallel_for(tbb::blocked_range<std::size_t>(0, mN, 1024), [&](const tbb::blocked_range<std::size_t>& r) {
             for (std::size_t i = r.begin(); i < r.end(); ++i) {
