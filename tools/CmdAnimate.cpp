@@ -4,6 +4,7 @@
 
 #include "job/AnimateJob.h"
 #include "DeformArgs.h"
+#include "ReadArgs.h"
 #include "job/WarmStart.h"
 #include "core/Error.h"
 
@@ -45,7 +46,7 @@ const CommandRegistrar reg(35, [](CLI::App& app) {
     CLI::App* sub = app.add_subcommand(
         "animate", "Animate a 3DGS model with a keyframed deformation spec: one deform per frame on a rest side "
                    "computed once -> DIR/frames/deformed.0000.ply ..., DIR/manifest.json");
-    sub->add_option("input", job.input, "Input model (.ply graphdeco/compressed, .splat)");
+    sub->add_option("input", job.input, "Input model " + kModelFormats);
     sub->add_option("--spec", job.specPath, "Keyframed spec JSON (\"frames\", per handle \"keys\"; see samples/specs/README.md)");
     sub->add_option("-o,--output", job.outDir, "Output directory (created): frames/, vdb/, preview/, manifest.json");
     sub->add_option("--frames", args->frames, "Only frames A-B (inclusive), e.g. 0-11");

@@ -62,7 +62,7 @@ const CommandRegistrar reg(21, [](CLI::App& app) {
         "convert", "Convert a Gaussian model between formats: reads PLY (any layout), compressed PLY, .splat, .spz, "
                    ".glb, .vdb points, SOG (.sog, meta.json folder); writes .ply, .compressed.ply, .splat, .spz, .glb, "
                    ".vdb (--points), .sog (bundle) or meta.json (SOG folder) by the output's name");
-    sub->add_option("input", args->input, "Input Gaussian file (format detected from the content)")->required();
+    sub->add_option("input", args->input, "Input Gaussian file " + kModelFormats)->required();
     sub->add_option("output", args->output, "Output path; its extension picks the format (written atomically)")
         ->required();
     sub->add_flag("--points", args->points, "Write a .vdb output as an OpenVDB point grid (Houdini GSplat attributes)");

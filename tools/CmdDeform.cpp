@@ -3,6 +3,7 @@
 #include <cstdio>
 
 #include "DeformArgs.h"
+#include "ReadArgs.h"
 #include "core/Error.h"
 
 namespace splatwarp::cli {
@@ -14,7 +15,7 @@ const CommandRegistrar reg(30, [](CLI::App& app) {
     CLI::App* sub = app.add_subcommand(
         "deform", "Deform a 3DGS model with a deformation spec: Stage I (embedded deformation) then Stage II "
                   "(fit the Gaussians to the warped radiance field)");
-    sub->add_option("input", job.input, "Input model (.ply graphdeco/compressed, .splat, .spz, .glb, .vdb points; by content)")->required();
+    sub->add_option("input", job.input, "Input model " + kModelFormats)->required();
     sub->add_option("--spec", job.specPath, "Deformation spec JSON (see samples/specs/README.md)")->required();
     sub->add_option("-o,--output", job.outDir, "Output directory (created): baseline.ply, deformed.ply, report.json; all appear together at the end, or none")->required();
     addDeformOptions(sub, *args);

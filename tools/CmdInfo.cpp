@@ -3,6 +3,7 @@
 #include <nlohmann/json.hpp>
 
 #include "Command.h"
+#include "ReadArgs.h"
 #include "core/Error.h"
 #include "io/CloudStats.h"
 #include "io/GaussianIO.h"
@@ -35,7 +36,7 @@ nlohmann::json toJson(const CloudStats& s, const ReadReport& r)
 
 const CommandRegistrar reg(20, [](CLI::App& app) {
     auto args = std::make_shared<InfoArgs>();
-    CLI::App* sub = app.add_subcommand("info", "Print a summary of a Gaussian file (.ply, compressed .ply, .splat, .spz, .glb, .vdb points)");
+    CLI::App* sub = app.add_subcommand("info", "Print a summary of a Gaussian file " + kModelFormats);
     sub->add_option("file", args->input, "Input Gaussian file")->required();
     sub->add_flag("--json", args->json, "Print the summary as JSON on stdout");
     sub->add_flag("--drop-invalid", args->dropInvalid,

@@ -84,7 +84,7 @@ void run(const RenderArgs& a)
 const CommandRegistrar reg(60, [](CLI::App& app) {
     auto args = std::make_shared<RenderArgs>();
     CLI::App* sub = app.add_subcommand("render", "Render a Gaussian model to PNG (the splat colours as they are: display values) or EXR (their linear decode, RGBA) with the splat rasteriser (CPU or CUDA)");
-    sub->add_option("input", args->input, "Input Gaussian file (.ply, compressed .ply, .splat, .spz, .glb, .vdb points)")->required();
+    sub->add_option("input", args->input, "Input Gaussian file " + kModelFormats)->required();
     sub->add_option("-o,--output", args->output,
                     "Output image (.png/.exr) for one view, or a directory receiving view_000.png ... for several")
         ->required();

@@ -28,7 +28,7 @@ const CommandRegistrar reg(40, [](CLI::App& app) {
     auto args = std::make_shared<ToVdbArgs>();
     CLI::App* sub = app.add_subcommand("to-vdb", "Sample a Gaussian model's radiance field into an OpenVDB file "
                                                  "(density fog volume, color, active cells, optional SH grids)");
-    sub->add_option("input", args->input, "Input Gaussians (.ply, .splat, compressed .ply, .spz, .glb, .vdb points)")->required();
+    sub->add_option("input", args->input, "Input Gaussians " + kModelFormats)->required();
     sub->add_option("-o,--output", args->output, "Output .vdb path")->required();
     addGridOptions(sub, args->grid);
     addDropInvalidFlag(sub, args->dropInvalid);

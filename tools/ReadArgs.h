@@ -11,6 +11,10 @@
 
 namespace splatwarp::cli {
 
+/// @brief What every command that reads a model reads (docs/formats.md has the table).
+inline const std::string kModelFormats =
+    "(.ply graphdeco or compressed, .splat, .spz, .sog or its meta.json folder, .glb, .vdb points; detected by content)";
+
 inline void addDropInvalidFlag(CLI::App* sub, bool& dropInvalid)
 {
     sub->add_flag("--drop-invalid", dropInvalid, deformSetting("--drop-invalid").help);

@@ -125,3 +125,15 @@ TEST(CliEdges, DeformHelpListsAtMostTenFlagsAndHelpAllEveryOne)
         EXPECT_NE(fileBytes(dir.file("help.txt")).find("--curve-split-max"), std::string::npos) << cmd;
     }
 }
+
+// Every command that reads a model names every format it reads (one list, tools/ReadArgs.h).
+TEST(CliEdges, CommandsThatReadAModelNameEveryFormat)
+{
+    TempDir dir;
+    for (const char* cmd : {"info", "convert", "render", "to-vdb", "deform", "animate"}) {
+        ASSERT_EQ(runCli(std::string(cmd) + " --help", dir.file("help.txt")), 0) << cmd;
+        const std::string help = fileBytes(dir.file("help.txt"));
+        for (const char* format : {".ply", "compressed", ".splat", ".spz", ".sog", "meta.json", ".glb", ".vdb points"})
+            EXPECT_NE(help.find(format), std::string::npos) << cmd << " --help does not name " << format;
+    }
+}
