@@ -74,7 +74,8 @@ const CommandRegistrar reg(21, [](CLI::App& app) {
         ->check(CLI::Range(1, 1000))
         ->capture_default_str();
     sub->add_option("--sog-palette", args->sog.maxPalette,
-                    "SOG output: most SH palette entries (splat-transform: up to 65536; time grows with it)")
+                    "SOG output: most SH palette entries; the palette is splat-transform's size, the largest power of two "
+                    "<= the Gaussians, up to this (past 4096 entries a Gaussian searches the groups of entries nearest it)")
         ->check(CLI::Range(1, 65536))
         ->capture_default_str();
     addDropInvalidFlag(sub, args->dropInvalid);

@@ -78,7 +78,8 @@ struct Palette {
 };
 /// @brief k-means of n points of `dims` floats ([n, dims]) into at most k centroids, started from k
 ///        distinct points chosen with `seed`; `iterations` Lloyd rounds; the same input and seed
-///        give the same palette on any machine and thread count.
+///        give the same palette on any machine and thread count. Up to 4096 centroids each label is
+///        the nearest centroid; past that, the nearest in the 4 groups of centroids nearest the point.
 Palette kmeans(const std::vector<float>& points, std::size_t n, int dims, std::size_t k, int iterations,
                std::uint64_t seed);
 

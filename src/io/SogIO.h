@@ -17,7 +17,7 @@ namespace splatwarp {
 struct SogOptions {
     int iterations = 10;           ///< k-means rounds (splat-transform's default)
     std::uint64_t seed = 1;        ///< picks the starting centroids: the same seed gives the same bytes
-    std::size_t maxPalette = 4096; ///< cap on splat-transform's palette size (up to 64 K): time grows with it
+    std::size_t maxPalette = 65536; ///< cap on splat-transform's palette size (the largest power of two <= n, up to 64 K)
 };
 
 /// @brief The files of a SOG for a cloud, meta.json last: what the bundle holds and the folder form writes.

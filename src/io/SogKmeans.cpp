@@ -4,7 +4,9 @@
 /// summed in dimension order), so a palette is the same bytes on any machine and thread count.
 /// Two things make that fast without changing a label: a ranking by matrix product narrows the
 /// scan to the centroids it cannot separate from the best, and bounds kept between rounds
-/// (Hamerly's) spare the points whose centroid cannot have changed.
+/// (Hamerly's) spare the points whose centroid cannot have changed. Past 4096 centroids (up to
+/// 65536, splat-transform's size for a million Gaussians) a point searches only the groups of
+/// centroids nearest it (GroupedSearch), by the same scan.
 #include <Eigen/Dense>
 #include <tbb/blocked_range.h>
 #include <tbb/enumerable_thread_specific.h>
@@ -26,6 +28,10 @@ namespace {
 
 using RowMatrix = Eigen::Matrix<float, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
 constexpr float kInf = std::numeric_limits<float>::infinity();
+// Up to this many centroids a label is the nearest of all; past it, the nearest in the kNearGroups
+// groups of centroids nearest the point (GroupedSearch).
+constexpr std::size_t kExactUpTo = 4096;
+constexpr std::size_t kNearGroups = 4;
 
 // splitmix64: a portable generator (std distributions differ between standard libraries).
 struct SplitMix {
@@ -165,6 +171,84 @@ struct CentroidTable {
     std::vector<float> norm, norm2;
 };
 
+// Scans, in index order, the centroids whose lower bound is under the least upper one; keeps
+// `label` when none is nearer than infinity, as the scan does. Returns the winner's scan sum.
+float nearestOf(const CentroidTable& t, const float* x, const std::vector<float>& lo, const std::vector<float>& hi,
+                std::uint32_t& label)
+{
+    constexpr std::size_t kChunk = 64;
+    const float upper = leastOf(hi.data(), t.k);
+    float best = kInf;
+    for (std::size_t c0 = 0; c0 < t.k; c0 += kChunk) {
+        const std::size_t c1 = std::min(t.k, c0 + kChunk);
+        if (!anyBelow(lo.data() + c0, c1 - c0, upper)) continue;
+        for (std::size_t c = c0; c < c1; ++c) {
+            if (!(lo[c] <= upper)) continue;
+            const float d = scanDistance(x, t.raw + c * t.d, t.d, best);
+            if (d < best) best = d, label = std::uint32_t(c);
+        }
+    }
+    return best;
+}
+
+// The q centroids of least scan sum (ties to the lower index), nearest first: at least q have
+// an upper bound under the q-th least one, so the q nearest all have lower bounds under it.
+void nearestFew(const CentroidTable& t, const float* x, const std::vector<float>& lo, const std::vector<float>& hi,
+                std::size_t q, std::vector<std::pair<float, std::uint32_t>>& few, std::uint32_t* out)
+{
+    few.assign(q, {kInf, 0}); // the q least upper bounds, ascending
+    for (std::size_t c = 0; c < t.k; ++c)
+        if (hi[c] < few[q - 1].first) {
+            std::size_t at = q - 1;
+            for (; at > 0 && few[at - 1].first > hi[c]; --at) few[at] = few[at - 1];
+            few[at].first = hi[c];
+        }
+    const float limit = few[q - 1].first;
+    few.clear();
+    for (std::size_t c = 0; c < t.k; ++c)
+        if (lo[c] <= limit) few.emplace_back(scanDistance(x, t.raw + c * t.d, t.d, kInf), std::uint32_t(c));
+    const std::size_t m = std::min(q, few.size()); // fewer only where sums overflow to NaN
+    std::partial_sort(few.begin(), few.begin() + std::ptrdiff_t(m), few.end());
+    for (std::size_t i = 0; i < q; ++i) out[i] = m == 0 ? 0 : few[std::min(i, m - 1)].second; // a repeat is harmless
+}
+
+// Ranks the centroids of `t` for blocks of listed points: visit(position in the list, the point,
+// its squared norm as the ranking centres it, lo, hi) for each, lo and hi bounding each
+// centroid's scan sum less that norm, in the thread's scratch. In parallel.
+struct RankScratch {
+    RowMatrix x, dots;
+    std::vector<float> lo, hi;
+    std::vector<std::pair<float, std::uint32_t>> few;
+};
+template <class Visit>
+void rankEach(const float* points, std::size_t d, const std::vector<std::uint32_t>& index, const CentroidTable& t,
+              const Visit& visit)
+{
+    const std::size_t rows = std::clamp<std::size_t>((std::size_t(1) << 17) / t.k, 8, 256) / 4 * 4; // dots in L2
+    tbb::enumerable_thread_specific<RankScratch> scratch;
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, index.size(), rows), [&](const tbb::blocked_range<std::size_t>& r) {
+        RankScratch& s = scratch.local(); // sized once: fresh pages each block cost more than the product
+        if (s.lo.empty()) {
+            s.x.setZero(Eigen::Index(rows), Eigen::Index(d));
+            s.dots.resize(Eigen::Index(rows), Eigen::Index(t.kPad));
+            s.lo.resize(t.k);
+            s.hi.resize(t.k);
+        }
+        for (std::size_t b = r.begin(); b < r.end(); b += rows) { // the partitioner may hand out more
+            const std::size_t m = std::min(r.end() - b, rows);
+            for (std::size_t i = 0; i < m; ++i)
+                s.x.row(Eigen::Index(i)) = Eigen::Map<const Eigen::RowVectorXf>(points + index[b + i] * d, Eigen::Index(d)) - t.mean;
+            blockDots(s.x.data(), m, d, t.columns.data(), t.kPad, s.dots.data());
+            for (std::size_t i = 0; i < m; ++i) {
+                const double x2 = s.x.row(Eigen::Index(i)).cast<double>().squaredNorm();
+                scoreBounds(s.dots.row(Eigen::Index(i)).data(), t.norm2.data(), t.norm.data(), float(std::sqrt(x2)),
+                            t.tol, t.k, s.lo.data(), s.hi.data());
+                visit(b + i, points + index[b + i] * d, x2, s);
+            }
+        }
+    });
+}
+
 // Every point's label, and bounds on its true distance to its centroid (upper) and to every other
 // centroid (lower). Between rounds the bounds move by the centroids' drift; a point whose upper
 // bound stays below its lower one, by more than the scan's rounding, keeps its label unsearched.
@@ -211,12 +295,6 @@ public:
     }
 
 private:
-    static constexpr std::size_t kChunk = 64;
-    struct Scratch {
-        RowMatrix x, dots;
-        std::vector<float> lo, hi;
-    };
-
     // Every other centroid is farther, also by the scan's sums (each within tol of the truth).
     static bool separated(double upper, double lower, float tol)
     {
@@ -225,65 +303,84 @@ private:
 
     void search(const std::vector<std::uint32_t>& todo, Palette& p)
     {
-        const CentroidTable table(p.centroids, p.count, mD);
-        const std::size_t rows = std::clamp<std::size_t>((std::size_t(1) << 17) / p.count, 8, 256) / 4 * 4; // dots in L2
-        tbb::enumerable_thread_specific<Scratch> scratch;
-        tbb::parallel_for(tbb::blocked_range<std::size_t>(0, todo.size(), rows), [&](const tbb::blocked_range<std::size_t>& r) {
-            Scratch& s = scratch.local(); // sized once: fresh pages each block cost more than the product
-            if (s.lo.empty()) {
-                s.x.setZero(Eigen::Index(rows), Eigen::Index(mD));
-                s.dots.resize(Eigen::Index(rows), Eigen::Index(table.kPad));
-                s.lo.resize(p.count);
-                s.hi.resize(p.count);
-            }
-            for (std::size_t b = r.begin(); b < r.end(); b += rows) // the partitioner may hand out more
-                searchBlock(table, &todo[b], std::min(r.end() - b, rows), s, p.labels.data());
-        });
-    }
-
-    void searchBlock(const CentroidTable& t, const std::uint32_t* index, std::size_t m, Scratch& s,
-                     std::uint32_t* labels)
-    {
-        for (std::size_t i = 0; i < m; ++i)
-            s.x.row(Eigen::Index(i)) = Eigen::Map<const Eigen::RowVectorXf>(mPoints + index[i] * mD, Eigen::Index(mD)) - t.mean;
-        blockDots(s.x.data(), m, mD, t.columns.data(), t.kPad, s.dots.data());
-        for (std::size_t i = 0; i < m; ++i) {
-            const double x2 = s.x.row(Eigen::Index(i)).cast<double>().squaredNorm();
-            scoreBounds(s.dots.row(Eigen::Index(i)).data(), t.norm2.data(), t.norm.data(), float(std::sqrt(x2)), t.tol,
-                        t.k, s.lo.data(), s.hi.data());
-            const std::size_t j = index[i];
-            if (!nearest(t, mPoints + j * mD, s, labels[j])) {
+        const CentroidTable t(p.centroids, p.count, mD);
+        rankEach(mPoints, mD, todo, t, [&](std::size_t i, const float* x, double x2, RankScratch& s) {
+            const std::uint32_t j = todo[i];
+            if (!(nearestOf(t, x, s.lo, s.hi, p.labels[j]) < kInf)) {
                 mUpper[j] = kInf, mLower[j] = 0; // sums beyond float: never skipped
-                continue;
+                return;
             }
-            const std::size_t a = labels[j];
+            const std::size_t a = p.labels[j];
             const float other = std::min(leastOf(s.lo.data(), a), leastOf(s.lo.data() + a + 1, t.k - a - 1));
             mUpper[j] = std::sqrt(std::max(0.0, x2 + double(s.hi[a])));
             mLower[j] = std::sqrt(std::max(0.0, x2 + double(other)));
-        }
-    }
-
-    // Scans, in index order, the centroids whose lower bound is under the least upper one; keeps
-    // `label` when none is nearer than infinity, as the scan does (then returns false).
-    static bool nearest(const CentroidTable& t, const float* x, const Scratch& s, std::uint32_t& label)
-    {
-        const float upper = leastOf(s.hi.data(), t.k);
-        float best = kInf;
-        for (std::size_t c0 = 0; c0 < t.k; c0 += kChunk) {
-            const std::size_t c1 = std::min(t.k, c0 + kChunk);
-            if (!anyBelow(s.lo.data() + c0, c1 - c0, upper)) continue;
-            for (std::size_t c = c0; c < c1; ++c) {
-                if (!(s.lo[c] <= upper)) continue;
-                const float d = scanDistance(x, t.raw + c * t.d, t.d, best);
-                if (d < best) best = d, label = std::uint32_t(c);
-            }
-        }
-        return best < kInf;
+        });
     }
 
     const float* mPoints;
     std::size_t mN, mD;
     std::vector<double> mUpper, mLower;
+};
+
+// Palettes past kExactUpTo entries: each point takes the nearest centroid among those of the
+// kNearGroups groups whose centres are nearest it, the centroids grouped by a small k-means of
+// them (about sqrt(K) a group). A point then ranks an eighth to a thirty-second of the palette;
+// its label may miss a nearer centroid in a farther group. Every choice is by the scan's sums,
+// so the palette is the same bytes on any machine and thread count.
+class GroupedSearch {
+public:
+    GroupedSearch(const std::vector<float>& points, std::size_t n, std::size_t d, std::uint64_t seed)
+        : mPoints(points), mN(n), mD(d), mSeed(seed)
+    {
+    }
+
+    void assign(Palette& p)
+    {
+        const Palette groups = kmeans(p.centroids, p.count, int(mD), groupCount(p.count), kGroupRounds, mSeed);
+        const std::size_t q = std::min(groups.count, kNearGroups);
+        const std::vector<std::uint32_t> near = nearGroups(groups, q);
+        std::vector<std::vector<std::uint32_t>> members(groups.count), visitors(groups.count);
+        for (std::size_t c = 0; c < p.count; ++c) members[groups.labels[c]].push_back(std::uint32_t(c));
+        for (std::size_t i = 0; i < mN * q; ++i) visitors[near[i]].push_back(std::uint32_t(i / q));
+        std::vector<std::pair<float, std::uint32_t>> best(mN * q, {kInf, 0}); // per point and near group
+        tbb::parallel_for(std::size_t(0), groups.count, [&](std::size_t g) {
+            if (visitors[g].empty() || members[g].empty()) return;
+            std::vector<float> rows(members[g].size() * mD);
+            for (std::size_t c = 0; c < members[g].size(); ++c)
+                std::copy_n(&p.centroids[members[g][c] * mD], mD, &rows[c * mD]);
+            const CentroidTable table(rows, members[g].size(), mD);
+            rankEach(mPoints.data(), mD, visitors[g], table, [&](std::size_t v, const float* x, double, RankScratch& s) {
+                const std::size_t i = visitors[g][v], r = std::size_t(std::find(&near[i * q], &near[i * q] + q, g) - &near[i * q]);
+                std::uint32_t local = 0;
+                const float sum = nearestOf(table, x, s.lo, s.hi, local);
+                best[i * q + r] = {sum, members[g][local]};
+            });
+        });
+        tbb::parallel_for(std::size_t(0), mN, [&](std::size_t i) {
+            const auto least = *std::min_element(&best[i * q], &best[i * q] + q); // ties to the lower index
+            if (least.first < kInf) p.labels[i] = least.second;
+        });
+    }
+
+private:
+    static constexpr int kGroupRounds = 4;
+    static std::size_t groupCount(std::size_t k) { return std::size_t(std::lround(std::sqrt(double(k)))); }
+
+    // Each point's q nearest group centres, [n, q].
+    std::vector<std::uint32_t> nearGroups(const Palette& groups, std::size_t q) const
+    {
+        std::vector<std::uint32_t> all(mN), near(mN * q);
+        std::iota(all.begin(), all.end(), std::uint32_t(0));
+        const CentroidTable table(groups.centroids, groups.count, mD);
+        rankEach(mPoints.data(), mD, all, table, [&](std::size_t i, const float* x, double, RankScratch& s) {
+            nearestFew(table, x, s.lo, s.hi, q, s.few, &near[i * q]);
+        });
+        return near;
+    }
+
+    const std::vector<float>& mPoints;
+    std::size_t mN, mD;
+    std::uint64_t mSeed;
 };
 
 // Centroids to the means of their points, in a fixed order (the same sums on any thread count).
@@ -321,6 +418,15 @@ Palette kmeans(const std::vector<float>& points, std::size_t n, int dims, std::s
         std::copy_n(&points[pick[i] * d], d, &p.centroids[i * d]);
     }
     p.labels.assign(n, 0);
+    if (p.count > kExactUpTo) {
+        GroupedSearch search(points, n, d, seed);
+        search.assign(p);
+        for (int it = 0; it < iterations; ++it) {
+            updateCentroids(points, n, d, p, rng);
+            search.assign(p);
+        }
+        return p;
+    }
     LabelSearch search(points, n, d);
     search.assignAll(p);
     for (int it = 0; it < iterations; ++it) {

@@ -4,6 +4,7 @@
 /// leaving the folder) refused with InputError naming the file.
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
+#include <tbb/task_arena.h>
 
 #include <cmath>
 #include <filesystem>
@@ -212,6 +213,63 @@ TEST(SogTest, PaletteLabelsAreTheScansNearestCentroid)
                                  << c.offset << ", " << iterations << " iterations";
         }
     }
+}
+
+// Past 4096 entries a label is the nearest centroid among those of the groups near its own group:
+// on clustered data nearly every label is still the scan's nearest, twice the entries fit the
+// points better, and the palette does not depend on the thread count.
+TEST(SogTest, LargePalettesLabelNearlyEveryPointWithItsNearestCentroid)
+{
+    constexpr std::size_t n = 24000, centres = 3000;
+    constexpr int dims = 24;
+    std::mt19937 rng(17);
+    std::normal_distribution<float> noise(0.0f, 1.0f);
+    std::vector<float> centre(centres * dims), points(n * dims);
+    for (float& v : centre) v = noise(rng);
+    for (std::size_t i = 0; i < n; ++i)
+        for (int j = 0; j < dims; ++j) points[i * dims + j] = centre[(i % centres) * dims + j] + 0.1f * noise(rng);
+    const auto squared = [&](const sog::Palette& p, std::size_t i, std::size_t c) {
+        float s = 0;
+        for (int j = 0; j < dims; ++j) s += (points[i * dims + j] - p.centroids[c * dims + j]) * (points[i * dims + j] - p.centroids[c * dims + j]);
+        return s;
+    };
+    const auto error = [&](const sog::Palette& p) {
+        double sum = 0;
+        for (std::size_t i = 0; i < n; ++i) sum += squared(p, i, p.labels[i]);
+        return sum / double(n);
+    };
+    const sog::Palette large = sog::kmeans(points, n, dims, 8192, 6, 3);
+    ASSERT_EQ(large.count, 8192u);
+    std::size_t wrong = 0, checked = 0;
+    for (std::size_t i = 0; i < n; i += 7, ++checked) {
+        std::uint32_t nearest = 0;
+        for (std::size_t c = 1; c < large.count; ++c)
+            if (squared(large, i, c) < squared(large, i, nearest)) nearest = std::uint32_t(c);
+        wrong += squared(large, i, large.labels[i]) > squared(large, i, nearest);
+    }
+    EXPECT_LT(wrong, checked / 200) << wrong << " of " << checked << " points not with their nearest centroid";
+    EXPECT_LT(error(large), 0.8 * error(sog::kmeans(points, n, dims, 4096, 6, 3)));
+    tbb::task_arena one(1);
+    one.execute([&] {
+        const sog::Palette serial = sog::kmeans(points, n, dims, 8192, 6, 3);
+        EXPECT_EQ(serial.labels, large.labels);
+        EXPECT_EQ(serial.centroids, large.centroids);
+    });
+}
+
+// By default the palette has splat-transform's size, the largest power of two <= n (up to 64 K);
+// --sog-palette caps it.
+TEST(SogTest, DefaultPaletteIsSplatTransformsSize)
+{
+    const GaussianCloud cloud = randomCloud(9000, 1, 4);
+    const auto count = [&](const SogOptions& o) {
+        Files files = encodeSogFiles("m.sog", cloud, o);
+        return nlohmann::json::parse(fileIn(files, "meta.json"))["shN"]["count"];
+    };
+    EXPECT_EQ(count({}), 8192);
+    SogOptions capped;
+    capped.maxPalette = 4096;
+    EXPECT_EQ(count(capped), 4096);
 }
 
 TEST(SogTest, FolderFormReadsAsTheBundle)
