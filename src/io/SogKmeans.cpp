@@ -341,7 +341,8 @@ public:
         const std::vector<std::uint32_t> near = nearGroups(groups, q);
         std::vector<std::vector<std::uint32_t>> members(groups.count), visitors(groups.count);
         for (std::size_t c = 0; c < p.count; ++c) members[groups.labels[c]].push_back(std::uint32_t(c));
-        for (std::size_t i = 0; i < mN * q; ++i) visitors[near[i]].push_back(std::uint32_t(i / q));
+        for (std::size_t i = 0; i < mN * q; ++i) // once per group (nearestFew repeats one where sums are NaN)
+            if (std::find(&near[i - i % q], &near[i], near[i]) == &near[i]) visitors[near[i]].push_back(std::uint32_t(i / q));
         std::vector<std::pair<float, std::uint32_t>> best(mN * q, {kInf, 0}); // per point and near group
         tbb::parallel_for(std::size_t(0), groups.count, [&](std::size_t g) {
             if (visitors[g].empty() || members[g].empty()) return;
