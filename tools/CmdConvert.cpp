@@ -59,9 +59,9 @@ void convert(const ConvertArgs& args)
 const CommandRegistrar reg(21, [](CLI::App& app) {
     auto args = std::make_shared<ConvertArgs>();
     CLI::App* sub = app.add_subcommand(
-        "convert", "Convert a Gaussian model between formats: reads PLY (any layout), compressed PLY, .splat, .spz, "
-                   ".glb, .vdb points, SOG (.sog, meta.json folder); writes .ply, .compressed.ply, .splat, .spz, .glb, "
-                   ".vdb (--points), .sog (bundle) or meta.json (SOG folder) by the output's name");
+        "convert", "Convert a Gaussian model between formats: reads any model " + kModelFormats +
+                       "; writes .ply, .compressed.ply, .splat, .spz, .glb, .vdb (--points), .sog (bundle) or meta.json "
+                       "(SOG folder) by the output's name");
     sub->add_option("input", args->input, "Input Gaussian file " + kModelFormats)->required();
     sub->add_option("output", args->output, "Output path; its extension picks the format (written atomically)")
         ->required();
