@@ -9,7 +9,8 @@
 # counts and the times. One Markdown row per mesh x spec; the rest models' held-out
 # scores first.
 #   bash scripts/mesh-gt-study.sh OUTDIR            (MESHES="spot bunny stripes", SPECS="bend twist stretch")
-# ITERATIONS, SIZE, VIEWS, EVAL_VIEWS, EVAL_SIZE choose the training and judging budgets.
+# ITERATIONS, SIZE, VIEWS, EVAL_VIEWS, EVAL_SIZE choose the training and judging budgets; ABLATIONS=0
+# runs only the README's columns (polar, paper, default), "-" in the others (half the time a row).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 out=${1:?usage: mesh-gt-study.sh OUTDIR}
@@ -22,6 +23,7 @@ size=${SIZE:-256}
 views=${VIEWS:-100}
 eval_views=${EVAL_VIEWS:-200}
 eval_size=${EVAL_SIZE:-256}
+ablations=${ABLATIONS:-1}
 mkdir -p "$out"
 
 # The paper's Stripes: a 4 x 1 x 1 bar of 8 coloured bands (each its own subdivided box, so the
@@ -92,32 +94,40 @@ for m in "${meshes[@]}"; do
     end=$(date +%s.%N)
     "$bin" -q deform "$dir/rest.ply" --spec "$spec" -o "$run-polar" --device cpu --stage1-only --stage1-shape polar > "$run-polar.log" 2>&1
     "$bin" -q deform "$dir/rest.ply" --spec "$spec" -o "$run-paper" --device cpu --recipe paper > "$run-paper.log" 2>&1
-    "$bin" -q deform "$dir/rest.ply" --spec "$spec" -o "$run-1x" --device cpu --max-gaussians 1x > "$run-1x.log" 2>&1
-    "$bin" -q deform "$dir/rest.ply" --spec "$spec" -o "$run-regions" --device cpu --keep regions > "$run-regions.log" 2>&1
-    "$bin" -q deform "$dir/rest.ply" --spec "$spec" -o "$run-keepfit" --device cpu --keep fit > "$run-keepfit.log" 2>&1
+    if [ "$ablations" = 1 ]; then
+      "$bin" -q deform "$dir/rest.ply" --spec "$spec" -o "$run-1x" --device cpu --max-gaussians 1x > "$run-1x.log" 2>&1
+      "$bin" -q deform "$dir/rest.ply" --spec "$spec" -o "$run-regions" --device cpu --keep regions > "$run-regions.log" 2>&1
+      "$bin" -q deform "$dir/rest.ply" --spec "$spec" -o "$run-keepfit" --device cpu --keep fit > "$run-keepfit.log" 2>&1
+    fi
     # shellcheck disable=SC2046
     judge() { "$bin" -q eval --mesh $(mesh_args "$m") --rest "$dir/rest.ply" --spec "$spec" --deformed "$1" \
                 --views "$eval_views" --size "$eval_size" --json "${@:2}"; }
     judge "$run-polar/baseline.ply" > "$run/judge-polar.json"
     judge "$run-paper/deformed.ply" > "$run/judge-paper.json"
     judge "$run/baseline.ply" > "$run/judge-stage1.json"
-    judge "$run-1x/deformed.ply" > "$run/judge-1x.json"
-    judge "$run-regions/deformed.ply" > "$run/judge-regions.json"
-    judge "$run-keepfit/deformed.ply" > "$run/judge-keepfit.json"
+    if [ "$ablations" = 1 ]; then
+      judge "$run-1x/deformed.ply" > "$run/judge-1x.json"
+      judge "$run-regions/deformed.ply" > "$run/judge-regions.json"
+      judge "$run-keepfit/deformed.ply" > "$run/judge-keepfit.json"
+    fi
     judge "$run/deformed.ply" --montage "$run/worst.png" > "$run/judge-default.json"
     python3 - "$run" "$m" "$s" "$dir/rest.json" "$(echo "$end - $start" | bc)" <<'PY'
-import json, sys, struct
+import json, os, sys, struct
 run, m, s, rest, secs = sys.argv[1:6]
-def j(n): return json.load(open("%s/judge-%s.json" % (run, n)))
+def j(n):
+    p = "%s/judge-%s.json" % (run, n)
+    return json.load(open(p)) if os.path.exists(p) else None
 def count(p):
     with open(p, "rb") as f:
         for line in f:
             if line.startswith(b"element vertex"): return int(line.split()[2])
 p, q, a, d, o, g, k = j("polar"), j("paper"), j("stage1"), j("default"), j("1x"), j("regions"), j("keepfit")
-field = lambda d: json.load(open(d + "/report.json"))["stage2"]["fieldError"]["opacity"]
+def field(d):
+    if not os.path.exists(d + "/report.json"): return "-"
+    return "%.3f" % json.load(open(d + "/report.json"))["stage2"]["fieldError"]["opacity"]
 r = json.load(open(rest))
-cell = lambda x: "%.2f / %.4f" % (x["psnr"], x["ssim"])
-print("| %s | %s | %.2f / %.4f | %s | %s | %s | %s | %s | %s | %s | %+.2f dB | %+.2f dB | %.3f / %.3f / %.3f | %d -> %d | %.0f |" % (
+cell = lambda x: "%.2f / %.4f" % (x["psnr"], x["ssim"]) if x else "-"
+print("| %s | %s | %.2f / %.4f | %s | %s | %s | %s | %s | %s | %s | %+.2f dB | %+.2f dB | %s / %s / %s | %d -> %d | %.0f |" % (
       m, s, r["test"]["psnr"], r["test"]["ssim"], cell(p), cell(q), cell(a), cell(d), cell(o), cell(g), cell(k), d["psnr"] - p["psnr"],
       d["psnr"] - q["psnr"], field(run + "-paper"), field(run), field(run + "-regions"), r["gaussians"], count(run + "/deformed.ply"),
       float(secs)))
