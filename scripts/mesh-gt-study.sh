@@ -23,7 +23,9 @@ size=${SIZE:-256}
 views=${VIEWS:-100}
 eval_views=${EVAL_VIEWS:-200}
 eval_size=${EVAL_SIZE:-256}
-ablations=${ABLATIONS:-1}
+# The ablation columns: output suffix and the flags beside the default's.
+ablations=()
+[ "${ABLATIONS:-1}" = 1 ] && ablations=("1x --max-gaussians 1x" "regions --keep regions" "keepfit --keep fit")
 mkdir -p "$out"
 
 # The paper's Stripes: a 4 x 1 x 1 bar of 8 coloured bands (each its own subdivided box, so the
@@ -94,22 +96,22 @@ for m in "${meshes[@]}"; do
     end=$(date +%s.%N)
     "$bin" -q deform "$dir/rest.ply" --spec "$spec" -o "$run-polar" --device cpu --stage1-only --stage1-shape polar > "$run-polar.log" 2>&1
     "$bin" -q deform "$dir/rest.ply" --spec "$spec" -o "$run-paper" --device cpu --recipe paper > "$run-paper.log" 2>&1
-    if [ "$ablations" = 1 ]; then
-      "$bin" -q deform "$dir/rest.ply" --spec "$spec" -o "$run-1x" --device cpu --max-gaussians 1x > "$run-1x.log" 2>&1
-      "$bin" -q deform "$dir/rest.ply" --spec "$spec" -o "$run-regions" --device cpu --keep regions > "$run-regions.log" 2>&1
-      "$bin" -q deform "$dir/rest.ply" --spec "$spec" -o "$run-keepfit" --device cpu --keep fit > "$run-keepfit.log" 2>&1
-    fi
+    for a in "${ablations[@]}"; do
+      read -r name flags <<< "$a"
+      # shellcheck disable=SC2086
+      "$bin" -q deform "$dir/rest.ply" --spec "$spec" -o "$run-$name" --device cpu $flags > "$run-$name.log" 2>&1
+    done
     # shellcheck disable=SC2046
     judge() { "$bin" -q eval --mesh $(mesh_args "$m") --rest "$dir/rest.ply" --spec "$spec" --deformed "$1" \
                 --views "$eval_views" --size "$eval_size" --json "${@:2}"; }
     judge "$run-polar/baseline.ply" > "$run/judge-polar.json"
     judge "$run-paper/deformed.ply" > "$run/judge-paper.json"
     judge "$run/baseline.ply" > "$run/judge-stage1.json"
-    if [ "$ablations" = 1 ]; then
-      judge "$run-1x/deformed.ply" > "$run/judge-1x.json"
-      judge "$run-regions/deformed.ply" > "$run/judge-regions.json"
-      judge "$run-keepfit/deformed.ply" > "$run/judge-keepfit.json"
-    fi
+    rm -f "$run/judge-1x.json" "$run/judge-regions.json" "$run/judge-keepfit.json" # none left from an earlier run
+    for a in "${ablations[@]}"; do
+      read -r name _ <<< "$a"
+      judge "$run-$name/deformed.ply" > "$run/judge-$name.json"
+    done
     judge "$run/deformed.ply" --montage "$run/worst.png" > "$run/judge-default.json"
     python3 - "$run" "$m" "$s" "$dir/rest.json" "$(echo "$end - $start" | bc)" <<'PY'
 import json, os, sys, struct
@@ -129,7 +131,7 @@ r = json.load(open(rest))
 cell = lambda x: "%.2f / %.4f" % (x["psnr"], x["ssim"]) if x else "-"
 print("| %s | %s | %.2f / %.4f | %s | %s | %s | %s | %s | %s | %s | %+.2f dB | %+.2f dB | %s / %s / %s | %d -> %d | %.0f |" % (
       m, s, r["test"]["psnr"], r["test"]["ssim"], cell(p), cell(q), cell(a), cell(d), cell(o), cell(g), cell(k), d["psnr"] - p["psnr"],
-      d["psnr"] - q["psnr"], field(run + "-paper"), field(run), field(run + "-regions"), r["gaussians"], count(run + "/deformed.ply"),
+      d["psnr"] - q["psnr"], field(run + "-paper"), field(run), field(run + "-regions") if g else "-", r["gaussians"], count(run + "/deformed.ply"),
       float(secs)))
 PY
   done
