@@ -17,7 +17,17 @@ struct ConvertArgs {
     bool dropInvalid = false, dropOutliers = false, points = false;
     int spzVersion = 3;
     SogOptions sog;
+    bool spzFlagGiven = false, sogFlagGiven = false; // set from the parse: refused with another format
 };
+
+// --sog-seed as a whole number in [0, 2^64 - 1]: CLI11 alone would wrap "-1" and saturate 2^64.
+const CLI::Validator kSeedRange(
+    [](std::string& s) -> std::string {
+        const bool digits = !s.empty() && s.size() <= 20 && s.find_first_not_of("0123456789") == std::string::npos;
+        if (digits && (s.size() < 20 || s <= "18446744073709551615")) return {};
+        return "must be a whole number in [0, 18446744073709551615], not " + s;
+    },
+    "UINT64");
 
 /// --drop-outliers: what `info` warns of (core/Outliers.h) removed, and said.
 void dropOutliers(const std::string& input, GaussianCloud& g)
@@ -40,6 +50,8 @@ void convert(const ConvertArgs& args)
         throw UsageError(msg(args.output, ": a .vdb model output is an OpenVDB point grid: add --points "
                                           "(volumes are written by 'to-vdb')"));
     if (args.points && format != "vdb-points") throw UsageError(msg("--points needs a .vdb output, not ", args.output));
+    if (args.spzFlagGiven && format != "spz") throw UsageError(msg("--spz-version needs a .spz output, not ", args.output));
+    if (args.sogFlagGiven && format != "sog") throw UsageError(msg("--sog-* need a .sog or meta.json output, not ", args.output));
     OutputSet outputs({args.input});
     outputs.checkTarget(args.output);
     ReadReport report;
@@ -52,6 +64,9 @@ void convert(const ConvertArgs& args)
     else
         writeGaussians(args.output, g, options);
     outputs.commit();
+    if (format == "splat" && g.shDegree > 0)
+        progress(msg("note: .splat holds no SH bands: band", g.shDegree > 1 ? msg("s 1-", g.shDegree) : std::string(" 1"),
+                     " dropped (.ply, .spz, .sog and .glb keep them)"));
     progress(msg("converted ", g.size(), " Gaussians (", report.format, ", SH degree ", g.shDegree, ") to ",
                  args.output, " (", format == "spz" ? msg("spz-v", args.spzVersion) : format, ")"));
 }
@@ -69,6 +84,7 @@ const CommandRegistrar reg(21, [](CLI::App& app) {
     sub->add_option("--spz-version", args->spzVersion, "Version of a .spz output: 3 (gzip, default) or 4 (zstd)")
         ->check(CLI::IsMember({3, 4}));
     sub->add_option("--sog-seed", args->sog.seed, "SOG output: seed of the SH palette's k-means (same seed, same bytes)")
+        ->check(kSeedRange)
         ->capture_default_str();
     sub->add_option("--sog-iterations", args->sog.iterations, "SOG output: k-means iterations of the SH palette")
         ->check(CLI::Range(1, 1000))
@@ -83,7 +99,11 @@ const CommandRegistrar reg(21, [](CLI::App& app) {
                   "Drop the outliers `info` warns of: Gaussians whose centre lies outside the box of the central 98% "
                   "of centres (per axis) by more than that box's largest side (far floaters, stray points), and those "
                   "with a standard deviation over half that side (a sky, a blur); says how many");
-    sub->callback([args] { convert(*args); });
+    sub->callback([args, sub] {
+        args->spzFlagGiven = sub->count("--spz-version") > 0;
+        args->sogFlagGiven = sub->count("--sog-seed") + sub->count("--sog-iterations") + sub->count("--sog-palette") > 0;
+        convert(*args);
+    });
 });
 
 } // namespace

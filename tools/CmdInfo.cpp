@@ -69,6 +69,10 @@ const CommandRegistrar reg(20, [](CLI::App& app) {
         std::printf("quaternion norm: min %g  max %g\n", s.quatNormMin, s.quatNormMax);
         std::printf("invalid values:  %zu\n", s.invalidValues);
         if (report.dropped) std::printf("dropped:         %zu Gaussians\n", report.dropped);
+        else if (report.invalidGaussians)
+            std::printf("unusable:        %zu Gaussians (NaN/Inf, overflowing scales or centres, zero quaternions): "
+                        "other commands refuse the file, --drop-invalid drops them\n",
+                        report.invalidGaussians);
         for (const std::string& note : report.notes) std::printf("note:            %s\n", printable(note).c_str());
         for (const CloudWarning& w : warnings) std::printf("warning:         %s\n", w.message.c_str());
     });

@@ -36,6 +36,9 @@ constexpr std::size_t kSplatRecordBytes = 32;
 /// @brief Why `data` (a multiple of 32 bytes) does not read as `.splat` records, "" when at least
 ///        90% of the records with finite values look like Gaussians.
 std::string splatImplausibility(const std::string& data);
+/// @brief Why one 32-byte `.splat` record does not look like a Gaussian to readSplat(), "" when it
+///        does; the writer refuses what its reader would take for corrupt data.
+std::string splatRecordImplausibility(const unsigned char* record);
 /// @brief antimatter15 `.splat`: headerless 32-byte records. The format has no magic: throws
 ///        InputError unless nearly all records look like Gaussians (finite, |position| and
 ///        scales <= 1e7, unit quaternion bytes), so text or a cut .vdb is not read as Gaussians.

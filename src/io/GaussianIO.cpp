@@ -68,7 +68,7 @@ void applyInvalidPolicy(const std::string& path, GaussianCloud& g, const ReadOpt
     if (!options.dropInvalid)
         throw InputError(msg(path, ": Gaussian ", firstBad, ": property '", firstName, " (", report.invalidGaussians,
                              " Gaussians hold ", report.invalidValues,
-                             " NaN/Inf or unusable values; --drop-invalid / ReadOptions::dropInvalid drops them)"));
+                             " NaN/Inf or unusable values; --drop-invalid (Python: drop_invalid=True) drops them)"));
     GaussianCloud kept;
     kept.shDegree = g.shDegree;
     for (std::size_t i = 0; i < g.size(); ++i)

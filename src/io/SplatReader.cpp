@@ -50,6 +50,14 @@ bool plausibleRecord(const unsigned char* r, bool& judged, std::string* why)
 
 } // namespace
 
+std::string splatRecordImplausibility(const unsigned char* record)
+{
+    bool judged = false;
+    std::string why;
+    if (plausibleRecord(record, judged, &why)) return {};
+    return judged ? why : "position or scale not finite";
+}
+
 std::string splatImplausibility(const std::string& data)
 {
     const std::size_t n = data.size() / kSplatRecordBytes;

@@ -50,26 +50,38 @@ std::size_t bytesPerGaussian(const SpzHeader& h)
     return 9 + 1 + 3 + 3 + (h.version >= 3 ? 4 : 3) + 3 * std::size_t(shRestCoeffs(h.shDegree));
 }
 
-// Inflates the gzip stream into `out` until it holds `limit` bytes or the stream ends; returns
-// true when the stream ended. Never produces more than `limit` bytes (decompression bombs).
-bool inflateUpTo(const std::string& path, const std::string& data, std::size_t limit, std::string& out)
+// What inflateUpTo() found past the bytes it was asked for.
+struct InflateEnd {
+    bool moreData = false;            ///< the stream inflates to more than `limit` bytes
+    std::size_t bytesAfterStream = 0; ///< file bytes after the gzip stream's trailer
+};
+
+// Inflates the gzip stream into `out` until it holds `limit` bytes or the stream ends, then looks
+// one byte further, so that a stream ending exactly there has its trailer (CRC, length) checked
+// and a cut one is refused. Never produces more than `limit` + 1 bytes (decompression bombs).
+InflateEnd inflateUpTo(const std::string& path, const std::string& data, std::size_t limit, std::string& out)
 {
     z_stream z{};
     if (inflateInit2(&z, 16 + MAX_WBITS) != Z_OK) throw InputError(msg(path, ": .spz: cannot start inflate"));
     z.next_in = reinterpret_cast<Bytef*>(const_cast<char*>(data.data()));
     z.avail_in = uInt(std::min<std::size_t>(data.size(), UINT32_MAX));
-    out.resize(limit);
+    out.resize(limit + 1);
     z.next_out = reinterpret_cast<Bytef*>(&out[0]);
     z.avail_out = uInt(limit);
     int rc = Z_OK;
     while (rc == Z_OK && z.avail_out > 0) rc = inflate(&z, Z_NO_FLUSH);
-    const std::size_t produced = limit - z.avail_out;
+    if (rc == Z_OK) { // `limit` bytes out: one more, or the stream's end
+        z.avail_out = 1;
+        while (rc == Z_OK && z.avail_out > 0) rc = inflate(&z, Z_NO_FLUSH);
+    }
+    const std::size_t written = std::size_t(z.total_out);
+    const std::size_t consumed = std::size_t(z.total_in);
     const char* why = z.msg ? z.msg : "stream ends early";
     inflateEnd(&z);
-    out.resize(produced);
-    if (rc == Z_STREAM_END) return true;
-    if (rc == Z_OK && produced == limit) return false;
-    throw InputError(msg(path, ": .spz: gzip stream is corrupt or truncated after ", produced,
+    out.resize(std::min(written, limit));
+    if (rc == Z_STREAM_END) return {false, data.size() - consumed};
+    if (rc == Z_OK && written > limit) return {true, 0};
+    throw InputError(msg(path, ": .spz: gzip stream is corrupt or truncated after ", written,
                          " inflated bytes (", rc == Z_BUF_ERROR ? "stream ends early" : why, ")"));
 }
 
@@ -288,12 +300,14 @@ GaussianCloud readSpz(const std::string& path, const std::string& data, ReadRepo
         throw InputError(msg(path, ": .spz header claims ", h.count, " Gaussians (", need,
                              " bytes inflated), more than its ", data.size(), " compressed bytes can hold"));
     std::string body;
-    const bool ended = inflateUpTo(path, data, std::size_t(need), body);
+    const InflateEnd end = inflateUpTo(path, data, std::size_t(need), body);
     if (body.size() < std::size_t(need))
         throw InputError(msg(path, ": .spz truncated: ", h.count, " Gaussians need ", std::size_t(need),
                              " inflated bytes, the stream holds ", body.size()));
     GaussianCloud g = decode(h, body);
-    if (!ended) report.notes.push_back("data after the last .spz Gaussian ignored");
+    if (end.moreData) report.notes.push_back("inflated data after the last .spz Gaussian ignored");
+    if (end.bytesAfterStream > 0)
+        report.notes.push_back(msg(end.bytesAfterStream, " bytes after the .spz's gzip stream ignored"));
     if (h.shDegree > 3) report.notes.push_back("SH band 4 of the .spz dropped (splatwarp uses degree 0..3)");
     report.format = msg("spz-v", h.version);
     return g;

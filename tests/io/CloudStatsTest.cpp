@@ -139,6 +139,16 @@ TEST(CloudStats, InfoJsonReportsFileWithInvalidValues)
     const std::string text = readBytes(out);
     EXPECT_NE(text.find("count:           5000"), std::string::npos) << text;
     EXPECT_NE(text.find("invalid values:  5"), std::string::npos) << text;
+    EXPECT_NE(text.find("unusable:        5 Gaussians"), std::string::npos) << text;
+
+    // Finite but unusable (a log-scale past 40): no NaN to count, still named in the text.
+    GaussianCloud wide = randomCloud(50, 0, 9);
+    wide.logScales[3 * 7] = 50.0f;
+    writeBytes(path, plyBytes(wide, v));
+    ASSERT_EQ(runCli("-q info " + path, out), 0);
+    const std::string wideText = readBytes(out);
+    EXPECT_NE(wideText.find("invalid values:  0"), std::string::npos) << wideText;
+    EXPECT_NE(wideText.find("unusable:        1 Gaussians"), std::string::npos) << wideText;
 }
 
 TEST(CloudStats, ConvertSplatEqualsDirectRead)

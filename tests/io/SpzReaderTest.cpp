@@ -233,6 +233,9 @@ TEST(SpzReader, BrokenFilesAreInputErrors)
     ASSERT_EQ(raw.size(), 16u + 200u * 65u);
     expectRefused(dir, gz.substr(0, gz.size() / 2), "truncated");
     expectRefused(dir, gz.substr(0, 2), "truncated");
+    // Cut inside the gzip trailer (CRC-32, length) or the last deflate block: every Gaussian's
+    // bytes may already be out, yet the file is not whole.
+    for (std::size_t cut = 1; cut <= 9; ++cut) expectRefused(dir, gz.substr(0, gz.size() - cut), "truncated");
     expectRefused(dir, gzip(raw.substr(0, 8)), "less than the 16-byte header");
     expectRefused(dir, gzip("ply\nthis is not spz at all, only gzip of some text"), "not .spz");
     std::string v = raw;
@@ -252,6 +255,23 @@ TEST(SpzReader, BrokenFilesAreInputErrors)
     std::string deg = raw;
     deg[12] = 5;
     expectRefused(dir, gzip(deg), "SH degree 5");
+}
+
+TEST(SpzReader, DataPastTheGaussiansIsANote)
+{
+    TempDir dir;
+    const std::string gz = readBytes(fixture("random200-sh3.v3.spz"));
+    const auto notesOf = [&](const std::string& bytes) {
+        writeBytes(dir.file("n.spz"), bytes);
+        ReadReport report;
+        EXPECT_EQ(readGaussians(dir.file("n.spz"), {}, &report).size(), 200u);
+        std::string all;
+        for (const std::string& n : report.notes) all += n + ";";
+        return all;
+    };
+    EXPECT_EQ(notesOf(gz), "");
+    EXPECT_EQ(notesOf(gz + "junk"), "4 bytes after the .spz's gzip stream ignored;");
+    EXPECT_EQ(notesOf(gzip(gunzip(gz) + "xyz")), "inflated data after the last .spz Gaussian ignored;");
 }
 
 TEST(SpzReader, CliConvertsSpzToPly)
