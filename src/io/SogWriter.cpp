@@ -177,6 +177,8 @@ void writeSog(const std::string& path, const GaussianCloud& g, const SogOptions&
     const std::vector<std::pair<std::string, std::string>> files = encodeSogFiles(path, g, options);
     const std::filesystem::path dir = meta.parent_path();
     if (!dir.empty() && OutputSet::active()) OutputSet::active()->createDirectory(dir.string());
+    if (g.shDegree == 0 && OutputSet::active()) // an earlier export's SH images would sit beside a meta.json without them
+        for (const char* stale : {"shN_centroids.webp", "shN_labels.webp"}) OutputSet::active()->removeOnCommit((dir / stale).string());
     for (const auto& [name, bytes] : files) // meta.json last: a reader never sees it before its images
         writeFileAtomic(name == "meta.json" ? path : (dir / name).string(), bytes);
 }

@@ -297,6 +297,13 @@ TEST(SogTest, ConvertWritesBundleAndFolderAndRefusesBadInputWithExit1)
     EXPECT_EQ(runCli("convert " + dir.file("in.ply") + " " + dir.file("folder/meta.json")), 0);
     EXPECT_EQ(readGaussians(dir.file("out.sog")).size(), 200u);
     EXPECT_EQ(readGaussians(dir.file("folder")).size(), 200u);
+    // The same folder again from an SH-0 model: the SH images of the first export go with it.
+    ASSERT_TRUE(std::filesystem::exists(dir.file("folder/shN_labels.webp")));
+    writePly(dir.file("sh0.ply"), randomCloud(50, 0, 4));
+    EXPECT_EQ(runCli("convert " + dir.file("sh0.ply") + " " + dir.file("folder/meta.json")), 0);
+    EXPECT_FALSE(std::filesystem::exists(dir.file("folder/shN_labels.webp")));
+    EXPECT_FALSE(std::filesystem::exists(dir.file("folder/shN_centroids.webp")));
+    EXPECT_EQ(readGaussians(dir.file("folder")).size(), 50u);
     const std::string bytes = fileBytes(dir.file("out.sog"));
     writeBytes(dir.file("cut.sog"), bytes.substr(0, bytes.size() / 2));
     EXPECT_EQ(runCli("convert " + dir.file("cut.sog") + " " + dir.file("x.ply"), dir.file("log.txt")), 1);
