@@ -88,10 +88,27 @@ bool isFrameFile(int f, const std::string& rel)
     return false;
 }
 
+/// Before any work: the folders animate writes into inside dir are folders of dir itself (a
+/// symlink planted there would take the frames elsewhere), and the files it writes last (the
+/// strip, the zip) are not refused only after every frame is done.
+void checkOutputPlaces(const std::string& dir, bool zip)
+{
+    for (const char* sub : {"frames", "vdb", "preview", "specs"}) {
+        const fs::path p = fs::path(dir) / sub;
+        std::error_code ec;
+        const fs::file_status st = fs::symlink_status(p, ec);
+        if (fs::is_symlink(st))
+            throw IoError(msg(p.string(), ": is a symbolic link; animate writes only inside its output folder (remove the link)"));
+        if (fs::exists(st) && !fs::is_directory(st)) throw IoError(msg(p.string(), ": exists and is not a directory"));
+    }
+    checkOutputPath((fs::path(dir) / "preview" / "strip.png").string());
+    if (zip) checkOutputPath((fs::path(dir) / "sequence.zip").string());
+}
+
 /// Refuse an input that a run into dir would overwrite (animate writes these paths only).
 void checkInputsOutsideOutputs(const DeformJobOptions& o)
 {
-    for (const std::string& in : {o.input, o.specPath}) {
+    for (const std::string& in : {o.input, o.specPath, o.recipePath}) {
         if (in.empty()) continue;
         for (const char* out : {"frames", "vdb", "preview", "specs", "sequence.zip"})
             if (isWithin((fs::path(o.outDir) / out).string(), in))
@@ -228,6 +245,7 @@ int writeFrameSpecs(const AnimateJobOptions& options)
     const AnimSpec anim = parseAnimSpec(readWholeFile(o.specPath, "animation spec"), o.specPath);
     const int last = lastFrame(options, anim);
     checkInputsOutsideOutputs(o);
+    checkOutputPlaces(o.outDir, false);
     DirectoryGuard dirs;
     dirs.create((fs::path(o.outDir) / "specs").string());
     for (int f = options.first; f <= last; ++f) {
@@ -248,6 +266,7 @@ SequenceResult runAnimateJob(const AnimateJobOptions& options)
     const int last = lastFrame(options, anim);
     const fs::path dir(o.outDir);
     checkInputsOutsideOutputs(o);
+    checkOutputPlaces(o.outDir, options.zip);
     DirectoryGuard dirs; // a run that fails before its first frame leaves no empty folders
     for (const char* sub : {"frames", "vdb", "preview"})
         if (sub == std::string("frames") || (sub == std::string("vdb") && o.writeVdb) || (sub == std::string("preview") && o.render))
@@ -311,6 +330,7 @@ SequenceResult runAnimateJob(const AnimateJobOptions& options)
 
 json mergeAnimate(const std::string& dir, bool zip)
 {
+    checkOutputPlaces(dir, zip);
     json merged = mergeManifests(dir, isFrameFile);
     const json settings = merged.value("settings", json::object());
     if (merged["missing"].empty() && merged["failed"].empty())

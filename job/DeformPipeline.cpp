@@ -849,6 +849,7 @@ FrameReport runDeformFrame(DeformRest& rest, const DeformSpec& spec, const Defor
 FrameReport runDeformJob(const DeformJobOptions& o)
 {
     const DeformSpec spec = loadDeformSpec(o.specPath);
+    checkDeformOutputs(o);
     DeformSession session(o, spec);
     session.pose(spec);
     if (!o.stage1Only) session.refine();

@@ -35,6 +35,7 @@ namespace splatwarp {
 struct DeformJobOptions {
     std::string input;     ///< model to deform (any supported format)
     std::string specPath;  ///< deformation spec JSON
+    std::string recipePath; ///< the recipe file the settings came from (an input: never written), "" for a built-in
     std::string outDir;    ///< created if missing
     bool stage1Only = false;           ///< stop after Stage I (baseline.ply only; runDeformJob removes an earlier run's deformed.ply, field.vdb, compare.png)
     bool dropInvalid = false;          ///< drop unusable Gaussians of the input instead of refusing it

@@ -14,7 +14,43 @@ bool sameGraph(const GraphOptions& a, const GraphOptions& b) { return a.nodes ==
 
 std::string inDir(const std::string& dir, const char* name) { return (std::filesystem::path(dir) / name).string(); }
 
+/// What a deform into dir writes, and the earlier run's results it removes (a pose not refined
+/// leaves no deformed.ply of another pose beside its baseline.ply).
+struct DeformFiles {
+    FrameOutputs out;
+    std::vector<std::string> stale;
+};
+
+DeformFiles deformFiles(const DeformJobOptions& o, const std::string& dir, bool refined)
+{
+    DeformFiles f;
+    f.out.baseline = inDir(dir, "baseline.ply");
+    if (!refined) {
+        for (const char* stale : {"deformed.ply", "field.vdb", "compare.png", "stretched.png"}) f.stale.push_back(inDir(dir, stale));
+        return f;
+    }
+    f.out.deformed = inDir(dir, "deformed.ply");
+    if (o.writeVdb) f.out.vdb = inDir(dir, "field.vdb");
+    if (o.render) {
+        f.out.compare = inDir(dir, "compare.png");
+        f.out.stretched = inDir(dir, "stretched.png");
+    }
+    return f;
+}
+
+std::vector<std::string> inputsOf(const DeformJobOptions& o) { return {o.input, o.specPath, o.recipePath}; }
+
 } // namespace
+
+void checkDeformOutputs(const DeformJobOptions& o)
+{
+    const DeformFiles f = deformFiles(o, o.outDir, !o.stage1Only);
+    OutputSet probe(inputsOf(o)); // never committed: only its checks are used
+    for (const std::string& path : {f.out.baseline, f.out.deformed, f.out.vdb, f.out.compare, f.out.stretched,
+                                    inDir(o.outDir, "report.json")})
+        if (!path.empty()) checkOutputPath(path), probe.checkNotInput(path);
+    for (const std::string& stale : f.stale) probe.removeOnCommit(stale);
+}
 
 DeformSession::DeformSession(DeformJobOptions options, const DeformSpec& graphSpec)
     : mOptions(std::move(options)), mGraph(graphOptionsOf(graphSpec, mOptions))
@@ -103,21 +139,11 @@ FrameReport DeformSession::write(const std::string& dir, const std::vector<std::
 {
     poseThePreview();
     if (!mFrame) throw UsageError("write needs a pose first");
-    OutputSet outputs({mOptions.input, mOptions.specPath});
+    OutputSet outputs(inputsOf(mOptions));
     outputs.createDirectory(dir);
-    FrameOutputs out;
-    out.baseline = inDir(dir, "baseline.ply");
-    if (refined()) {
-        out.deformed = inDir(dir, "deformed.ply");
-        if (mOptions.writeVdb) out.vdb = inDir(dir, "field.vdb");
-        if (mOptions.render) {
-            out.compare = inDir(dir, "compare.png");
-            out.stretched = inDir(dir, "stretched.png");
-        }
-    } else {
-        for (const char* stale : {"deformed.ply", "field.vdb", "compare.png", "stretched.png"}) outputs.removeOnCommit(inDir(dir, stale));
-    }
-    FrameReport report = writeFrame(*mRest, mOptions, *mFrame, out);
+    const DeformFiles files = deformFiles(mOptions, dir, refined());
+    for (const std::string& stale : files.stale) outputs.removeOnCommit(stale);
+    FrameReport report = writeFrame(*mRest, mOptions, *mFrame, files.out);
     report.timingsMs["total"] += mRestMs; // the rest side included
     writeFileAtomic(inDir(dir, "report.json"), report.toJson().dump(2) + "\n");
     for (const auto& [name, contents] : extraFiles) writeFileAtomic(inDir(dir, name.c_str()), contents);

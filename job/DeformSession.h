@@ -17,6 +17,11 @@
 
 namespace splatwarp {
 
+/// @brief Before any work: refuse a deform into options.outDir whose outputs could not be written
+///        (a symlink, a folder or a device where a file goes; an input, also one a --stage1-only run
+///        would remove as an earlier run's result). Creates nothing. @throws IoError.
+void checkDeformOutputs(const DeformJobOptions& options);
+
 class DeformSession {
 public:
     /// @brief Read the model and prepare the rest side for the graph of `graphSpec` (its graph

@@ -7,6 +7,7 @@
 
 #include "core/Error.h"
 #include "core/SafePath.h"
+#include "job/Recipe.h"
 
 namespace splatwarp {
 
@@ -16,8 +17,8 @@ using json = nlohmann::json;
 const std::vector<JobKind>& jobKinds()
 {
     static const std::vector<JobKind> kinds = {
-        {"deform", {"-o", "--output"}, {"--spec"}},
-        {"animate", {"-o", "--output", "--merge"}, {"--spec"}},
+        {"deform", {"-o", "--output"}, {"--spec", "--recipe"}},
+        {"animate", {"-o", "--output", "--merge"}, {"--spec", "--recipe"}},
         {"to-vdb", {"-o", "--output"}, {"--spec"}},
         {"from-vdb", {"-o", "--output", "--report"}, {}},
     };
@@ -63,9 +64,12 @@ void checkArgs(const JobKind& kind, const std::vector<std::string>& args, const 
                                  "): a job writes only its \"output\", inside the batch's folder"));
         if (!has(kind.readFlags)) continue;
         const std::size_t eq = args[i].find('=');
-        if (eq != std::string::npos) reads.push_back(args[i].substr(eq + 1));
-        else if (flag.size() == 2 && args[i].size() > 2) reads.push_back(args[i].substr(2));
-        else if (i + 1 < args.size()) reads.push_back(args[++i]);
+        std::string value;
+        if (eq != std::string::npos) value = args[i].substr(eq + 1);
+        else if (flag.size() == 2 && args[i].size() > 2) value = args[i].substr(2);
+        else if (i + 1 < args.size()) value = args[++i];
+        if (value.empty() || (flag == "--recipe" && !isRecipeFile(value))) continue; // a built-in recipe is no file
+        reads.push_back(value);
     }
 }
 

@@ -137,10 +137,14 @@ Recipe parseRecipe(const std::string& text, const std::string& path)
     return r;
 }
 
+bool isRecipeFile(const std::string& nameOrPath)
+{
+    return nameOrPath.size() >= 5 && nameOrPath.compare(nameOrPath.size() - 5, 5, ".json") == 0;
+}
+
 Recipe loadRecipe(const std::string& nameOrPath)
 {
-    if (nameOrPath == "paper" || nameOrPath == "default") return builtinRecipe(nameOrPath);
-    if (nameOrPath.size() < 5 || nameOrPath.compare(nameOrPath.size() - 5, 5, ".json") != 0) return builtinRecipe(nameOrPath);
+    if (!isRecipeFile(nameOrPath)) return builtinRecipe(nameOrPath);
     return parseRecipe(readWholeFile(nameOrPath, "recipe"), nameOrPath);
 }
 

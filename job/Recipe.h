@@ -35,6 +35,9 @@ Recipe builtinRecipe(const std::string& name);
 ///        string or number values. Pure. @throws InputError naming `path`, the step and the key.
 Recipe parseRecipe(const std::string& text, const std::string& path);
 
+/// @brief Whether --recipe's value names a file (it ends in .json), not a built-in recipe.
+bool isRecipeFile(const std::string& nameOrPath);
+
 /// @brief A built-in name, else a recipe file read and parsed.
 Recipe loadRecipe(const std::string& nameOrPath);
 

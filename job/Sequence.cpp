@@ -116,6 +116,7 @@ SequenceResult runSequence(const SequenceRun& run, const ItemRunner& runItem, co
 {
     SequenceResult result;
     result.manifest = (fs::path(run.dir) / manifestName(run.shard)).string();
+    checkOutputPath(result.manifest); // before the first item: not a symlink, a folder or a device
     std::vector<int> mine;
     for (int item : run.items)
         if (run.owns ? run.owns(item) : run.shard.contains(item)) mine.push_back(item);
@@ -207,6 +208,7 @@ std::string unverifiedFiles(const std::string& dir, const json& entry, const std
                             const std::function<bool(int, const std::string&)>& fileBelongs)
 {
     const int item = entry[itemName].get<int>();
+    if (entry["files"].empty()) return msg(itemName, " ", item, ": is done but lists no files");
     for (const json& f : entry["files"]) {
         const std::string rel = f["path"];
         std::string path;
@@ -256,6 +258,7 @@ std::vector<json> shardManifests(const std::string& dir)
 
 json mergeManifests(const std::string& dir, const std::function<bool(int, const std::string&)>& fileBelongs)
 {
+    checkOutputPath((fs::path(dir) / "manifest.json").string());
     std::vector<json> shards = shardManifests(dir);
     json merged = shards.front();
     merged.erase("_path");

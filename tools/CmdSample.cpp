@@ -21,7 +21,8 @@ const CommandRegistrar reg(10, [](CLI::App& app) {
         ->required()
         ->check(CLI::IsMember(demoModelNames()));
     sub->add_option("-o,--output", args->output, "Output .ply path")->required();
-    sub->add_option("--count", args->options.count, "Number of Gaussians (default: stripes 20000, ring 16000)");
+    sub->add_option("--count", args->options.count, "Number of Gaussians, at least 1 (default: stripes 20000, ring 16000)")
+        ->check(CLI::Range(std::size_t(1), std::size_t(1) << 40));
     sub->add_option("--seed", args->options.seed, "Random seed (deterministic output per seed)")->capture_default_str();
     sub->callback([args] {
         OutputSet outputs;

@@ -72,6 +72,7 @@ inline DeformJobOptions deformJobOptions(DeformArgs& args)
     const std::vector<std::pair<std::string, std::string>> fromRecipe = recipeFlags(recipe);
     DeformJobOptions job = args.job;
     job.recipe = recipeJson(recipe);
+    if (isRecipeFile(args.recipe)) job.recipePath = args.recipe;
     for (const Setting& s : deformSettings()) {
         const auto given = args.given.find(s.flag);
         if (given != args.given.end()) {

@@ -159,7 +159,10 @@ void AtomicFile::commit()
 std::string readWholeFile(const std::string& path, const std::string& what)
 {
     std::error_code ec;
-    if (std::filesystem::is_directory(path, ec)) throw IoError(msg(path, ": is a directory, not a ", what));
+    const std::filesystem::file_status st = std::filesystem::status(path, ec);
+    if (std::filesystem::is_directory(st)) throw IoError(msg(path, ": is a directory, not a ", what));
+    if (std::filesystem::exists(st) && !std::filesystem::is_regular_file(st)) // /dev/zero would be read until memory ran out
+        throw IoError(msg(path, ": is not a regular file (a device, FIFO or socket); cannot read it as a ", what));
     std::ifstream in(path, std::ios::binary);
     if (!in) throw IoError(msg(path, ": cannot open ", what, ": ", std::strerror(errno)));
     std::ostringstream ss;
@@ -233,7 +236,16 @@ void DirectoryGuard::create(const std::string& dir)
         mCreated.emplace_back(it->string(), registerCleanup(it->string(), true));
 }
 
-void OutputSet::removeOnCommit(const std::string& path) { mStale.push_back(path); }
+void OutputSet::removeOnCommit(const std::string& path)
+{
+    for (const std::string& in : mInputs) {
+        std::error_code ec;
+        if (!in.empty() && std::filesystem::equivalent(in, path, ec))
+            throw IoError(msg(path, ": is an input of this command (", in, "), and this run would remove it as an earlier run's "
+                                "result; move it out of the output folder"));
+    }
+    mStale.push_back(path);
+}
 
 void OutputSet::checkNotInput(const std::string& path) const
 {

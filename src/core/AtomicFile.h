@@ -37,7 +37,7 @@ private:
 };
 
 /// @brief The bytes of a whole file; `what` names it in messages ("camera file", "recipe", ...).
-/// @throws IoError when it is a directory, cannot be opened or a read fails
+/// @throws IoError when it is a directory or not a regular file (a device, FIFO), cannot be opened or a read fails
 std::string readWholeFile(const std::string& path, const std::string& what = "file");
 
 /// @brief Write a whole string atomically (reports, JSON); checks flush and close.
@@ -83,7 +83,8 @@ public:
     static OutputSet* active();
     /// @brief create_directories(dir), remembering what it created (removed again on failure).
     void createDirectory(const std::string& dir);
-    /// @brief Remove this file at commit (a stale output of an earlier run that this run does not write).
+    /// @brief Remove this file at commit (a stale output of an earlier run that this run does not
+    ///        write). @throws IoError when it is one of the inputs.
     void removeOnCommit(const std::string& path);
     /// @brief Rename every staged file into place; throws IoError (and rolls back the rest) on failure.
     void commit();

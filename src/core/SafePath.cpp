@@ -15,13 +15,18 @@ std::string pathInside(const std::string& root, const std::string& rel, const st
     if (rel.empty()) throw InputError(msg(what, ": empty path"));
     if (p.is_absolute() || p.has_root_name())
         throw InputError(msg(what, ": is an absolute path; it must be relative to the output folder ", root));
-    fs::path at(root);
-    for (const fs::path& part : p) {
+    for (const fs::path& part : p)
         if (part == "..") throw InputError(msg(what, ": climbs out of the output folder ", root, " (\"..\")"));
+    fs::path at(root);
+    bool below = true; // every part so far exists: the next may be a symlink
+    for (const fs::path& part : p) {
         if (part.empty() || part == ".") continue;
         at /= part;
         struct stat st {};
-        if (::lstat(at.c_str(), &st) != 0) break; // not there yet: created below root
+        if (!below || ::lstat(at.c_str(), &st) != 0) { // not there yet: created below root, as are the parts after it
+            below = false;
+            continue;
+        }
         if (S_ISLNK(st.st_mode))
             throw InputError(msg(what, ": ", at.string(), " is a symbolic link; a path inside the output folder may not follow one"));
     }

@@ -29,6 +29,8 @@ const char* kAnim = R"({"version":1,"units":"bbox","frames":2,"graph":{"nodes":3
             {"box":{"min":[0.85,-0.01,-0.01],"max":[1.01,1.01,1.01]},"pivot":[0.5,1.05,0.5],
              "keys":[{"frame":0},{"frame":1,"rotate":{"axis":[0,0,1],"degrees":30}}]}]})";
 
+const std::string kBend = std::string(SPLATWARP_SOURCE_DIR) + "/samples/specs/bend.json";
+
 struct Fixture {
     TempDir dir;
     std::string model, spec;
@@ -232,4 +234,88 @@ TEST(AnimateSafety, MergeAndZipRefuseASymlinkedFrame)
     EXPECT_NE(fileBytes(fx.dir.file("m.log")).find(frameFile("baseline", 1) + " is a symbolic link"), std::string::npos)
         << fileBytes(fx.dir.file("m.log"));
     EXPECT_FALSE(fs::exists(out + "/sequence.zip"));
+}
+
+TEST(BatchSafety, NestedOutputsAreWrittenWhereTheyAreNamed)
+{
+    // Every part of "output" counts, also below the first folder that does not exist yet.
+    Fixture fx;
+    const std::string out = fx.dir.file("runs");
+    std::string log;
+    ASSERT_EQ(fx.batch(R"({"jobs":[)" + fx.toVdbJob("sub/s.vdb") + "," + fx.toVdbJob("deep/er/t.vdb") + "]}", out, log), 0) << log;
+    EXPECT_TRUE(fs::is_regular_file(out + "/sub/s.vdb"));
+    EXPECT_TRUE(fs::is_regular_file(out + "/deep/er/t.vdb"));
+    const json m = json::parse(fileBytes(out + "/manifest.json"));
+    EXPECT_EQ(m["entries"][0]["files"][0]["path"], "sub/s.vdb") << m.dump();
+    // Two files in one new folder are two outputs, not one.
+    ASSERT_EQ(fx.batch(R"({"jobs":[)" + fx.toVdbJob("v/a.vdb") + "," + fx.toVdbJob("v/b.vdb") + "]}", out, log), 0) << log;
+    EXPECT_EQ(fx.batch(R"({"jobs":[)" + fx.toVdbJob("first.vdb") + "," + fx.toVdbJob("a/../b.vdb") + "]}", out, log), 1);
+    EXPECT_NE(log.find("climbs out"), std::string::npos) << log;
+}
+
+TEST(BatchSafety, ARecipeFileIsAnInput)
+{
+    Fixture fx;
+    const std::string out = fx.dir.file("runs");
+    fs::create_directories(out + "/d");
+    const std::string recipe = R"({"recipe":"mine","steps":[{"step":"stage1"},{"step":"stage2","iterations":3}]})";
+    writeText(out + "/d/report.json", recipe);
+    std::string log;
+    const std::string job = msg(R"({"kind":"deform","input":")", fx.model, R"(","output":"d","args":["--spec",")", fx.spec,
+                                R"(","--recipe",")", out, R"(/d/report.json"]})");
+    EXPECT_EQ(fx.batch(R"({"jobs":[)" + job + "]}", out, log), 1);
+    EXPECT_NE(log.find("would overwrite its own input"), std::string::npos) << log;
+    // The same from deform itself, refused before any work; the built-in names are no files.
+    EXPECT_EQ(runCli(msg("deform ", fx.model, " --spec ", kBend, " --recipe ", out, "/d/report.json -o ", out, "/d"),
+                     fx.dir.file("d.log")), 1);
+    EXPECT_NE(fileBytes(fx.dir.file("d.log")).find("is also an input"), std::string::npos) << fileBytes(fx.dir.file("d.log"));
+    EXPECT_EQ(fileBytes(out + "/d/report.json"), recipe);
+    EXPECT_EQ(parseJobList(R"({"jobs":[{"kind":"deform","input":"a.ply","output":"b","args":["--recipe","paper"]}]})", "j")[0].reads,
+              (std::vector<std::string>{"a.ply"}));
+}
+
+TEST(DeformSafety, AStage1OnlyRunNeverRemovesItsInput)
+{
+    // --stage1-only removes an earlier run's deformed.ply; not when that file is what it reads.
+    Fixture fx;
+    const std::string out = fx.dir.file("t");
+    fs::create_directories(out);
+    fs::copy_file(fx.model, out + "/deformed.ply");
+    EXPECT_EQ(runCli(msg("deform ", out, "/deformed.ply --spec ", kBend, " -o ", out, " --stage1-only"), fx.dir.file("1.log")), 1);
+    EXPECT_NE(fileBytes(fx.dir.file("1.log")).find("is an input of this command"), std::string::npos) << fileBytes(fx.dir.file("1.log"));
+    EXPECT_EQ(fileBytes(out + "/deformed.ply"), fileBytes(fx.model));
+    EXPECT_FALSE(fs::exists(out + "/baseline.ply"));
+}
+
+TEST(AnimateSafety, ASymlinkedFolderOrManifestIsRefusedBeforeTheFirstFrame)
+{
+    Fixture fx;
+    fs::create_directories(fx.dir.file("outside"));
+    const std::string a = fx.dir.file("a");
+    fs::create_directories(a);
+    fs::create_directory_symlink(fx.dir.file("outside"), a + "/frames");
+    EXPECT_EQ(fx.animate(a), 1);
+    EXPECT_NE(fileBytes(fx.dir.file("animate.log")).find("frames: is a symbolic link"), std::string::npos)
+        << fileBytes(fx.dir.file("animate.log"));
+    EXPECT_EQ(filesUnder(fx.dir.file("outside")), 0u);
+    const std::string b = fx.dir.file("b");
+    fs::create_directories(b);
+    fs::create_symlink(fx.dir.file("outside/m.json"), b + "/manifest.json");
+    EXPECT_EQ(fx.animate(b), 1);
+    EXPECT_FALSE(fs::exists(b + "/frames")) << "a frame ran before the manifest was checked";
+    EXPECT_EQ(filesUnder(fx.dir.file("outside")), 0u);
+}
+
+TEST(AnimateSafety, ADoneEntryListingNoFilesIsRecomputed)
+{
+    Fixture fx;
+    const std::string out = fx.dir.file("r");
+    ASSERT_EQ(fx.animate(out), 0);
+    json m = json::parse(fileBytes(out + "/manifest.json"));
+    m["entries"][1]["files"] = json::array();
+    writeText(out + "/manifest.json", m.dump());
+    fs::remove(out + "/" + frameFile("baseline", 1));
+    ASSERT_EQ(fx.animate(out), 0);
+    EXPECT_NE(fileBytes(fx.dir.file("animate.log")).find("1 done, 1 resumed"), std::string::npos) << fileBytes(fx.dir.file("animate.log"));
+    EXPECT_TRUE(fs::exists(out + "/" + frameFile("baseline", 1)));
 }

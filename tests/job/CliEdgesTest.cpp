@@ -137,3 +137,15 @@ TEST(CliEdges, CommandsThatReadAModelNameEveryFormat)
             EXPECT_NE(help.find(format), std::string::npos) << cmd << " --help does not name " << format;
     }
 }
+
+TEST(CliEdges, ADeviceIsNoModelAndACountIsPositive)
+{
+    TempDir dir;
+    if (std::filesystem::exists("/dev/zero")) { // would be read until memory ran out
+        EXPECT_EQ(runCli("info /dev/zero", dir.file("z.log")), 1);
+        EXPECT_NE(fileBytes(dir.file("z.log")).find("/dev/zero: is not a regular file"), std::string::npos) << fileBytes(dir.file("z.log"));
+    }
+    EXPECT_EQ(runCli("sample stripes --count -1 -o " + dir.file("q.ply"), dir.file("c.log")), 2);
+    EXPECT_EQ(runCli("sample stripes --count 0 -o " + dir.file("q.ply"), dir.file("c.log")), 2);
+    EXPECT_FALSE(std::filesystem::exists(dir.file("q.ply")));
+}
