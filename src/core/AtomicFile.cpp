@@ -6,6 +6,7 @@
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
+#include <fcntl.h>
 #include <filesystem>
 #include <fstream>
 #include <mutex>
@@ -109,10 +110,20 @@ std::string placeOf(const std::string& path)
 std::string tempPathFor(const std::string& finalPath)
 {
     // Same directory as the destination so rename() is atomic (same filesystem); a short name so
-    // that a destination name near NAME_MAX still has a valid temporary.
+    // that a destination name near NAME_MAX still has a valid temporary. The name is guessable
+    // (pid, counter), so it is claimed with O_EXCL | O_NOFOLLOW: a symlink or FIFO planted under it
+    // is passed over, never written through or blocked on.
     const std::filesystem::path parent = std::filesystem::path(finalPath).parent_path();
-    const std::string name = msg(".sw", ::getpid(), "-", gCounter++, ".tmp");
-    return (parent / name).string();
+    for (int taken = 0; taken < 100000; ++taken) {
+        const std::string path = (parent / msg(".sw", ::getpid(), "-", gCounter++, ".tmp")).string();
+        const int fd = ::open(path.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_NOFOLLOW | O_CLOEXEC, 0666);
+        if (fd >= 0) {
+            ::close(fd);
+            return path;
+        }
+        if (errno != EEXIST) return path; // the folder's own problem: the writer's open names it
+    }
+    throw IoError(msg(finalPath, ": no free temporary name beside it (100000 taken)"));
 }
 
 } // namespace

@@ -5,6 +5,7 @@
 #include <csignal>
 #include <filesystem>
 #include <fstream>
+#include <sys/stat.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
@@ -207,4 +208,31 @@ TEST(OutputSet, AnOutputsMissingFolderIsMadeBeforeTheWorkAndRemovedOnFailure)
     EXPECT_NE(ioErrorMessage([&] { outputs.checkTarget(dir.file("plain/b/a.ply")); }).find("cannot create"),
               std::string::npos);
     EXPECT_EQ(slurp(dir.file("plain")), "x");
+}
+
+TEST(OutputSet, PlantedSymlinksAndFifosAtTemporaryNamesArePassedOver)
+{
+    // The temporaries' names (pid, counter) can be guessed: a symlink or FIFO placed under the
+    // next ones must be neither written through nor blocked on.
+    TempDir dir;
+    writeFileAtomic(dir.file("victim"), "the user's file");
+    unsigned next = 0;
+    {
+        const AtomicFile probe(dir.file("probe")); // its temporary shows where the counter is
+        const std::string name = fs::path(probe.tempPath()).filename().string();
+        next = unsigned(std::stoul(name.substr(name.find('-') + 1))) + 1;
+    }
+    std::vector<std::string> planted;
+    for (unsigned n = next; n < next + 64; ++n) {
+        const std::string path = dir.file(msg(".sw", ::getpid(), "-", n, ".tmp"));
+        if (n % 2) fs::create_symlink(dir.file("victim"), path);
+        else ASSERT_EQ(::mkfifo(path.c_str(), 0600), 0);
+        planted.push_back(path);
+    }
+    writeFileAtomic(dir.file("out.json"), "{}\n");
+    EXPECT_EQ(slurp(dir.file("out.json")), "{}\n");
+    EXPECT_TRUE(fs::is_regular_file(fs::symlink_status(dir.file("out.json"))));
+    EXPECT_EQ(slurp(dir.file("victim")), "the user's file");
+    for (const std::string& p : planted) EXPECT_FALSE(fs::is_regular_file(fs::symlink_status(p))) << p; // left as planted
+    for (const std::string& p : planted) fs::remove(p);
 }
