@@ -88,6 +88,17 @@ std::string randomToken()
     return token;
 }
 
+std::string shellQuoted(const std::string& word)
+{
+    if (!word.empty() && word.find_first_not_of("abcdefghijklmnopqrstuvwxyzABCDEFGHIJKLMNOPQRSTUVWXYZ0123456789._-/=:,+") == std::string::npos)
+        return word;
+    std::string out = "'";
+    for (char c : word) out += c == '\'' ? std::string("'\\''") : std::string(1, c);
+    return out + "'";
+}
+
+bool tooManyRanges(const std::string& rangeHeader) { return rangeHeader.find(',') != std::string::npos; }
+
 std::string saveNameProblem(const std::string& name)
 {
     if (name.empty()) return "the save name is empty";

@@ -28,4 +28,12 @@ std::string saveNameProblem(const std::string& name);
 /// @brief Whether a host is a wildcard bind address (0.0.0.0, ::).
 bool isWildcardHost(const std::string& host);
 
+/// @brief A word as a POSIX shell reads it back: as it is when made of [A-Za-z0-9._-/=:,+] only,
+///        else in single quotes (a replay command's paths may hold spaces or ';').
+std::string shellQuoted(const std::string& word);
+
+/// @brief Whether a Range header asks for more than one range: refused (416), as cpp-httplib
+///        would answer a few hundred "0-" with a copy of the body each.
+bool tooManyRanges(const std::string& rangeHeader);
+
 } // namespace splatwarp::edit

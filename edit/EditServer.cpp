@@ -36,7 +36,8 @@ const char* kBinary = "application/octet-stream";
 void sendJson(httplib::Response& res, const nlohmann::json& body, int status = 200)
 {
     res.status = status;
-    res.set_content(body.dump() + "\n", kJson);
+    // Replaced, not thrown on: a message may quote bytes of a request that are not UTF-8.
+    res.set_content(body.dump(-1, ' ', false, nlohmann::json::error_handler_t::replace) + "\n", kJson);
 }
 
 void sendError(httplib::Response& res, int status, const std::string& message)
@@ -262,7 +263,7 @@ void EditServer::Impl::save(const httplib::Request& req, httplib::Response& res)
     try {
         body = nlohmann::json::parse(req.body);
     } catch (const nlohmann::json::exception& e) {
-        throw HttpError{400, msg("invalid JSON: ", e.what())};
+        throw HttpError{400, msg("invalid JSON: ", printable(e.what()))};
     }
     if (!body.is_object() || !body.contains("name") || !body["name"].is_string() || body.size() != 1)
         throw HttpError{400, "the body must be {\"name\": \"...\"}"};
@@ -274,8 +275,8 @@ void EditServer::Impl::save(const httplib::Request& req, httplib::Response& res)
     if (!posed) throw HttpError{400, "save needs a pose first (POST /api/pose)"};
     const FrameReport report = session->write(dir.string(), {{"spec.json", posedSpec}});
     nlohmann::json reply = {{"dir", dir.string()}, {"outputs", report.outputs}};
-    reply["replay"] = msg("splatwarp deform ", options.job.input, " --spec ", (dir / "spec.json").string(), " -o OUT",
-                          options.replayFlags.empty() ? "" : " ", options.replayFlags);
+    reply["replay"] = msg("splatwarp deform ", shellQuoted(options.job.input), " --spec ", shellQuoted((dir / "spec.json").string()),
+                          " -o OUT", options.replayFlags.empty() ? "" : " ", options.replayFlags);
     sendJson(res, reply);
 }
 
@@ -296,21 +297,30 @@ void EditServer::Impl::saveAnimation(const httplib::Request& req, httplib::Respo
     const fs::path dir = saveDir(req.get_param_value("name"));
     const AnimSpec anim = parseAnimSpec(req.body, "animation"); // 400 with the parser's message
     nlohmann::json spec = nlohmann::json::parse(req.body);
-    spec["graph"] = graphBlock(graphOptionsOf(parseDeformSpec(frameSpecJson(anim, 0).dump(), "animation"), options.job));
+    const DeformSpec first = parseDeformSpec(frameSpecJson(anim, 0).dump(), "animation");
+    session->checkGraph(first); // its replay runs on the session's graph, as a pose does
+    spec["graph"] = graphBlock(graphOptionsOf(first, options.job));
+    refuseWhileRefining(); // a 409 now, not a wait for the refine's lock
     const std::lock_guard<std::mutex> lock(sessionMutex); // one OutputSet at a time
+    refuseWhileRefining();
     OutputSet outputs({options.job.input});
     outputs.createDirectory(dir.string());
     writeFileAtomic((dir / "animation.json").string(), spec.dump(2) + "\n");
     outputs.commit();
     sendJson(res, {{"file", (dir / "animation.json").string()},
-                   {"replay", msg("splatwarp animate ", options.job.input, " --spec ", (dir / "animation.json").string(),
+                   {"replay", msg("splatwarp animate ", shellQuoted(options.job.input), " --spec ", shellQuoted((dir / "animation.json").string()),
                                   " -o OUT", options.replayFlags.empty() ? "" : " ", options.replayFlags)}});
 }
 
 void EditServer::Impl::routes()
 {
     server.set_pre_routing_handler([this](const httplib::Request& req, httplib::Response& res) {
-        return allowed(req, res) ? httplib::Server::HandlerResponse::Unhandled : httplib::Server::HandlerResponse::Handled;
+        if (!allowed(req, res)) return httplib::Server::HandlerResponse::Handled;
+        if (tooManyRanges(req.get_header_value("Range"))) {
+            sendError(res, 416, "one byte range per request at most");
+            return httplib::Server::HandlerResponse::Handled;
+        }
+        return httplib::Server::HandlerResponse::Unhandled;
     });
     for (const auto& [path, file] : web) {
         const WebFile* f = &file;
@@ -342,8 +352,13 @@ void EditServer::Impl::routes()
     server.set_exception_handler([](const httplib::Request&, httplib::Response& res, std::exception_ptr) {
         sendError(res, 500, "internal error");
     });
-    server.set_error_handler([](const httplib::Request&, httplib::Response& res) {
+    server.set_error_handler([](const httplib::Request& req, httplib::Response& res) {
         if (!res.body.empty()) return;
+        // Debian's compiled httplib caps form-encoded bodies (curl -d's default type) at 8 KiB.
+        const bool form = req.get_header_value("Content-Type").rfind("application/x-www-form-urlencoded", 0) == 0;
+        if (res.status == 413 && form)
+            return sendError(res, 413, "a form-encoded body is limited to 8 KiB by the HTTP library: send it with "
+                                       "Content-Type: application/json (1 MiB at most)");
         sendError(res, res.status, res.status == 413 ? "request body too large (1 MiB at most)"
                                    : res.status == 404 ? "not found"
                                                        : msg("bad request (HTTP ", res.status, "; a POST needs Content-Length, e.g. curl -d '')"));

@@ -37,6 +37,9 @@ public:
 
     const DeformRest& rest() const { return *mRest; }
     const DeformJobOptions& options() const { return mOptions; }
+    /// @brief Refuse a spec whose graph block (with the options' --nodes/--k/--seed) is not the
+    ///        session's. @throws InputError naming the spec.
+    void checkGraph(const DeformSpec& spec) const;
 
     /// @brief The ED solve from the rest pose and Stage I for a spec; forgets an earlier refine.
     /// @throws InputError when the spec's graph block differs from the session's.
@@ -85,7 +88,6 @@ private:
     std::optional<NodeTransforms> mLastSolve;  ///< the warm start of the next preview()
     std::optional<GaussianCloud> mPreviewCloud;
 
-    void checkGraph(const DeformSpec& spec) const;
     void poseThePreview(); ///< pose() the previewed spec, if one waits
 };
 

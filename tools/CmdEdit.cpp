@@ -50,15 +50,6 @@ std::string findWebDir()
     return "";
 }
 
-std::string shellQuoted(const std::string& word)
-{
-    if (!word.empty() && word.find_first_not_of("abcdefghijklmnopqrstuvwxyzABCDEFGHIJKLMNOPQRSTUVWXYZ0123456789._-/=:,+") == std::string::npos)
-        return word;
-    std::string out = "'";
-    for (char c : word) out += c == '\'' ? std::string("'\\''") : std::string(1, c);
-    return out + "'";
-}
-
 /// The deform flags given on this command line, to replay a save with `deform`.
 std::string replayFlags(CLI::App* sub)
 {
@@ -71,7 +62,7 @@ std::string replayFlags(CLI::App* sub)
         std::string name = option->get_name();
         out += (out.empty() ? "" : " ") + name;
         if (option->get_expected_min() == 0) continue; // a flag without a value
-        for (const std::string& value : option->results()) out += " " + shellQuoted(value);
+        for (const std::string& value : option->results()) out += " " + edit::shellQuoted(value);
     }
     return out;
 }

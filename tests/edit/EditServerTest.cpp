@@ -114,6 +114,12 @@ TEST(EditServer, RequestChecks)
     EXPECT_FALSE(tokenWellFormed("has space in it 0123456789"));
     EXPECT_EQ(saveNameProblem("bend-1.v2"), "");
     for (const char* bad : {"", "..", "../x", "a/b", ".hidden", "a\\b", "x y", "/abs"}) EXPECT_NE(saveNameProblem(bad), "") << bad;
+    EXPECT_EQ(shellQuoted("runs/a-1.ply"), "runs/a-1.ply");
+    EXPECT_EQ(shellQuoted("my model;x.ply"), "'my model;x.ply'");
+    EXPECT_EQ(shellQuoted("it's"), "'it'\\''s'");
+    EXPECT_EQ(shellQuoted(""), "''");
+    EXPECT_FALSE(tooManyRanges("bytes=0-99"));
+    EXPECT_TRUE(tooManyRanges("bytes=0-,0-"));
 }
 
 TEST(EditServer, TokenMissingOrWrongIs403)
@@ -160,6 +166,19 @@ TEST(EditServer, OversizedMalformedAndBadSpecsAreRefused)
     EXPECT_EQ(status(fx.post("/api/save", R"({"name": "early"})")), 400); // no pose yet
     EXPECT_EQ(status(fx.post("/api/refine", "")), 400);                     // Stage I only
     EXPECT_EQ(status(fx.client->Get("/api/nothing")), 404);
+    // Bytes that are not UTF-8, quoted back in the message: 400 with a readable reply, not 500.
+    const httplib::Result notUtf8 = fx.post("/api/save", "{\"name\": \"\xff\"}");
+    EXPECT_EQ(status(notUtf8), 400) << (notUtf8 ? notUtf8->body : "");
+    EXPECT_EQ(status(fx.post("/api/save", "\xff")), 400);
+    // A spec posted as a form (curl -d's default) meets httplib's 8 KiB: the reply says what to send.
+    std::string big = bendDragSpec(30);
+    big.insert(big.size() - 1, std::string(20000, ' '));
+    const httplib::Result form = fx.client->Post("/api/pose", big, "application/x-www-form-urlencoded");
+    ASSERT_EQ(status(form), 413);
+    EXPECT_NE(form->body.find("Content-Type: application/json"), std::string::npos) << form->body;
+    EXPECT_EQ(status(fx.post("/api/pose", big)), 200);
+    // Many ranges of one file would each be a copy of it in the reply.
+    EXPECT_EQ(status(fx.client->Get("/api/graph", {{"Range", "bytes=0-,0-,0-"}})), 416);
     EXPECT_EQ(status(fx.post("/api/pose", bendDragSpec(30))), 200); // the server still serves
 }
 
@@ -223,6 +242,8 @@ TEST(EditServer, RefineReportsProgressAndCancelStopsIt)
     EXPECT_EQ(status(fx.post("/api/refine", "")), 409);
     EXPECT_EQ(status(fx.post("/api/pose", bendDragSpec(10))), 409);
     EXPECT_EQ(status(fx.post("/api/save", R"({"name": "during"})")), 409);
+    const std::string anim = fileBytes(std::string(SPLATWARP_SOURCE_DIR) + "/samples/specs/bend-24.json");
+    EXPECT_EQ(status(fx.post("/api/save-animation?name=during", anim)), 409); // at once, not after the refine
     const nlohmann::json running = fx.waitFor(
         [](const nlohmann::json& p) { return (p["phase"] == "Stage II" && p["done"].get<int>() > 0) || p["state"] != "running"; });
     EXPECT_EQ(running["state"], "running");
@@ -257,6 +278,12 @@ TEST(EditServer, AnimationFramesAndSaves)
     EXPECT_EQ(back.frames, 24);
     EXPECT_EQ(frameSpecJson(back, 12)["handles"], frameSpecJson(parsed, 12)["handles"]);
     EXPECT_EQ(frameSpecJson(back, 0)["graph"]["nodes"], 64); // the session's graph, written out
+    // Another graph would replay on other nodes than the ones previewed: refused, as a pose is.
+    nlohmann::json other = nlohmann::json::parse(anim);
+    other["graph"]["seed"] = 7; // (--nodes 64 is the fixture's, so the nodes would be overridden)
+    const httplib::Result graph = fx.post("/api/save-animation?name=g2", other.dump());
+    EXPECT_EQ(status(graph), 400) << (graph ? graph->body : "");
+    EXPECT_FALSE(fs::exists(fx.dir.file("out/g2")));
 }
 
 TEST(EditServer, TwoClientsAtOnce)
