@@ -7,6 +7,7 @@
 #include "core/Error.h"
 #include "core/Memory.h"
 #include "core/Progress.h"
+#include "core/SafePath.h"
 #include "image/ImageIO.h"
 #include "io/CameraFileWriter.h"
 
@@ -81,6 +82,25 @@ TrainOutcome fromMesh(const std::string& meshPath, const FromMeshOptions& o, Dat
     for (TrainingView& v : data.test) v.camera.name = "test_" + v.camera.name;
     progress(msg("from-mesh: rendered ", data.train.size(), " + ", data.test.size(), " views in ", int(watch.ms()), " ms"));
     return trainAndScore(meshSurfaceGaussians(mesh, o.initGaussians, o.train.seed), data, o.train);
+}
+
+void checkViewsDir(OutputSet& outputs, const std::string& dir, bool withTest, const std::vector<std::string>& others)
+{
+    namespace fs = std::filesystem;
+    const fs::path root(dir);
+    for (const fs::path& sub : {root / "images", root / "test", root / "test" / "images"}) {
+        std::error_code ec;
+        const fs::file_status st = fs::symlink_status(sub, ec);
+        if (fs::is_symlink(st))
+            throw IoError(msg(sub.string(), ": is a symbolic link; --views-dir writes only inside its folder (remove the link)"));
+        if (fs::exists(st) && !fs::is_directory(st)) throw IoError(msg(sub.string(), ": exists and is not a directory"));
+    }
+    for (const std::string& other : others)
+        if (!other.empty() && (isWithin(other, dir) || isWithin((root / "images").string(), other) ||
+                               isWithin((root / "test").string(), other)))
+            throw IoError(msg(other, ": is where --views-dir ", dir, " writes its views; give it another path"));
+    outputs.checkTarget((root / "cameras.json").string());
+    if (withTest) outputs.checkTarget((root / "test" / "cameras.json").string());
 }
 
 void writeViews(const std::string& dir, const std::vector<TrainingView>& views)

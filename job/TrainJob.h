@@ -11,6 +11,8 @@
 
 namespace splatwarp {
 
+class OutputSet;
+
 /// @brief What a training run produced.
 struct TrainOutcome {
     GaussianCloud model;
@@ -42,5 +44,12 @@ TrainOutcome fromMesh(const std::string& meshPath, const FromMeshOptions& option
 
 /// @brief Write views as DIR/cameras.json + DIR/images/NAME.png (readDataset() reads it back).
 void writeViews(const std::string& dir, const std::vector<TrainingView>& views);
+
+/// @brief Before any work, for writeViews() into `dir` (and `dir`/test when `withTest`): its
+///        images/ and test/ are folders of dir itself (a symlink planted there would take the
+///        pictures elsewhere), none of `others` (the command's other outputs) lies where the
+///        pictures go, and the cameras.json files are claimed as outputs of `outputs`.
+/// @throws IoError.
+void checkViewsDir(OutputSet& outputs, const std::string& dir, bool withTest, const std::vector<std::string>& others);
 
 } // namespace splatwarp

@@ -25,6 +25,7 @@ void run(FromMeshArgs a)
     OutputSet outputs({a.mesh, a.options.read.texture});
     outputs.checkTarget(a.output);
     if (!a.flags.report.empty()) outputs.checkTarget(a.flags.report);
+    if (!a.viewsDir.empty()) checkViewsDir(outputs, a.viewsDir, a.options.testViews > 0, {a.output, a.flags.report});
     a.options.train = a.flags.options();
     checkStartWithinCap("--init-gaussians", a.options.initGaussians, a.options.train.maxGaussians);
     a.options.views.width = a.options.views.height = a.size;

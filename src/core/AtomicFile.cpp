@@ -174,6 +174,7 @@ std::string readWholeFile(const std::string& path, const std::string& what)
     if (std::filesystem::is_directory(st)) throw IoError(msg(path, ": is a directory, not a ", what));
     if (std::filesystem::exists(st) && !std::filesystem::is_regular_file(st)) // /dev/zero would be read until memory ran out
         throw IoError(msg(path, ": is not a regular file (a device, FIFO or socket); cannot read it as a ", what));
+    if (gActive) gActive->addInput(path); // no output of this command may replace it
     std::ifstream in(path, std::ios::binary);
     if (!in) throw IoError(msg(path, ": cannot open ", what, ": ", std::strerror(errno)));
     std::ostringstream ss;
@@ -247,8 +248,15 @@ void DirectoryGuard::create(const std::string& dir)
         mCreated.emplace_back(it->string(), registerCleanup(it->string(), true));
 }
 
+void OutputSet::addInput(const std::string& path)
+{
+    const std::lock_guard<std::mutex> lock(mInputsMutex);
+    mInputs.push_back(path);
+}
+
 void OutputSet::removeOnCommit(const std::string& path)
 {
+    const std::lock_guard<std::mutex> lock(mInputsMutex);
     for (const std::string& in : mInputs) {
         std::error_code ec;
         if (!in.empty() && std::filesystem::equivalent(in, path, ec))
@@ -260,6 +268,7 @@ void OutputSet::removeOnCommit(const std::string& path)
 
 void OutputSet::checkNotInput(const std::string& path) const
 {
+    const std::lock_guard<std::mutex> lock(mInputsMutex);
     for (const std::string& in : mInputs) {
         std::error_code ec;
         if (!in.empty() && std::filesystem::equivalent(in, path, ec))

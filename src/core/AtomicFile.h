@@ -3,6 +3,7 @@
 /// @brief Write-to-temporary-then-rename, so a failed job never leaves a half-written output, and
 ///        OutputSet, so a command's outputs appear together or not at all.
 #include <initializer_list>
+#include <mutex>
 #include <string>
 #include <string_view>
 #include <unordered_map>
@@ -83,6 +84,9 @@ public:
     static OutputSet* active();
     /// @brief create_directories(dir), remembering what it created (removed again on failure).
     void createDirectory(const std::string& dir);
+    /// @brief One more file the command reads (readWholeFile() and the mesh reader add every file
+    ///        they open): an output written after that is refused when it is this file. Thread-safe.
+    void addInput(const std::string& path);
     /// @brief Remove this file at commit (a stale output of an earlier run that this run does not
     ///        write). @throws IoError when it is one of the inputs.
     void removeOnCommit(const std::string& path);
@@ -110,6 +114,7 @@ private:
         int slot;
     };
     std::vector<std::string> mInputs, mStale;
+    mutable std::mutex mInputsMutex; ///< addInput() may run on the threads that read
     std::vector<std::pair<std::string, std::string>> mClaimed; ///< checkTarget()ed outputs: place, as named
     std::vector<Staged> mStaged;
     std::unordered_map<std::string, std::string> mStagedPlaces; ///< place -> path as named

@@ -202,6 +202,13 @@ Image readExr(const std::string& path)
             in.readPixels(int(top), int(bottom));
             image.pixels.insert(image.pixels.end(), band.begin(), band.end());
         }
+        // A NaN scores as nothing (compare printed "PSNR nan" and exit 0): refused, named.
+        for (std::size_t i = 0; i < image.pixels.size(); ++i)
+            if (!std::isfinite(image.pixels[i])) {
+                const std::size_t px = i / std::size_t(image.channels);
+                throw InputError(msg(path, ": pixel (", px % std::size_t(image.width), ", ", px / std::size_t(image.width),
+                                     ") channel ", i % std::size_t(image.channels), " is ", image.pixels[i], ", not a finite value"));
+            }
         return image;
     } catch (const Error&) {
         throw;

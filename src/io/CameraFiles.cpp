@@ -1,5 +1,6 @@
 #include "io/CameraFiles.h"
 
+#include <algorithm>
 #include <cmath>
 #include <nlohmann/json.hpp>
 
@@ -66,6 +67,23 @@ struct JsonReader {
             fail(where, msg("'", key, "' must be a whole number of pixels from 1 to ", kMaxImageSide, ", got ", v));
         return int(v);
     }
+    /// A camera's rotation: orthonormal columns (to 1e-2: files round) and no mirror. A zero, scaled
+    /// or reflected matrix rendered, and trained on, without a word before.
+    void checkRotation(const Mat3d& r, const char* key, const std::string& where) const
+    {
+        double worst = 0;
+        for (int a = 0; a < 3; ++a)
+            for (int b = 0; b < 3; ++b) {
+                double dot = 0;
+                for (int k = 0; k < 3; ++k) dot += r.m[k][a] * r.m[k][b];
+                worst = std::max(worst, std::fabs(dot - (a == b ? 1.0 : 0.0)));
+            }
+        const double det = r.m[0][0] * (r.m[1][1] * r.m[2][2] - r.m[1][2] * r.m[2][1]) -
+                           r.m[0][1] * (r.m[1][0] * r.m[2][2] - r.m[1][2] * r.m[2][0]) +
+                           r.m[0][2] * (r.m[1][0] * r.m[2][1] - r.m[1][1] * r.m[2][0]);
+        if (!(worst <= 1e-2)) fail(where, msg("'", key, "' is not a rotation (its columns are not orthonormal: off by ", worst, ")"));
+        if (det < 0) fail(where, msg("'", key, "' is a mirror (determinant ", det, "), not a rotation"));
+    }
     void checkIntrinsics(const Camera& c, const std::string& where) const
     {
         // A zero camera angle gives an infinite focal length: a blank image, not an error, before.
@@ -99,6 +117,7 @@ std::vector<Camera> readGraphdeco(const JsonReader& r, const Json& list)
         cam.name = e.contains("img_name") && e["img_name"].is_string() ? e["img_name"].get<std::string>()
                                                                       : msg("view_", i);
         r.checkIntrinsics(cam, where);
+        r.checkRotation(c2w, "rotation", where);
         cams.push_back(cam);
     }
     return cams;
@@ -145,6 +164,7 @@ std::vector<Camera> readTransforms(const JsonReader& r, const Json& top, const C
         cam.name = f.contains("file_path") && f["file_path"].is_string() ? f["file_path"].get<std::string>()
                                                                         : msg("view_", i);
         r.checkIntrinsics(cam, where);
+        r.checkRotation(c2w, "transform_matrix", where);
         cams.push_back(cam);
     }
     return cams;

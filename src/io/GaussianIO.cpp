@@ -47,6 +47,20 @@ int countInvalid(const GaussianCloud& g, std::size_t i, std::string* first)
     return bad;
 }
 
+} // namespace
+
+void checkFiniteForWriting(const std::string& path, const GaussianCloud& g)
+{
+    for (std::size_t i = 0; i < g.size(); ++i) {
+        std::string first;
+        if (countInvalid(g, i, &first) > 0)
+            throw InputError(msg(path, ": refusing to write Gaussian ", i, ": property '", first,
+                                 " (every reader, ours too, would refuse the file)"));
+    }
+}
+
+namespace {
+
 void applyInvalidPolicy(const std::string& path, GaussianCloud& g, const ReadOptions& options, ReadReport& report)
 {
     std::size_t firstBad = g.size();

@@ -56,7 +56,8 @@ GaussianCloud readGaussiansFromBytes(const std::string& name, const std::string&
 /// @throws InputError if the cloud holds NaN/Inf (a viewer would choke on it).
 void writePly(const std::string& path, const GaussianCloud& cloud);
 
-/// @brief Throws InputError naming the first Gaussian and graphdeco property that is NaN/Inf.
+/// @brief Throws InputError naming the first Gaussian and graphdeco property that is NaN/Inf or
+///        unusable (readGaussians() refuses it: no command writes a file that a reader refuses).
 void checkFiniteForWriting(const std::string& path, const GaussianCloud& cloud);
 
 /// @brief The `.spz` bytes of a cloud, version 3 (gzip) or 4 (NGSP + zstd); `path` names it in messages.

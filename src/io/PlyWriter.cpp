@@ -20,24 +20,6 @@ std::vector<std::string> graphdecoPropertyNames(int shDegree)
     return names;
 }
 
-void checkFiniteForWriting(const std::string& path, const GaussianCloud& g)
-{
-    const auto check = [&](float v, std::size_t i, const auto& name) {
-        if (!std::isfinite(v))
-            throw InputError(msg(path, ": refusing to write Gaussian ", i, ": property '", name(), "' is not finite"));
-    };
-    static const char* const xyz[] = {"x", "y", "z"};
-    for (std::size_t i = 0; i < g.size(); ++i) {
-        for (int a = 0; a < 3; ++a) check(g.means[3 * i + a], i, [&] { return std::string(xyz[a]); });
-        for (int c = 0; c < 3; ++c)
-            for (int j = 0; j < g.shCoeffs(); ++j)
-                check(g.shOf(i)[3 * j + c], i, [&] { return shPropertyName(g.shDegree, j, c); });
-        check(g.opacities[i], i, [] { return std::string("opacity"); });
-        for (int a = 0; a < 3; ++a) check(g.logScales[3 * i + a], i, [&] { return "scale_" + std::to_string(a); });
-        for (int a = 0; a < 4; ++a) check(g.rotations[4 * i + a], i, [&] { return "rot_" + std::to_string(a); });
-    }
-}
-
 void writePly(const std::string& path, const GaussianCloud& g)
 {
     g.checkConsistent();

@@ -1,5 +1,6 @@
 #include "mesh/MeshIO.h"
 
+#include <assimp/DefaultIOSystem.h>
 #include <assimp/Importer.hpp>
 #include <assimp/material.h>
 #include <assimp/postprocess.h>
@@ -7,6 +8,7 @@
 #include <filesystem>
 #include <fstream>
 #include <map>
+#include <sstream>
 
 #include "core/AtomicFile.h"
 #include "core/Error.h"
@@ -121,6 +123,36 @@ void checkPlyMesh(const std::string& path)
     PlyBody(path, data, parsePlyHeader(path, data), PlyBody::Trailing::Allow);
 }
 
+/// An OFF header's counts against the file's size before Assimp reads it: its loader reserves
+/// what the header declares (a 57-byte file declaring 2e9 vertices took 23 GB). A vertex takes
+/// at least 6 bytes ("0 0 0\n"), a face 8 ("3 0 1 2\n").
+void checkOffCounts(const std::string& path)
+{
+    std::ifstream in(path, std::ios::binary);
+    std::string head(4096, '\0');
+    in.read(&head[0], std::streamsize(head.size()));
+    head.resize(std::size_t(in.gcount()));
+    std::istringstream words(head);
+    std::string word;
+    if (!(words >> word) || word.size() < 3 || word.compare(word.size() - 3, 3, "OFF") != 0) return; // not OFF
+    std::vector<double> counts;
+    while (counts.size() < 2 && words >> word) {
+        if (word[0] == '#') {
+            std::getline(words, word);
+            continue;
+        }
+        char* end = nullptr;
+        const double v = std::strtod(word.c_str(), &end);
+        if (*end != '\0') return; // not the counts: Assimp's own checks
+        counts.push_back(v);
+    }
+    std::error_code ec;
+    const double size = double(fs::file_size(path, ec));
+    if (counts.size() == 2 && (counts[0] > size / 6 || counts[1] > size / 8))
+        throw InputError(msg(path, ": its OFF header declares ", counts[0], " vertices and ", counts[1], " faces, more than its ",
+                             size, " bytes can hold (a cut or corrupt file?)"));
+}
+
 /// Each mesh's primitive types taken from its faces, as Assimp's triangulation asserts they are
 /// (a loader that leaves a polygon flag on a mesh of triangles or of no faces aborts the process
 /// there); a face without indices is refused.
@@ -139,13 +171,28 @@ void setPrimitiveTypes(const aiScene& scene, const std::string& path)
     }
 }
 
+/// Assimp's file access: every file it opens (the mesh, an .mtl, a glTF's buffers) is an input of
+/// the command, so that no output of it may replace that file.
+class InputRecordingIO : public Assimp::DefaultIOSystem {
+public:
+    Assimp::IOStream* Open(const char* file, const char* mode) override
+    {
+        if (OutputSet* outputs = OutputSet::active()) outputs->addInput(file);
+        return DefaultIOSystem::Open(file, mode);
+    }
+};
+
 } // namespace
 
 TriangleMesh readMesh(const std::string& path, const MeshReadOptions& o)
 {
-    if (!fs::is_regular_file(path)) throw InputError(msg(path, ": mesh file not found"));
+    std::error_code ec;
+    if (!fs::exists(path, ec)) throw InputError(msg(path, ": mesh file not found"));
+    if (!fs::is_regular_file(path, ec)) throw InputError(msg(path, ": is not a regular file (a folder, device or FIFO), not a mesh"));
     checkPlyMesh(path);
+    checkOffCounts(path);
     Assimp::Importer importer;
+    importer.SetIOHandler(new InputRecordingIO); // the importer owns it
     importer.SetPropertyInteger(AI_CONFIG_PP_SBP_REMOVE, aiPrimitiveType_POINT | aiPrimitiveType_LINE);
     // Read, then validated and post-processed once the primitive types are the faces' own.
     const aiScene* scene = importer.ReadFile(path, 0);

@@ -125,6 +125,12 @@ TEST(ImageIOTest, ExrRoundTripKeepsValuesAndAlpha)
     Image rgb = randomImage(4, 3, 3, 9);
     writeExr(dir.file("rgb.exr"), rgb, ExrPixelType::Float);
     EXPECT_EQ(readExr(dir.file("rgb.exr")).channels, 3);
+
+    // A NaN or an infinity is no value to compare or train on: refused, naming the pixel.
+    img.at(5, 2, 1) = std::nanf("");
+    writeExr(dir.file("nan.exr"), img, ExrPixelType::Float);
+    const std::string m = test::inputErrorMessage([&] { readExr(dir.file("nan.exr")); });
+    EXPECT_NE(m.find("nan.exr: pixel (5, 2) channel 1"), std::string::npos) << m;
 }
 
 // The stripes red band: a display value of (224, 52, 40) / 255 is stored as those bytes in

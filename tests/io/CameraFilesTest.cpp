@@ -118,6 +118,13 @@ TEST(CameraFilesTest, MalformedFilesNameTheProblem)
                 "camera 0: 'height' must be a whole number of pixels");
     expectError("zerow.json", R"([{"width": 0, "height": 4, "position": [0,0,0], "rotation": [[1,0,0],[0,1,0],[0,0,1]], "fx": 1, "fy": 1}])",
                 "camera 0: 'width' must be a whole number of pixels");
+    // A rotation that is none: zero, scaled, mirrored (they rendered and trained before).
+    expectError("zerorot.json", R"([{"width": 4, "height": 4, "position": [0,0,0], "rotation": [[0,0,0],[0,0,0],[0,0,0]], "fx": 1, "fy": 1}])",
+                "camera 0: 'rotation' is not a rotation");
+    expectError("scaled.json", R"({"camera_angle_x": 1, "w": 4, "h": 4, "frames": [{"transform_matrix": [[2,0,0,0],[0,2,0,0],[0,0,2,0],[0,0,0,1]]}]})",
+                "frame 0: 'transform_matrix' is not a rotation");
+    expectError("mirror.json", R"([{"width": 4, "height": 4, "position": [0,0,0], "rotation": [[-1,0,0],[0,1,0],[0,0,1]], "fx": 1, "fy": 1}])",
+                "camera 0: 'rotation' is a mirror");
     EXPECT_THROW(readCameraFile(dir.file("missing.json")), IoError);
 }
 

@@ -221,6 +221,23 @@ TEST(MeshIOTest, BadMeshesNameTheFile)
     EXPECT_THROW(readTexture(dir.file("junk.png")), InputError);
 }
 
+// Assimp's OFF loader reserves what the header declares: counts the file cannot hold are refused
+// first (a 57-byte file declaring 2e9 vertices took 23 GB); a folder is no mesh.
+TEST(MeshIOTest, OffCountsBeyondTheFileAreRefusedBeforeAssimp)
+{
+    test::TempDir dir;
+    writeFileAtomic(dir.file("v.off"), "OFF\n2000000000 1 0\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n");
+    writeFileAtomic(dir.file("f.off"), "OFF\n# a comment\n3 2000000000 0\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n");
+    for (const char* name : {"v.off", "f.off"}) {
+        const std::string m = test::inputErrorMessage([&] { readMesh(dir.file(name)); });
+        EXPECT_NE(m.find("more than its"), std::string::npos) << name << ": " << m;
+    }
+    writeFileAtomic(dir.file("ok.off"), "OFF\n# a comment\n4 2 0\n0 0 0\n1 0 0\n0 1 0\n0 0 1\n3 0 1 2\n3 0 1 3\n");
+    EXPECT_EQ(readMesh(dir.file("ok.off")).triangleCount(), 2u);
+    const std::string folder = test::inputErrorMessage([&] { readMesh(dir.path().string()); });
+    EXPECT_NE(folder.find("is not a regular file"), std::string::npos) << folder;
+}
+
 // Assimp 5 loops forever on a PLY header cut inside an element line and aborts the process on a
 // PLY or OFF body cut short; each is refused first, naming the file. A few bytes after the last element
 // (some exporters write them) and an OBJ whose last face lost a vertex still load.

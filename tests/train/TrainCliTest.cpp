@@ -143,5 +143,54 @@ TEST(TrainCliTest, BadMeshesExitOneNamingTheFile)
     EXPECT_EQ(test::runCli("train " + dir.path().string() + " -o " + dir.file("x.ply")), 1); // no cameras
 }
 
+// No output of from-mesh, train or eval --mesh may replace a file they read: the .mtl and texture
+// an OBJ names, a training picture; --views-dir is checked before the work, its folders too.
+TEST(TrainCliTest, NoOutputReplacesAFileTheCommandRead)
+{
+    test::TempDir dir;
+    writeFileAtomic(dir.file("box.obj"), "mtllib box.mtl\n" + colouredBox());
+    writeFileAtomic(dir.file("box.mtl"), "newmtl m\nKd 0.5 0.5 0.5\n");
+    const std::string fast = " --views 2 --test-views 0 --size 16 --iterations 5 --sh-degree 0 --init-gaussians 100";
+    const std::string log = dir.file("log.txt");
+    EXPECT_EQ(test::runCli("-q from-mesh " + dir.file("box.obj") + " -o " + dir.file("box.mtl") + fast, log), 1);
+    EXPECT_NE(test::fileBytes(log).find("is also an input"), std::string::npos) << test::fileBytes(log);
+    EXPECT_EQ(test::fileBytes(dir.file("box.mtl")), "newmtl m\nKd 0.5 0.5 0.5\n");
+    ASSERT_EQ(test::runCli("-q from-mesh " + dir.file("box.obj") + " -o " + dir.file("m.ply") + fast + " --views-dir " + dir.file("v"), log), 0)
+        << test::fileBytes(log);
+    const std::string picture = test::fileBytes(dir.file("v/images/view_0.png"));
+    EXPECT_EQ(test::runCli("-q train " + dir.file("v") + " -o " + dir.file("v/images/view_0.png") + " --iterations 3 --random-points 50", log), 1);
+    EXPECT_NE(test::fileBytes(log).find("is also an input"), std::string::npos) << test::fileBytes(log);
+    EXPECT_EQ(test::fileBytes(dir.file("v/images/view_0.png")), picture);
+    // --views-dir: a planted images/ link, or the model's own path, refused before any training.
+    std::filesystem::create_directories(dir.file("w"));
+    std::filesystem::create_directories(dir.file("elsewhere"));
+    std::filesystem::create_directory_symlink(dir.file("elsewhere"), dir.file("w/images"));
+    EXPECT_EQ(test::runCli("-q from-mesh " + dir.file("box.obj") + " -o " + dir.file("n.ply") + fast + " --views-dir " + dir.file("w"), log), 1);
+    EXPECT_NE(test::fileBytes(log).find("w/images: is a symbolic link"), std::string::npos) << test::fileBytes(log);
+    EXPECT_TRUE(std::filesystem::is_empty(dir.file("elsewhere")));
+    EXPECT_EQ(test::runCli("-q from-mesh " + dir.file("box.obj") + " -o " + dir.file("p.ply") + fast + " --views-dir " + dir.file("p.ply"), log), 1);
+    EXPECT_NE(test::fileBytes(log).find("is where --views-dir"), std::string::npos) << test::fileBytes(log);
+    EXPECT_FALSE(std::filesystem::exists(dir.file("n.ply")));
+    // eval --mesh writes its montage as PNG: another name is a usage error, not PNG bytes under it.
+    EXPECT_EQ(test::runCli("-q eval --rest " + dir.file("m.ply") + " --deformed " + dir.file("m.ply") + " --spec " +
+                               SPLATWARP_SOURCE_DIR + "/samples/specs/rigid.json --mesh " + dir.file("box.obj") +
+                               " --views 2 --size 16 --montage " + dir.file("m.exr"), log), 2);
+    EXPECT_NE(test::fileBytes(log).find("the montage is a PNG"), std::string::npos) << test::fileBytes(log);
+}
+
+// A mesh far beyond float's usable range trains to Gaussians every reader refuses: not written.
+TEST(TrainCliTest, AModelReadersWouldRefuseIsNotWritten)
+{
+    test::TempDir dir;
+    std::string far;
+    for (int i = 0; i < 8; ++i) far += msg("v ", (i & 1) ? 2e20 : 1e20, " ", (i & 2) ? 2e20 : 1e20, " ", (i & 4) ? 2e20 : 1e20, "\n");
+    writeFileAtomic(dir.file("far.obj"), far + "f 1 2 4 3\nf 5 7 8 6\nf 1 5 6 2\nf 3 4 8 7\nf 1 3 7 5\nf 2 6 8 4\n");
+    const std::string log = dir.file("log.txt");
+    EXPECT_EQ(test::runCli("-q from-mesh " + dir.file("far.obj") + " -o " + dir.file("far.ply") +
+                               " --views 2 --test-views 0 --size 16 --iterations 3 --sh-degree 0 --init-gaussians 50", log), 1);
+    EXPECT_NE(test::fileBytes(log).find("refusing to write Gaussian"), std::string::npos) << test::fileBytes(log);
+    EXPECT_FALSE(std::filesystem::exists(dir.file("far.ply")));
+}
+
 } // namespace
 } // namespace splatwarp
