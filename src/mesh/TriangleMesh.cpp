@@ -21,6 +21,12 @@ void TriangleMesh::checkValid() const
         throw InputError(msg(name, ": UV or colour arrays do not match the vertex count"));
     for (float x : uvs)
         if (!std::isfinite(x)) throw InputError(msg(name, ": a texture coordinate is not finite"));
+    // A NaN colour trained to a NaN loss and was scored "PSNR inf" (a perfect match).
+    for (std::size_t i = 0; i < colours.size(); ++i)
+        if (!std::isfinite(colours[i])) throw InputError(msg(name, ": the colour of vertex ", i / 3, " is not finite"));
+    for (const MeshMaterial& m : materials)
+        if (!std::isfinite(m.colour.x) || !std::isfinite(m.colour.y) || !std::isfinite(m.colour.z))
+            throw InputError(msg(name, ": a material's colour is not finite"));
     if (materialOf.size() != f) throw InputError(msg(name, ": ", materialOf.size(), " material indices for ", f, " triangles"));
     for (std::uint32_t m : materialOf)
         if (m >= materials.size()) throw InputError(msg(name, ": material index ", m, " is out of range"));
