@@ -39,6 +39,9 @@ void run(const TrainArgs& a)
     DatasetOptions dataset = a.dataset;
     dataset.background = options.background;
     const Dataset data = readDataset(a.data, dataset);
+    // Its pictures and camera files are inputs now (readWholeFile() added them): refused before training.
+    outputs.checkNotInput(a.output);
+    if (!a.flags.report.empty()) outputs.checkNotInput(a.flags.report);
     const GaussianCloud init = a.init.empty() ? randomStart(data, a.randomCount, options.seed) : readModel(a.init, false);
     const TrainOutcome out = trainAndScore(init, data, options);
     writePly(a.output, out.model);
