@@ -15,6 +15,15 @@ void TriangleMesh::checkValid() const
     if (f == 0) throw InputError(msg(name, ": the mesh has no triangles"));
     for (std::size_t i = 0; i < positions.size(); ++i)
         if (!std::isfinite(positions[i])) throw InputError(msg(name, ": vertex ", i / 3, " is not finite"));
+    // Splats of a mesh beyond these have centres or log-scales that every model reader refuses
+    // (|centre| > 1e15, |log-scale| > 40): refused here, before a training that could only end so.
+    double extent = 0;
+    for (std::size_t i = 0; i < positions.size(); ++i) {
+        if (std::fabs(positions[i]) > 1e14)
+            throw InputError(msg(name, ": vertex ", i / 3, " lies ", std::fabs(positions[i]), " from the origin, beyond 1e14 (scale or move the mesh)"));
+        extent = std::max(extent, std::fabs(double(positions[i]) - positions[i % 3]));
+    }
+    if (extent < 1e-12) throw InputError(msg(name, ": the mesh is ", extent, " across, below 1e-12 (scale it up)"));
     for (std::uint32_t k : triangles)
         if (k >= v) throw InputError(msg(name, ": triangle index ", k, " is out of range (", v, " vertices)"));
     if ((!uvs.empty() && uvs.size() != 2 * v) || (!colours.empty() && colours.size() != 3 * v))
