@@ -93,14 +93,7 @@ bool isFrameFile(int f, const std::string& rel)
 /// strip, the zip) are not refused only after every frame is done.
 void checkOutputPlaces(const std::string& dir, bool zip)
 {
-    for (const char* sub : {"frames", "vdb", "preview", "specs"}) {
-        const fs::path p = fs::path(dir) / sub;
-        std::error_code ec;
-        const fs::file_status st = fs::symlink_status(p, ec);
-        if (fs::is_symlink(st))
-            throw IoError(msg(p.string(), ": is a symbolic link; animate writes only inside its output folder (remove the link)"));
-        if (fs::exists(st) && !fs::is_directory(st)) throw IoError(msg(p.string(), ": exists and is not a directory"));
-    }
+    checkSubfoldersAreFolders(dir, {"frames", "vdb", "preview", "specs"}, "animate");
     checkOutputPath((fs::path(dir) / "preview" / "strip.png").string());
     if (zip) checkOutputPath((fs::path(dir) / "sequence.zip").string());
 }

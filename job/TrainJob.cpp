@@ -88,13 +88,7 @@ void checkViewsDir(OutputSet& outputs, const std::string& dir, bool withTest, co
 {
     namespace fs = std::filesystem;
     const fs::path root(dir);
-    for (const fs::path& sub : {root / "images", root / "test", root / "test" / "images"}) {
-        std::error_code ec;
-        const fs::file_status st = fs::symlink_status(sub, ec);
-        if (fs::is_symlink(st))
-            throw IoError(msg(sub.string(), ": is a symbolic link; --views-dir writes only inside its folder (remove the link)"));
-        if (fs::exists(st) && !fs::is_directory(st)) throw IoError(msg(sub.string(), ": exists and is not a directory"));
-    }
+    checkSubfoldersAreFolders(dir, {"images", "test", "test/images"}, "--views-dir");
     for (const std::string& other : others)
         if (!other.empty() && (isWithin(other, dir) || isWithin((root / "images").string(), other) ||
                                isWithin((root / "test").string(), other)))

@@ -1,7 +1,6 @@
 /// `splatwarp eval --rest REST.ply --deformed DEF.ply --spec SPEC.json`: the fixed judge (job/Judge.h)
 /// of any deformed model against the rest model pushed through the spec's deformation; `--lattice`
 /// gives the error at a training lattice instead (its cells, cutoff and rest filter).
-#include <cctype>
 #include <cstdio>
 #include <optional>
 
@@ -58,10 +57,7 @@ void addMeshOptions(CLI::App* sub, EvalArgs& a)
     sub->add_option("--montage", a.montage, "With --mesh: write the worst views (mesh | splats, lowest PSNR first) to this PNG")
         ->check(CLI::Validator(
             [](std::string& path) {
-                const std::size_t dot = path.rfind('.');
-                std::string ext = dot == std::string::npos ? "" : path.substr(dot);
-                for (char& c : ext) c = char(std::tolower(static_cast<unsigned char>(c)));
-                return ext == ".png" ? std::string() : "the montage is a PNG: name it *.png, not " + path;
+                return lowerExtension(path) == ".png" ? std::string() : "the montage is a PNG: name it *.png, not " + path;
             },
             "PATH.png"));
 }

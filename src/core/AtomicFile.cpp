@@ -254,26 +254,28 @@ void OutputSet::addInput(const std::string& path)
     mInputs.push_back(path);
 }
 
-void OutputSet::removeOnCommit(const std::string& path)
+std::string OutputSet::inputAt(const std::string& path) const
 {
     const std::lock_guard<std::mutex> lock(mInputsMutex);
     for (const std::string& in : mInputs) {
         std::error_code ec;
-        if (!in.empty() && std::filesystem::equivalent(in, path, ec))
-            throw IoError(msg(path, ": is an input of this command (", in, "), and this run would remove it as an earlier run's "
-                                "result; move it out of the output folder"));
+        if (!in.empty() && std::filesystem::equivalent(in, path, ec)) return in;
     }
+    return "";
+}
+
+void OutputSet::removeOnCommit(const std::string& path)
+{
+    if (const std::string in = inputAt(path); !in.empty())
+        throw IoError(msg(path, ": is an input of this command (", in, "), and this run would remove it as an earlier run's "
+                            "result; move it out of the output folder"));
     mStale.push_back(path);
 }
 
 void OutputSet::checkNotInput(const std::string& path) const
 {
-    const std::lock_guard<std::mutex> lock(mInputsMutex);
-    for (const std::string& in : mInputs) {
-        std::error_code ec;
-        if (!in.empty() && std::filesystem::equivalent(in, path, ec))
-            throw IoError(msg(path, ": is also an input of this command (", in, "); refusing to overwrite it"));
-    }
+    if (const std::string in = inputAt(path); !in.empty())
+        throw IoError(msg(path, ": is also an input of this command (", in, "); refusing to overwrite it"));
 }
 
 void OutputSet::checkTarget(const std::string& path)

@@ -108,6 +108,8 @@ public:
 
 private:
     void prepareFolderOf(const std::string& path);
+    /// The input that `path` is (compared as files), "" when none.
+    std::string inputAt(const std::string& path) const;
 
     struct Staged {
         std::string temp, final;

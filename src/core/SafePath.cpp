@@ -34,6 +34,18 @@ std::string pathInside(const std::string& root, const std::string& rel, const st
     return at.string();
 }
 
+void checkSubfoldersAreFolders(const std::string& dir, std::initializer_list<const char*> subs, const std::string& who)
+{
+    for (const char* sub : subs) {
+        const fs::path p = fs::path(dir) / sub;
+        std::error_code ec;
+        const fs::file_status st = fs::symlink_status(p, ec);
+        if (fs::is_symlink(st))
+            throw IoError(msg(p.string(), ": is a symbolic link; ", who, " writes only inside its folder (remove the link)"));
+        if (fs::exists(st) && !fs::is_directory(st)) throw IoError(msg(p.string(), ": exists and is not a directory"));
+    }
+}
+
 bool isWithin(const std::string& dir, const std::string& path)
 {
     std::error_code ec;

@@ -2,6 +2,7 @@
 /// @file SafePath.h
 /// @brief Paths named by data that someone else may have written (a batch job list, a manifest):
 ///        they must stay inside the folder the user named, whatever they spell.
+#include <initializer_list>
 #include <string>
 
 namespace splatwarp {
@@ -15,6 +16,11 @@ std::string pathInside(const std::string& root, const std::string& rel, const st
 /// @brief Whether `path` is `dir` itself or lies below it, both resolved through symlinks of
 ///        their existing parts (lexically for the rest).
 bool isWithin(const std::string& dir, const std::string& path);
+
+/// @brief Before a command writes into `dir`'s subfolders `subs` (a relative path each): none is
+///        a symbolic link (a planted one would take the files out of dir) or a file.
+/// @throws IoError "DIR/SUB: is a symbolic link; WHO writes only inside its folder ...".
+void checkSubfoldersAreFolders(const std::string& dir, std::initializer_list<const char*> subs, const std::string& who);
 
 /// @brief Whether a and b are the same place or one lies inside the other (outputs that collide).
 inline bool overlaps(const std::string& a, const std::string& b) { return isWithin(a, b) || isWithin(b, a); }

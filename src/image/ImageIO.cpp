@@ -17,8 +17,6 @@
 
 namespace splatwarp {
 
-namespace {
-
 std::string lowerExtension(const std::string& path)
 {
     const auto dot = path.find_last_of('.');
@@ -28,6 +26,8 @@ std::string lowerExtension(const std::string& path)
     std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char c) { return char(std::tolower(c)); });
     return ext;
 }
+
+namespace {
 
 void requireColourImage(const std::string& path, const Image& image)
 {

@@ -61,6 +61,8 @@ Image readExr(const std::string& path);
 void writeImage(const std::string& path, const Image& image);
 /// @brief True when the path ends in .png or .exr (case-insensitive).
 bool isImagePath(const std::string& path);
+/// @brief The file name's extension with its dot, lower-cased ("" when it has none).
+std::string lowerExtension(const std::string& path);
 /// @brief Read what writeImage() wrote (or any PNG/EXR) as display values: PNG as stored, EXR
 ///        encoded from linear (linearToDisplay()).
 /// @throws InputError for any other extension; IoError/InputError naming an unreadable file.

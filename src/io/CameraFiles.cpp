@@ -71,16 +71,11 @@ struct JsonReader {
     /// or reflected matrix rendered, and trained on, without a word before.
     void checkRotation(const Mat3d& r, const char* key, const std::string& where) const
     {
+        const Mat3d gram = r.transposed() * r; // the columns' dot products: the identity for a rotation
         double worst = 0;
         for (int a = 0; a < 3; ++a)
-            for (int b = 0; b < 3; ++b) {
-                double dot = 0;
-                for (int k = 0; k < 3; ++k) dot += r.m[k][a] * r.m[k][b];
-                worst = std::max(worst, std::fabs(dot - (a == b ? 1.0 : 0.0)));
-            }
-        const double det = r.m[0][0] * (r.m[1][1] * r.m[2][2] - r.m[1][2] * r.m[2][1]) -
-                           r.m[0][1] * (r.m[1][0] * r.m[2][2] - r.m[1][2] * r.m[2][0]) +
-                           r.m[0][2] * (r.m[1][0] * r.m[2][1] - r.m[1][1] * r.m[2][0]);
+            for (int b = 0; b < 3; ++b) worst = std::max(worst, std::fabs(gram.m[a][b] - (a == b ? 1.0 : 0.0)));
+        const double det = r.determinant();
         if (!(worst <= 1e-2)) fail(where, msg("'", key, "' is not a rotation (its columns are not orthonormal: off by ", worst, ")"));
         if (det < 0) fail(where, msg("'", key, "' is a mirror (determinant ", det, "), not a rotation"));
     }

@@ -13,12 +13,12 @@ void TriangleMesh::checkValid() const
     if (positions.size() % 3 != 0 || triangles.size() % 3 != 0) throw InputError(msg(name, ": inconsistent mesh arrays"));
     if (v == 0) throw InputError(msg(name, ": the mesh has no vertices"));
     if (f == 0) throw InputError(msg(name, ": the mesh has no triangles"));
-    for (std::size_t i = 0; i < positions.size(); ++i)
-        if (!std::isfinite(positions[i])) throw InputError(msg(name, ": vertex ", i / 3, " is not finite"));
-    // Splats of a mesh beyond these have centres or log-scales that every model reader refuses
-    // (|centre| > 1e15, |log-scale| > 40): refused here, before a training that could only end so.
+    // Splats of a mesh beyond 1e14, or under 1e-12 across, have centres or log-scales that every
+    // model reader refuses (|centre| > 1e15, |log-scale| > 40): refused here, before a training
+    // that could only end so.
     double extent = 0;
     for (std::size_t i = 0; i < positions.size(); ++i) {
+        if (!std::isfinite(positions[i])) throw InputError(msg(name, ": vertex ", i / 3, " is not finite"));
         if (std::fabs(positions[i]) > 1e14)
             throw InputError(msg(name, ": vertex ", i / 3, " lies ", std::fabs(positions[i]), " from the origin, beyond 1e14 (scale or move the mesh)"));
         extent = std::max(extent, std::fabs(double(positions[i]) - positions[i % 3]));
