@@ -100,7 +100,7 @@ void writeSplat(const std::string& path, const GaussianCloud& g)
         const double n = std::sqrt(double(q.w) * q.w + double(q.x) * q.x + double(q.y) * q.y + double(q.z) * q.z);
         const float wxyz[4] = {q.w, q.x, q.y, q.z};
         for (int a = 0; a < 4; ++a)
-            u[4 + a] = n > 0 ? std::uint8_t(std::clamp(std::round(wxyz[a] / n * 128.0 + 128.0), 0.0, 255.0)) : 0;
+            u[4 + a] = std::uint8_t(std::clamp(std::round(wxyz[a] / n * 128.0 + 128.0), 0.0, 255.0)); // n >= 1e-12: checked above
         const std::string why = splatRecordImplausibility(reinterpret_cast<const unsigned char*>(r));
         if (!why.empty())
             throw InputError(msg(path, ": cannot write .splat: Gaussian ", i, ": ", why,
