@@ -156,6 +156,33 @@ unsigned long long deviceSum(DeviceBuffer<unsigned char>& temp, const std::uint3
     return out;
 }
 
+/// What both evaluators write per point (or sample): features, opacity and the pair counters, and
+/// how they hand them back.
+struct FeatureOutputs {
+    FeatureOutputs(std::size_t m, std::size_t stride)
+        : features(m * stride, "features per point"), opacity(m, "opacity per point"), tested(m, "tested pairs per point"),
+          contributing(m, "contributing pairs per point"), count(m), stride(stride)
+    {
+    }
+    /// Downloads what the caller asked for and adds the pair counts (summed per point: cells hold
+    /// different sample counts where some are fine) to stats.
+    void finish(DeviceBuffer<unsigned char>& temp, float* featuresOut, float* opacityOut, FeatureStats* stats,
+                cudaStream_t st) const
+    {
+        const unsigned long long testedTotal = deviceSum(temp, tested.data(), count, st);
+        const unsigned long long contributed = deviceSum(temp, contributing.data(), count, st);
+        if (featuresOut) features.download(featuresOut, count * stride, st);
+        if (opacityOut) opacity.download(opacityOut, count, st);
+        if (stats) {
+            stats->pairsTested += testedTotal;
+            stats->pairsContributing += contributed;
+        }
+    }
+    DeviceBuffer<float> features, opacity;
+    DeviceBuffer<std::uint32_t> tested, contributing;
+    std::size_t count, stride;
+};
+
 /// The inputs of the sample targets on the device. The host arrays outlive the stream
 /// synchronisation that follows (downloads synchronise).
 struct SampleTargetInputs {
@@ -278,21 +305,14 @@ void evaluateSampleTargetsCuda(const SampleTargetsProblem& p, float* features, f
     sortCellPairs(p, in, temp, pairs, st);
 
     // Targets, one thread per sample.
-    DeviceBuffer<float> outF(m * stride, "sample features"), outO(m, "sample opacity");
-    DeviceBuffer<std::uint32_t> tested(m, "tested pairs per sample"), contributing(m, "contributing pairs per sample");
+    FeatureOutputs out(m, stride);
     const CellTargetView view = cellTargetView(p, in, pairs);
     dispatchStride(p.cloud.shStride, [&](auto tag) {
-        launch("cellTargetKernel", cellTargetKernel<decltype(tag)::value>, m, st, m, view, outF.data(), outO.data(),
-               tested.data(), contributing.data());
+        launch("cellTargetKernel", cellTargetKernel<decltype(tag)::value>, m, st, m, view, out.features.data(),
+               out.opacity.data(), out.tested.data(), out.contributing.data());
     });
-    // Summed per sample: cells hold different sample counts where some are fine.
-    const unsigned long long testedTotal = deviceSum(temp, tested.data(), m, st);
-    const unsigned long long contributed = deviceSum(temp, contributing.data(), m, st);
-    if (features) outF.download(features, m * stride, st);
-    if (opacity) outO.download(opacity, m, st);
+    out.finish(temp, features, opacity, stats, st);
     if (stats) {
-        stats->pairsTested += testedTotal;
-        stats->pairsContributing += contributed;
         stats->binEntries = pairs.count;
         stats->binCellSize = float(p.cellSize);
     }
@@ -319,22 +339,16 @@ void evaluateFeaturesCuda(const FeaturePointsProblem& p, float* features, float*
     BoxBins bins;
     const bool any = bins.build(n, lo.data(), hi.data(), st, "features (CUDA)");
 
-    DeviceBuffer<float> outF(m * stride, "point features"), outO(m, "point opacity");
-    DeviceBuffer<std::uint32_t> tested(m, "tested pairs per point"), contributing(m, "contributing pairs per point");
+    FeatureOutputs out(m, stride);
     dispatchStride(p.cloud.shStride, [&](auto tag) {
         launch("pointFeatureKernel", pointFeatureKernel<decltype(tag)::value>, m, st, m, (const float*)points.data(),
                any ? bins.inv() : 1.0f, bins.keys(), bins.boxes(), any ? bins.entries() : std::size_t(0),
-               (const PreparedGaussian*)cloud.gaussians.data(), (const float*)cloud.sh.data(), p.cloud.cutoff, outF.data(), outO.data(),
-               tested.data(), contributing.data());
+               (const PreparedGaussian*)cloud.gaussians.data(), (const float*)cloud.sh.data(), p.cloud.cutoff,
+               out.features.data(), out.opacity.data(), out.tested.data(), out.contributing.data());
     });
     DeviceBuffer<unsigned char> temp("CUB temporary storage");
-    const unsigned long long testedTotal = deviceSum(temp, tested.data(), m, st);
-    const unsigned long long contributed = deviceSum(temp, contributing.data(), m, st);
-    if (features) outF.download(features, m * stride, st);
-    if (opacity) outO.download(opacity, m, st);
+    out.finish(temp, features, opacity, stats, st);
     if (stats) {
-        stats->pairsTested += testedTotal;
-        stats->pairsContributing += contributed;
         stats->binEntries = any ? bins.entries() : 0;
         stats->binCellSize = any ? 1.0f / bins.inv() : 0.0f;
     }
