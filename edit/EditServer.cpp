@@ -17,6 +17,7 @@
 #include "edit/GaussianLayout.h"
 #include "deform/AnimSpec.h"
 #include "job/DeformSession.h"
+#include "io/JsonText.h"
 
 namespace splatwarp::edit {
 
@@ -182,7 +183,7 @@ void EditServer::Impl::pose(const httplib::Request& req, httplib::Response& res)
                                  ? frameSpecJson(parseAnimSpec(req.body, "pose"), frameParam(req.get_param_value("frame"))).dump()
                                  : req.body;
     DeformSpec spec = parseDeformSpec(text, "pose"); // InputError: 400 with the parser's message
-    nlohmann::json specJson = nlohmann::json::parse(text);
+    nlohmann::json specJson = parseJson(text);
     refuseWhileRefining();
     const std::lock_guard<std::mutex> lock(sessionMutex);
     refuseWhileRefining(); // a refine may have started while this request waited
@@ -261,7 +262,7 @@ void EditServer::Impl::save(const httplib::Request& req, httplib::Response& res)
 {
     nlohmann::json body;
     try {
-        body = nlohmann::json::parse(req.body);
+        body = parseJson(req.body);
     } catch (const nlohmann::json::exception& e) {
         throw HttpError{400, msg("invalid JSON: ", printable(e.what()))};
     }
@@ -296,7 +297,7 @@ void EditServer::Impl::saveAnimation(const httplib::Request& req, httplib::Respo
 {
     const fs::path dir = saveDir(req.get_param_value("name"));
     const AnimSpec anim = parseAnimSpec(req.body, "animation"); // 400 with the parser's message
-    nlohmann::json spec = nlohmann::json::parse(req.body);
+    nlohmann::json spec = parseJson(req.body);
     const DeformSpec first = parseDeformSpec(frameSpecJson(anim, 0).dump(), "animation");
     session->checkGraph(first); // its replay runs on the session's graph, as a pose does
     spec["graph"] = graphBlock(graphOptionsOf(first, options.job));

@@ -8,6 +8,7 @@
 #include "core/Error.h"
 #include "core/SafePath.h"
 #include "job/Recipe.h"
+#include "io/JsonText.h"
 
 namespace splatwarp {
 
@@ -102,7 +103,7 @@ std::vector<BatchJob> parseJobList(const std::string& text, const std::string& p
 {
     json root;
     try {
-        root = json::parse(text);
+        root = parseJson(text);
     } catch (const json::exception& e) {
         throw InputError(msg(path, ": invalid JSON: ", e.what()));
     }

@@ -5,6 +5,7 @@
 #include "job/Sequence.h"
 #include "core/AtomicFile.h"
 #include "core/Error.h"
+#include "io/JsonText.h"
 
 namespace splatwarp {
 
@@ -113,7 +114,7 @@ Recipe parseRecipe(const std::string& text, const std::string& path)
 {
     json root;
     try {
-        root = json::parse(text);
+        root = parseJson(text);
     } catch (const json::exception& e) {
         throw InputError(msg(path, ": invalid JSON: ", e.what()));
     }

@@ -12,6 +12,7 @@
 #include "core/Error.h"
 #include "core/Progress.h"
 #include "core/SafePath.h"
+#include "io/JsonText.h"
 
 namespace splatwarp {
 
@@ -169,7 +170,7 @@ json parseManifest(const std::string& text, const std::string& path)
 {
     json m;
     try {
-        m = json::parse(text);
+        m = parseJson(text);
     } catch (const json::exception& e) { // parse_error, and out_of_range for numbers beyond double
         throw InputError(msg(path, ": not a manifest (invalid JSON: ", e.what(), ")"));
     }

@@ -3,6 +3,7 @@
 #include <cmath>
 
 #include "core/Error.h"
+#include "io/JsonText.h"
 
 namespace splatwarp {
 
@@ -168,7 +169,7 @@ AnimSpec parseAnimSpec(const std::string& jsonText, const std::string& sourceNam
     const std::string top = sourceName + ": ";
     json root;
     try {
-        root = json::parse(jsonText);
+        root = parseJson(jsonText);
     } catch (const json::exception& e) {
         fail(top, msg("invalid JSON: ", e.what()));
     }

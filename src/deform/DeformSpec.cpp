@@ -6,6 +6,7 @@
 
 #include "core/AtomicFile.h"
 #include "core/Error.h"
+#include "io/JsonText.h"
 
 namespace splatwarp {
 
@@ -131,7 +132,7 @@ DeformSpec parseDeformSpec(const std::string& jsonText, const std::string& sourc
     };
     json root;
     try {
-        root = json::parse(jsonText, follow);
+        root = parseJsonFollowing(follow, jsonText);
     } catch (const json::exception& e) {
         const std::string where = inHandles && handle >= 0 ? msg("handle ", handle, ": ") : std::string();
         top.fail(msg(where, "invalid JSON (NaN/Infinity and overflowing numbers are not allowed): ", e.what()));

@@ -6,6 +6,7 @@
 
 #include "core/AtomicFile.h"
 #include "core/Error.h"
+#include "io/JsonText.h"
 
 namespace splatwarp {
 
@@ -172,7 +173,7 @@ std::vector<Camera> parseCameraFile(const std::string& jsonText, const std::stri
 {
     Json top;
     try {
-        top = Json::parse(jsonText);
+        top = parseJson(jsonText);
     } catch (const Json::exception& e) { // parse_error, and out_of_range for numbers beyond double (fuzz)
         throw InputError(msg(path, ": not valid JSON: ", e.what()));
     }

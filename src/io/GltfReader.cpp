@@ -14,6 +14,7 @@
 #include "core/Error.h"
 #include "io/FormatReaders.h"
 #include "io/GltfNodes.h"
+#include "io/JsonText.h"
 
 namespace splatwarp {
 
@@ -82,7 +83,7 @@ Glb parseContainer(const std::string& path, const std::string& data, ReadReport&
         if (size > length - at - 8) throw InputError(msg(path, ": .glb truncated: chunk at byte ", at, " of ", size, " bytes"));
         if (type == kChunkJson && !haveJson) {
             try {
-                g.doc = json::parse(data.begin() + long(at + 8), data.begin() + long(at + 8 + size));
+                g.doc = parseJson(data.begin() + long(at + 8), data.begin() + long(at + 8 + size));
             } catch (const json::exception& e) {
                 throw InputError(msg(path, ": .glb JSON chunk: ", e.what()));
             }

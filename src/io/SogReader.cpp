@@ -17,6 +17,7 @@
 #include "core/Error.h"
 #include "io/FormatReaders.h"
 #include "io/SogFormat.h"
+#include "io/JsonText.h"
 
 namespace splatwarp {
 
@@ -116,7 +117,7 @@ SogMeta parseMeta(const std::string& path, const std::string& text)
 {
     json meta;
     try {
-        meta = json::parse(text);
+        meta = parseJson(text);
     } catch (const json::exception& e) {
         throw InputError(msg(path, ": meta.json is not valid JSON (", e.what(), ")"));
     }
