@@ -187,8 +187,7 @@ void writeVdbHook(const std::string& path, const GaussianCloud& g) { writeVdbPoi
 void writeVdbPoints(const std::string& path, const GaussianCloud& g)
 {
     g.checkConsistent();
-    checkFiniteForWriting(path, g);
-    if (g.empty()) throw InputError(msg(path, ": refusing to write a point grid without Gaussians"));
+    checkModelForWriting(path, g);
     if (g.size() > 0x7fffffffu) throw InputError(msg(path, ": ", g.size(), " Gaussians exceed the 2^31 - 1 ids"));
     vdb::initialize();
     std::ostringstream os(std::ios::binary);

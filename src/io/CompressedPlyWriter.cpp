@@ -129,8 +129,7 @@ std::vector<std::size_t> compressedPlyOrder(const GaussianCloud& g)
 void writeCompressedPly(const std::string& path, const GaussianCloud& g)
 {
     g.checkConsistent();
-    checkFiniteForWriting(path, g);
-    if (g.empty()) throw InputError(msg(path, ": refusing to write a compressed PLY without Gaussians"));
+    checkModelForWriting(path, g);
     const std::vector<std::size_t> order = compressedPlyOrder(g);
     const std::size_t chunks = (g.size() + kChunk - 1) / kChunk, rest = 3 * std::size_t(g.shCoeffs() - 1);
     std::vector<float> chunkData(18 * chunks);

@@ -49,8 +49,9 @@ int countInvalid(const GaussianCloud& g, std::size_t i, std::string* first)
 
 } // namespace
 
-void checkFiniteForWriting(const std::string& path, const GaussianCloud& g)
+void checkModelForWriting(const std::string& path, const GaussianCloud& g)
 {
+    if (g.empty()) throw InputError(msg(path, ": refusing to write a model without Gaussians (every reader, ours too, would refuse the file)"));
     for (std::size_t i = 0; i < g.size(); ++i) {
         std::string first;
         if (countInvalid(g, i, &first) > 0)

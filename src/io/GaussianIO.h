@@ -56,9 +56,10 @@ GaussianCloud readGaussiansFromBytes(const std::string& name, const std::string&
 /// @throws InputError if the cloud holds NaN/Inf (a viewer would choke on it).
 void writePly(const std::string& path, const GaussianCloud& cloud);
 
-/// @brief Throws InputError naming the first Gaussian and graphdeco property that is NaN/Inf or
-///        unusable (readGaussians() refuses it: no command writes a file that a reader refuses).
-void checkFiniteForWriting(const std::string& path, const GaussianCloud& cloud);
+/// @brief Throws InputError for a model without Gaussians, or naming the first Gaussian and
+///        graphdeco property that is NaN/Inf or unusable (readGaussians() refuses both: no command
+///        writes a file that a reader refuses). Every writer calls it first.
+void checkModelForWriting(const std::string& path, const GaussianCloud& cloud);
 
 /// @brief The `.spz` bytes of a cloud, version 3 (gzip) or 4 (NGSP + zstd); `path` names it in messages.
 /// @throws UsageError for another version; InputError for NaN/Inf or centres beyond the 24-bit range.

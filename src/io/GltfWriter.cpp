@@ -126,8 +126,7 @@ namespace {
 GlbBytes glbBytes(const std::string& path, const GaussianCloud& ply)
 {
     ply.checkConsistent();
-    checkFiniteForWriting(path, ply);
-    if (ply.empty()) throw InputError(msg(path, ": refusing to write a .glb without Gaussians"));
+    checkModelForWriting(path, ply);
     const GaussianCloud g = turnedFrame(ply);
     const std::size_t perGaussian = 4 * (3 + 4 + 3 + 1 + 3 * std::size_t(ply.shCoeffs()));
     if (g.size() > (0xffffffffu - 4096u) / perGaussian)

@@ -82,8 +82,7 @@ void writeGaussians(const std::string& path, const GaussianCloud& g, const Write
 void writeSplat(const std::string& path, const GaussianCloud& g)
 {
     g.checkConsistent();
-    checkFiniteForWriting(path, g);
-    if (g.empty()) throw InputError(msg(path, ": refusing to write a .splat without Gaussians"));
+    checkModelForWriting(path, g);
     std::string out(g.size() * kSplatRecordBytes, '\0');
     for (std::size_t i = 0; i < g.size(); ++i) {
         char* r = &out[i * kSplatRecordBytes];

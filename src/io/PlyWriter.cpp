@@ -23,7 +23,7 @@ std::vector<std::string> graphdecoPropertyNames(int shDegree)
 void writePly(const std::string& path, const GaussianCloud& g)
 {
     g.checkConsistent();
-    checkFiniteForWriting(path, g);
+    checkModelForWriting(path, g);
     const std::size_t n = g.size();
     const int k = g.shCoeffs();
     const std::vector<std::string> names = graphdecoPropertyNames(g.shDegree);

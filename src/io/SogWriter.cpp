@@ -136,8 +136,7 @@ std::vector<std::pair<std::string, std::string>> encodeSogFiles(const std::strin
                                                                  const SogOptions& options)
 {
     g.checkConsistent();
-    if (g.empty()) throw InputError(msg(path, ": refusing to write a SOG without Gaussians"));
-    checkFiniteForWriting(path, g);
+    checkModelForWriting(path, g);
     const std::pair<int, int> size = sog::imageSize(g.size());
     if (size.first > sog::kMaxWebpSide || size.second > sog::kMaxWebpSide)
         throw InputError(msg(path, ": ", g.size(), " Gaussians need ", size.first, "x", size.second,

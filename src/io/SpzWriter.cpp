@@ -163,9 +163,8 @@ std::string encodeSpz(const std::string& path, const GaussianCloud& g, int versi
     g.checkConsistent();
     if (version != 3 && version != 4)
         throw UsageError(msg("--spz-version ", version, ": splatwarp writes .spz versions 3 and 4"));
-    if (g.empty()) throw InputError(msg(path, ": refusing to write a .spz without Gaussians"));
     if (g.size() > 0x7fffffffu) throw InputError(msg(path, ": ", g.size(), " Gaussians exceed .spz's 2^31 - 1"));
-    checkFiniteForWriting(path, g);
+    checkModelForWriting(path, g);
     const SpzArrays a = pack(path, g);
     if (version == 4) return ngsp(g, a);
     return gzip(legacyHeader(g, a, 3) + a.positions + a.alphas + a.colors + a.scales + a.rotations + a.sh);
