@@ -11,6 +11,7 @@
 #include "job/HeldOutEval.h"
 #include "job/Judge.h"
 #include "job/MeshJudge.h"
+#include "render/Camera.h"
 #include "core/AtomicFile.h"
 #include "image/ImageIO.h"
 #include "mesh/MeshIO.h"
@@ -50,7 +51,7 @@ void addMeshOptions(CLI::App* sub, EvalArgs& a)
                     "--rest, against --deformed, rendered from --views views over the sphere; PSNR and SSIM per view");
     sub->add_option("--texture", a.meshRead.texture, "With --mesh: texture for materials without one");
     sub->add_flag("--procedural-colour", a.meshRead.proceduralColour, "With --mesh: colour it as from-mesh --procedural-colour did");
-    sub->add_option("--views", a.meshJudge.views.views, "With --mesh: views")->capture_default_str()->check(inRange(1, 100000));
+    sub->add_option("--views", a.meshJudge.views.views, "With --mesh: views")->capture_default_str()->check(inRange(1, kMaxViews));
     sub->add_option_function<int>("--size", [&a](int s) { a.meshJudge.views.width = a.meshJudge.views.height = s; },
                                   "With --mesh: square view size (default 256)")
         ->check(inRange(8, kMaxImageSide));

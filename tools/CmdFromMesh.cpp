@@ -9,6 +9,7 @@
 #include "core/Error.h"
 #include "core/Progress.h"
 #include "io/GaussianIO.h"
+#include "render/Camera.h"
 
 namespace splatwarp::cli {
 namespace {
@@ -49,10 +50,10 @@ const CommandRegistrar reg(71, [](CLI::App& app) {
                      "views spread over the sphere around it, train from samples of its surface, score held-out views");
     sub->add_option("mesh", a->mesh, "Mesh file")->required();
     sub->add_option("-o,--output", a->output, "Output .ply")->required();
-    sub->add_option("--views", a->options.views.views, "Training views")->capture_default_str()->check(inRange(1, 100000));
+    sub->add_option("--views", a->options.views.views, "Training views")->capture_default_str()->check(inRange(1, kMaxViews));
     sub->add_option("--test-views", a->options.testViews, "Held-out views (another set of directions)")
         ->capture_default_str()
-        ->check(inRange(0, 100000));
+        ->check(inRange(0, kMaxViews));
     sub->add_option("--size", a->size, "Square view size in pixels")->capture_default_str()->check(inRange(8, kMaxImageSide));
     sub->add_option("--fov", a->options.views.fovDeg, "Vertical field of view, degrees")->capture_default_str()->check(openInterval(0.0, 180.0));
     sub->add_option("--samples", a->options.render.samples, "Mesh samples per pixel axis (anti-aliasing)")

@@ -92,7 +92,7 @@ const CommandRegistrar reg(60, [](CLI::App& app) {
                     "Image size WIDTHxHEIGHT (default 512x512 for orbits; camera files: their own size, rescaled when given)");
     // Capped as eval's and from-mesh's --views: 1e8 views held 22 GB of cameras before the first render.
     auto* orbit = sub->add_option("--orbit", args->orbit, "Render N views on an orbit around the model into the -o directory")
-                      ->check(inRange(1, 100000));
+                      ->check(inRange(1, kMaxViews));
     sub->add_option("--camera", args->cameraFile, "Camera file: graphdeco cameras.json or NeRF transforms.json")
         ->check(CLI::ExistingFile)
         ->excludes(orbit);

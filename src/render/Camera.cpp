@@ -66,7 +66,7 @@ Vec3d parseUpAxis(const std::string& name)
 
 std::vector<Camera> sphereCameras(const Vec3d& centre, double radius, const SphereViewOptions& o)
 {
-    if (o.views < 1) throw InputError(msg("sphere views need at least one view, got ", o.views));
+    if (o.views < 1 || o.views > kMaxViews) throw InputError(msg("sphere views need 1 to ", kMaxViews, " views, got ", o.views));
     if (!(o.fovDeg > 0 && o.fovDeg < 180)) throw InputError(msg("field of view must be in (0, 180) degrees, got ", o.fovDeg));
     if (!(radius > 0) || !(o.distanceFactor > 0)) throw InputError("sphere views need a positive radius and distance");
     if (o.width <= 0 || o.height <= 0) throw InputError(msg("image size must be positive, got ", o.width, "x", o.height));
@@ -89,7 +89,9 @@ std::vector<Camera> sphereCameras(const Vec3d& centre, double radius, const Sphe
 std::vector<Camera> orbitCameras(const GaussianCloud& cloud, const OrbitOptions& o)
 {
     if (cloud.empty()) throw InputError("cannot place orbit cameras around an empty model");
-    if (o.views < 1) throw InputError(msg("orbit needs at least one view, got ", o.views));
+    if (o.views < 1 || o.views > kMaxViews) throw InputError(msg("an orbit needs 1 to ", kMaxViews, " views, got ", o.views));
+    if (!(o.elevationDeg > -90 && o.elevationDeg < 90))
+        throw InputError(msg("orbit elevation must be in (-90, 90) degrees, got ", o.elevationDeg));
     if (!(o.fovDeg > 0 && o.fovDeg < 180)) throw InputError(msg("field of view must be in (0, 180) degrees, got ", o.fovDeg));
     if (!(o.distanceFactor > 0)) throw InputError(msg("distance factor must be positive, got ", o.distanceFactor));
     if (o.width <= 0 || o.height <= 0) throw InputError(msg("image size must be positive, got ", o.width, "x", o.height));

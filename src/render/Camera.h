@@ -15,6 +15,10 @@ namespace splatwarp {
 /// @brief The float camera data the rasteriser needs.
 PinholeView pinholeView(const Camera& camera);
 
+/// @brief The most cameras one orbit or sphere of views places: 1e8 views held 22 GB of cameras
+///        before the first render (`render --orbit`, `eval --views`, `from-mesh --views`).
+constexpr int kMaxViews = 100000;
+
 /// @brief Options for orbitCameras(); the CLI flags of `render` map onto these.
 struct OrbitOptions {
     int views = 8;                ///< cameras evenly spaced in azimuth, the first one at azimuth 0
