@@ -12,18 +12,37 @@ namespace splatwarp::python {
 
 std::string pathOf(const py::handle& path)
 {
-    const py::object text = py::module_::import("os").attr("fspath")(path);
+    const py::module_ os = py::module_::import("os");
+    const py::object text = os.attr("fspath")(path);
     if (!py::isinstance<py::str>(text)) throw py::type_error("a path must be a str or os.PathLike of str");
-    return text.cast<std::string>();
+    std::string bytes = os.attr("fsencode")(text).cast<std::string>();
+    if (bytes.find('\0') != std::string::npos) throw py::value_error("embedded null byte in a path");
+    return bytes;
+}
+
+LibraryTurn::LibraryTurn()
+{
+    static std::mutex turns;
+    py::gil_scoped_release release; // the call holding the turn may need the GIL to finish
+    mLock = std::unique_lock<std::mutex>(turns);
 }
 
 GaussianCloud readModelFile(const std::string& path, bool dropInvalid) { return cli::readModel(path, dropInvalid); }
 
-GaussianCloud modelOrPath(const py::handle& value, std::string& name)
+void checkModelInMemory(const std::string& name, GaussianCloud& cloud)
+{
+    cloud.checkConsistent();
+    if (cloud.empty()) throw InputError(msg(name, ": the model holds no Gaussians"));
+    applyReadRules(name, cloud);
+}
+
+GaussianCloud modelOrPath(const py::handle& value, std::string& name, const std::string& inMemory)
 {
     if (py::isinstance<GaussianCloud>(value)) {
-        name = "(model)";
-        return value.cast<const GaussianCloud&>();
+        name = inMemory;
+        GaussianCloud cloud = value.cast<const GaussianCloud&>();
+        checkModelInMemory(name, cloud);
+        return cloud;
     }
     name = pathOf(value);
     py::gil_scoped_release release;
@@ -38,7 +57,8 @@ void parseSettings(CLI::App& app, CLI::App* sub, const std::string& function, co
         std::string flag = "--" + name;
         std::replace(flag.begin(), flag.end(), '_', '-');
         const CLI::Option* option = sub->get_option_no_throw(flag);
-        if (!option || option->get_positional() || name.find('-') != std::string::npos)
+        if (!option || option->get_positional() || option == sub->get_help_ptr() || option == sub->get_help_all_ptr() ||
+            name.find('-') != std::string::npos)
             throw py::type_error(msg(function, "() got an unexpected keyword argument '", name, "'"));
         if (value.is_none()) continue;
         const bool isBool = py::isinstance<py::bool_>(value);

@@ -78,10 +78,14 @@ struct Interrupts {
 
 DeformResult deform(const py::object& model, const py::object& spec, const py::object& output, const py::kwargs& settings)
 {
+    const LibraryTurn turn;
     DeformJobOptions options = deformOptions(settings);
     const DeformSpec parsed = specOf(spec, options.specPath);
     std::optional<GaussianCloud> cloud;
-    if (py::isinstance<GaussianCloud>(model)) cloud = model.cast<const GaussianCloud&>();
+    if (py::isinstance<GaussianCloud>(model)) {
+        cloud = model.cast<const GaussianCloud&>();
+        checkModelInMemory("(model)", *cloud);
+    }
     options.input = cloud ? "(model)" : pathOf(model);
     const std::string out = output.is_none() ? std::string() : pathOf(output);
     GaussianCloud stage1;
@@ -105,6 +109,7 @@ DeformResult deform(const py::object& model, const py::object& spec, const py::o
 void toVdb(const py::object& model, const py::object& path, const py::object& spec, bool shGrids, bool half,
            const std::string& device, const py::kwargs& gridSettings)
 {
+    const LibraryTurn turn;
     SampleGridOptions grid;
     CLI::App app;
     CLI::App* sub = app.add_subcommand("to-vdb");
@@ -135,6 +140,11 @@ py::object fromVdb(const py::object& path, const FromVdbOptions& defaults, std::
                    bool fit, const std::string& meaning, const std::string& grid, const std::string& colorGrid,
                    const std::string& device, bool withReport)
 {
+    const LibraryTurn turn;
+    // from-vdb's ranges (tools/CmdFromVdb.cpp)
+    if (gaussians > std::size_t(1e9)) throw py::value_error("from_vdb(): gaussians must be 0 (one per 8 active voxels) to 1e9");
+    if (iterations < 0) throw py::value_error("from_vdb(): iterations must not be negative");
+    if (rounds < 1 || rounds > 100) throw py::value_error("from_vdb(): rounds must be 1 to 100");
     FromVdbOptions job = defaults;
     job.gaussians = gaussians;
     job.fitting.iterations = iterations;
@@ -147,12 +157,33 @@ py::object fromVdb(const py::object& path, const FromVdbOptions& defaults, std::
     read.colorGrid = colorGrid;
     const std::string input = pathOf(path);
     FromVdbResult result;
-    {
+    Interrupts interrupts;
+    try {
         py::gil_scoped_release release;
+        const RunControl control = interrupts.control();
+        const RunControlScope scope(control);
         result = fromVdb(readVolume(input, read), job);
+    } catch (const Cancelled&) {
+        if (PyErr_Occurred()) throw py::error_already_set();
+        throw;
     }
     py::object model = py::cast(std::move(result.splats));
     return withReport ? py::object(py::make_tuple(model, toPython(result.report))) : model;
+}
+
+/// A width or height: a whole number (not a bool) from 1 to kMaxImageSide.
+int imageSide(const py::object& side)
+{
+    const std::string range = msg("render(): width and height must be whole numbers from 1 to ", kMaxImageSide);
+    if (!py::isinstance<py::int_>(side) || py::isinstance<py::bool_>(side)) throw py::type_error(range);
+    long long v = 0;
+    try {
+        v = side.cast<long long>();
+    } catch (const py::cast_error&) { // beyond 64 bits
+        throw py::value_error(range);
+    }
+    if (v < 1 || v > kMaxImageSide) throw py::value_error(range);
+    return int(v);
 }
 
 /// The cameras `render` uses: a camera file's (its size, or width x height), else an orbit.
@@ -160,9 +191,7 @@ std::vector<Camera> renderCameras(const GaussianCloud& cloud, const py::object& 
                                   const py::object& width, const py::object& height)
 {
     if (width.is_none() != height.is_none()) throw py::value_error("render(): give width and height together");
-    const int w = width.is_none() ? 0 : width.cast<int>(), h = height.is_none() ? 0 : height.cast<int>();
-    if (!width.is_none() && (w < 1 || h < 1 || w > kMaxImageSide || h > kMaxImageSide))
-        throw py::value_error(msg("render(): width and height must be whole numbers from 1 to ", kMaxImageSide));
+    const int w = width.is_none() ? 0 : imageSide(width), h = height.is_none() ? 0 : imageSide(height);
     if (cameraFile.is_none()) {
         if (w > 0) {
             orbit.width = w;
@@ -183,6 +212,7 @@ py::array render(const py::object& model, const py::object& width, const py::obj
                  const OrbitOptions& orbit, std::size_t view, const std::array<float, 3>& background,
                  const std::string& device, const std::string& dtype)
 {
+    const LibraryTurn turn;
     if (dtype != "uint8" && dtype != "float32") throw py::value_error("render(): dtype must be 'uint8' or 'float32'");
     RenderOptions options;
     for (int c = 0; c < 3; ++c) {
@@ -209,9 +239,10 @@ py::array render(const py::object& model, const py::object& width, const py::obj
 py::object evaluate(const py::object& restModel, const py::object& deformedModel, const py::object& spec,
                     const HeldOutOptions& defaults, std::size_t points, std::uint32_t seed, const std::string& device)
 {
+    const LibraryTurn turn;
     std::string restName, deformedName, specPath;
-    const GaussianCloud rest = modelOrPath(restModel, restName);
-    const GaussianCloud deformed = modelOrPath(deformedModel, deformedName);
+    const GaussianCloud rest = modelOrPath(restModel, restName, "(rest model)");
+    const GaussianCloud deformed = modelOrPath(deformedModel, deformedName, "(deformed model)");
     if (deformed.shDegree != rest.shDegree)
         throw InputError(msg(deformedName, ": SH degree ", deformed.shDegree, " differs from the rest model's ", rest.shDegree));
     const DeformSpec parsed = specOf(spec, specPath);
@@ -242,7 +273,7 @@ void bindDeform(py::module_& m)
           "(recipe='paper', iterations=50, cells=32, seed=3, device='cpu', stage1_only=True, no_eval=True, ...;\n"
           "see `splatwarp deform --help-all`), checked as the CLI checks it; an unknown one is a TypeError.\n"
           "With output=DIR it also writes what deform -o DIR writes (vdb=True, render=True add the extras).\n"
-          "Ctrl-C stops Stage II within one iteration.");
+          "Ctrl-C stops Stage II within one iteration. Calls from several threads take turns.");
 }
 
 void bindVolumes(py::module_& m)
@@ -274,8 +305,7 @@ void bindRenderEval(py::module_& m)
         [](const py::object& model, const py::object& width, const py::object& height, const py::object& camera,
            int orbit, std::size_t view, double elevation, double fov, double distance, const std::string& up,
            const std::array<float, 3>& background, const std::string& device, const std::string& dtype) {
-            if (orbit < 1) throw py::value_error("render(): orbit must be positive");
-            OrbitOptions options;
+            OrbitOptions options; // its ranges are checked where the cameras are placed (orbitCameras())
             options.views = orbit;
             options.elevationDeg = elevation;
             options.fovDeg = fov;

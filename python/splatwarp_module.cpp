@@ -82,7 +82,11 @@ GaussianCloud modelFromArrays(const py::object& positions, const py::object& sca
     }
     ReadOptions rules;
     rules.dropInvalid = dropInvalid;
-    applyReadRules("Model.from_arrays", g, rules);
+    ReadReport report;
+    applyReadRules("Model.from_arrays", g, rules, &report);
+    if (g.empty())
+        throw InputError(report.dropped ? msg("Model.from_arrays: no Gaussians left after dropping ", report.dropped, " unusable ones")
+                                        : std::string("Model.from_arrays: the arrays hold no Gaussians (Model() is the empty model)"));
     return g;
 }
 
@@ -143,6 +147,7 @@ void bindReadWrite(py::module_& m)
     m.def(
         "read",
         [](const py::object& path, bool dropInvalid) {
+            const LibraryTurn turn;
             const std::string p = pathOf(path);
             py::gil_scoped_release release;
             return readModelFile(p, dropInvalid);
@@ -153,16 +158,18 @@ void bindReadWrite(py::module_& m)
     m.def(
         "write",
         [](const GaussianCloud& model, const py::object& path, int spzVersion) {
+            const LibraryTurn turn;
             const std::string p = pathOf(path);
             WriteOptions options;
             options.spzVersion = spzVersion;
+            const GaussianCloud copy = model; // checked, then written, while other threads may change the views
             py::gil_scoped_release release;
-            writeGaussians(p, model, options);
+            writeGaussians(p, copy, options);
         },
         py::arg("model"), py::arg("path"), py::kw_only(), py::arg("spz_version") = WriteOptions().spzVersion,
         "Write a model in the format its extension names: .ply (graphdeco), .compressed.ply, .splat, .spz\n"
         "(spz_version 3 or 4), .glb, .vdb (point grid). Written atomically.");
-    m.def("set_progress", &setProgressEnabled, py::arg("enabled"), "Print the library's progress lines on stderr (default on).");
+    m.def("set_progress", &setProgressEnabled, py::arg("enabled"), "Print the library's progress lines on stderr (default off).");
 }
 
 } // namespace

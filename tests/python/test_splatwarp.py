@@ -265,3 +265,80 @@ def test_to_vdb_and_from_vdb_equal_the_cli(work, stripes):
     assert (work / "from-py.ply").read_bytes() == (work / "from-cli.ply").read_bytes()
     cli_report = json.loads((work / "from-cli.report.json").read_text())
     assert report["heldOut"] == cli_report["heldOut"]
+
+
+def test_calls_from_threads_take_turns(work, stripes):
+    """Two to_vdb calls at once shared the library's one OutputSet: the first to end left it
+    dangling, so every later write raised bad_alloc, and a write in another thread was staged
+    into the running job's set (its file appeared only when that job committed)."""
+    import threading
+    model = splatwarp.read(stripes)
+    errors = []
+
+    def job(name, cells):
+        try:
+            splatwarp.to_vdb(model, work / name, cells=cells, device="cpu")
+        except Exception as e:  # noqa: BLE001 - reported below
+            errors.append(e)
+
+    threads = [threading.Thread(target=job, args=(f"thread{i}.vdb", 8 + 8 * i)) for i in range(3)]
+    for t in threads:
+        t.start()
+    splatwarp.write(model, work / "beside.ply")
+    assert (work / "beside.ply").exists()  # written when write() returned, not at another job's commit
+    for t in threads:
+        t.join()
+    assert not errors
+    splatwarp.write(model, work / "after.ply")
+    assert splatwarp.read(work / "after.ply").positions.shape == model.positions.shape
+    assert not list(work.glob(".sw*.tmp"))
+
+
+def test_paths_with_nul_are_refused_and_other_names_work(work, stripes):
+    model = splatwarp.read(stripes)
+    with pytest.raises(ValueError, match="null byte"):
+        splatwarp.write(model, str(work / "nul.ply") + "\0.splat")
+    with pytest.raises(ValueError, match="null byte"):
+        splatwarp.read(str(stripes) + "\0garbage")
+    assert not (work / "nul.ply").exists()
+    odd = os.fsdecode(bytes(work / "caf") + b"\xe9.ply")  # a valid Linux name that is not UTF-8
+    splatwarp.write(model, odd)
+    assert len(splatwarp.read(odd)) == len(model)
+
+
+def test_models_changed_through_their_views_are_checked_as_files_are(work, stripes):
+    bad = splatwarp.read(stripes)
+    bad.positions[3, 0] = np.nan
+    for call in (lambda: splatwarp.render(bad, 16, 16, device="cpu"),
+                 lambda: splatwarp.to_vdb(bad, work / "bad.vdb", cells=8),
+                 lambda: splatwarp.deform(bad, BEND, stage1_only=True, cells=8),
+                 lambda: splatwarp.eval(stripes, bad, BEND, points=100)):
+        with pytest.raises(splatwarp.Error, match="Gaussian 3: property 'x'"):
+            call()
+    with pytest.raises(splatwarp.Error, match=r"\(deformed model\)"):
+        splatwarp.eval(stripes, bad, BEND, points=100)
+    assert not (work / "bad.vdb").exists()
+    empty = splatwarp.Model()
+    with pytest.raises(splatwarp.Error, match="without Gaussians"):
+        splatwarp.write(empty, work / "empty.ply")
+    assert not (work / "empty.ply").exists()
+    z = np.zeros((0, 3), np.float32)
+    with pytest.raises(splatwarp.Error, match="no Gaussians"):
+        splatwarp.Model.from_arrays(z, z, np.zeros((0, 4), np.float32), np.zeros(0, np.float32), z)
+
+
+def test_settings_out_of_the_clis_ranges_are_refused(work, stripes):
+    model = splatwarp.read(stripes)
+    with pytest.raises(splatwarp.Error, match="1 to 100000 views"):
+        splatwarp.render(model, 16, 16, orbit=3_000_000, device="cpu")
+    for elevation in (float("nan"), 1e30, 90):
+        with pytest.raises(splatwarp.Error, match="elevation"):
+            splatwarp.render(model, 16, 16, elevation=elevation, device="cpu")
+    for width in (32.0, "32", True, 2**40, 0):
+        with pytest.raises((TypeError, ValueError), match="whole numbers from 1"):
+            splatwarp.render(model, width, 32, device="cpu")
+    with pytest.raises(TypeError, match="'help'"):
+        splatwarp.deform(model, BEND, help=True)
+    cli("to-vdb", stripes, "-o", work / "ranges.vdb", "--cells", 8)
+    with pytest.raises(ValueError, match="rounds must be 1 to 100"):
+        splatwarp.from_vdb(work / "ranges.vdb", rounds=1000)
