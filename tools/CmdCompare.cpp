@@ -1,6 +1,7 @@
 /// `splatwarp compare A B [--json]`: PSNR and SSIM of two images.
 #include <cmath>
 #include <cstdio>
+#include <limits>
 #include <nlohmann/json.hpp>
 
 #include "Command.h"
@@ -33,11 +34,12 @@ const CommandRegistrar reg(61, [](CLI::App& app) {
         } catch (const InputError& e) {
             throw InputError(msg(args->a, " vs ", args->b, ": ", e.what()));
         }
+        const bool identical = p == std::numeric_limits<double>::infinity(); // psnr()'s mse of 0
         if (args->json) {
-            nlohmann::json j{{"psnr", std::isinf(p) ? nlohmann::json(nullptr) : nlohmann::json(p)}, {"ssim", s}};
+            nlohmann::json j{{"psnr", identical ? nlohmann::json(nullptr) : nlohmann::json(p)}, {"ssim", s}};
             std::printf("%s\n", j.dump(2).c_str());
         } else {
-            std::printf("PSNR %s dB  SSIM %.6f\n", std::isinf(p) ? "inf" : msg(p).c_str(), s);
+            std::printf("PSNR %s dB  SSIM %.6f\n", identical ? "inf" : msg(p).c_str(), s);
         }
     });
 });

@@ -41,7 +41,10 @@ public:
             double m[5] = {0, 0, 0, 0, 0}; // means of a, b, a^2, b^2, ab
             for (int q = 0; q < 5; ++q)
                 for (int i = 0; i < n; ++i) m[q] += mK[std::size_t(i)] * mV[std::size_t(q) * w + std::size_t(x + i)];
-            const double va = m[2] - m[0] * m[0], vb = m[3] - m[1] * m[1], cov = m[4] - m[0] * m[1];
+            // E[a^2] - E[a]^2 cancels: with display values near 1e35 it came out far below 0 and SSIM
+            // at -3.9e16. A variance is not negative, nor a covariance beyond both (SSIM in [-1, 1]).
+            const double va = std::max(0.0, m[2] - m[0] * m[0]), vb = std::max(0.0, m[3] - m[1] * m[1]);
+            const double bound = std::sqrt(va * vb), cov = std::clamp(m[4] - m[0] * m[1], -bound, bound);
             sum += ((2 * m[0] * m[1] + c1) * (2 * cov + c2)) / ((m[0] * m[0] + m[1] * m[1] + c1) * (va + vb + c2));
         }
     }

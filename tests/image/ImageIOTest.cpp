@@ -74,6 +74,98 @@ TEST(ImageIOTest, SrgbCurveRoundTripsAndMatchesKnownPoints)
     for (float v = 0.0f; v <= 1.0f; v += 0.01f) EXPECT_NEAR(srgbToLinear(linearToSrgb(v)), v, 1e-6);
 }
 
+/// A 16-bit RGB PNG of `samples` (row-major, 3 per pixel), stored (uncompressed) deflate, with the
+/// chunk `extra` (type + data, e.g. "sRGB\0") after the IHDR when given: what libpng's writer
+/// cannot make (it tags 16-bit output as linear).
+std::string png16(int width, int height, const std::vector<std::uint16_t>& samples, const std::string& extra = "")
+{
+    const auto chunk = [](const std::string& typeAndData) {
+        std::string c(4, '\0');
+        putBig32(c, 0, std::uint32_t(typeAndData.size() - 4));
+        std::string crc(4, '\0');
+        putBig32(crc, 0, pngCrc(typeAndData));
+        return c + typeAndData + crc;
+    };
+    std::string ihdr = "IHDR" + std::string(13, '\0');
+    putBig32(ihdr, 4, std::uint32_t(width));
+    putBig32(ihdr, 8, std::uint32_t(height));
+    ihdr[12] = 16; // bit depth
+    ihdr[13] = 2;  // RGB
+    std::string raw;
+    for (int y = 0; y < height; ++y) {
+        raw += '\0'; // filter: none
+        for (int x = 0; x < 3 * width; ++x) {
+            const std::uint16_t v = samples[std::size_t(y) * std::size_t(3 * width) + std::size_t(x)];
+            raw += char(v >> 8);
+            raw += char(v & 0xFF);
+        }
+    }
+    std::string z = "\x78\x01\x01"; // zlib header, one final stored block (raw < 65536)
+    z += char(raw.size() & 0xFF);
+    z += char(raw.size() >> 8);
+    z += char(~raw.size() & 0xFF);
+    z += char((~raw.size() >> 8) & 0xFF);
+    z += raw;
+    std::uint32_t a = 1, b = 0; // Adler-32
+    for (unsigned char c : raw) {
+        a = (a + c) % 65521;
+        b = (b + a) % 65521;
+    }
+    std::string adler(4, '\0');
+    putBig32(adler, 0, (b << 16) | a);
+    z += adler;
+    return "\x89PNG\r\n\x1a\n" + chunk(ihdr) + (extra.empty() ? "" : chunk(extra)) + chunk("IDAT" + z) + chunk("IEND");
+}
+
+// libpng took 16-bit PNGs without a colour space for linear light and sRGB-encoded them: an exact
+// 16-bit copy of an 8-bit picture scored 13.7 dB against it.
+TEST(ImageIOTest, SixteenBitPngsReadAsTheirValuesUnlessTheySayOtherwise)
+{
+    test::TempDir dir;
+    const int w = 5, h = 3;
+    Image levels(w, h, 3);
+    std::vector<std::uint16_t> wide;
+    for (std::size_t i = 0; i < levels.pixels.size(); ++i) {
+        const unsigned v = unsigned(i * 53 % 256);
+        levels.pixels[i] = float(v) / 255.0f;
+        wide.push_back(std::uint16_t(v * 257));
+    }
+    writePng(dir.file("eight.png"), levels);
+    EXPECT_TRUE(readPng(dir.file("eight.png")).pixels == levels.pixels);
+    writeBytes(dir.file("untagged16.png"), png16(w, h, wide));
+    writeBytes(dir.file("srgb16.png"), png16(w, h, wide, std::string("sRGB\0", 5)));
+    EXPECT_TRUE(readPng(dir.file("untagged16.png")).pixels == levels.pixels);
+    EXPECT_TRUE(readPng(dir.file("srgb16.png")).pixels == levels.pixels);
+    // A file that says it is linear (gAMA 1.0) is still sRGB-encoded on the way in.
+    std::string gamma1 = std::string("gAMA") + std::string(4, '\0');
+    putBig32(gamma1, 4, 100000);
+    const Image linear = readPng((writeBytes(dir.file("linear16.png"), png16(w, h, wide, gamma1)), dir.file("linear16.png")));
+    EXPECT_FALSE(linear.pixels == levels.pixels);
+    EXPECT_NEAR(linear.pixels[3], linearToSrgb(levels.pixels[3]), 1.0 / 255);
+}
+
+// Display values without a finite linear one (render of a colour of 1e20) made an EXR of inf that
+// compare refused; linear values below -2.6e37 overflowed the sRGB encoding and compare called
+// such a file identical to any other.
+TEST(ImageIOTest, ExrValuesBeyondTheEncodingAreRefused)
+{
+    test::TempDir dir;
+    Image hot(4, 4, 3, 0.5f);
+    hot.at(1, 2, 0) = 1e20f;
+    EXPECT_THROW(writeImage(dir.file("hot.exr"), hot), InputError);
+    EXPECT_FALSE(std::filesystem::exists(dir.file("hot.exr")));
+    Image cold(4, 4, 3, 0.0f);
+    cold.at(3, 1, 2) = -1e38f;
+    writeExr(dir.file("cold.exr"), cold);
+    try {
+        readImage(dir.file("cold.exr"));
+        ADD_FAILURE() << "accepted";
+    } catch (const InputError& e) {
+        EXPECT_NE(std::string(e.what()).find("pixel (3, 1) channel 2"), std::string::npos) << e.what();
+        EXPECT_NE(std::string(e.what()).find("when sRGB-encoded"), std::string::npos) << e.what();
+    }
+}
+
 TEST(ImageIOTest, PngRoundTrip)
 {
     test::TempDir dir;

@@ -49,6 +49,17 @@ double naiveSsim(const Image& a, const Image& b)
     return total / 3;
 }
 
+// E[a^2] - E[a]^2 cancelled with display values near 1e35: SSIM came out at -3.9e16.
+TEST(MetricsTest, SsimStaysWithinItsRangeForHugeValues)
+{
+    Image a = randomImage(24, 24, 3, 5), b = randomImage(24, 24, 3, 6);
+    for (float& v : a.pixels) v = 1e35f + v * 1e30f;
+    for (float& v : b.pixels) v = 1e36f * v;
+    const double s = ssim(a, b);
+    EXPECT_TRUE(s >= -1.0 && s <= 1.0) << s;
+    EXPECT_TRUE(std::isfinite(psnr(a, b)));
+}
+
 TEST(MetricsTest, IdenticalImages)
 {
     const Image a = randomImage(20, 15, 3, 1);
