@@ -2,7 +2,9 @@
 /// @file SmallMath.h
 /// @brief Tiny fixed-size vector/matrix/quaternion maths usable on host and device.
 ///        Eigen is used for host-only solvers; per-element maths shared with CUDA lives here.
+#include <algorithm>
 #include <cmath>
+#include <limits>
 
 #include "core/HostDevice.h"
 
@@ -38,6 +40,17 @@ SPLATWARP_HOST_DEVICE Vec3<T> cross(const Vec3<T>& a, const Vec3<T>& b)
 }
 template <typename T>
 SPLATWARP_HOST_DEVICE T length(const Vec3<T>& a) { return std::sqrt(dot(a, a)); }
+/// @brief a / |a| scaled by its largest component first, so that |a| cannot overflow or underflow
+///        (a spec's rotation axis [1e200, 0, 0] became the zero vector: a collapse, not a turn);
+///        the zero vector for a zero (or non-finite) a.
+inline Vec3d unitVector(const Vec3d& a)
+{
+    const double big = std::max(std::abs(a.x), std::max(std::abs(a.y), std::abs(a.z)));
+    if (!(big > 0 && big <= std::numeric_limits<double>::max())) return {0, 0, 0};
+    const Vec3d b{a.x / big, a.y / big, a.z / big};
+    const double len = length(b);
+    return {b.x / len, b.y / len, b.z / len};
+}
 
 /// @brief Row-major 3x3 matrix: m[r][c].
 template <typename T>

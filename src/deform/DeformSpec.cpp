@@ -98,10 +98,8 @@ HandleSpec parseHandle(const json& h, const Where& w)
     if (h.contains("rotate")) {
         const json& r = h["rotate"];
         checkKeys(r, {"axis", "degrees"}, "\"rotate\"", w, {"axis", "degrees"});
-        s.axis = vec3(r["axis"], "rotate.axis", w);
-        const double len = length(s.axis);
-        if (!(len > 1e-12)) w.fail("rotate.axis is the zero vector");
-        s.axis = s.axis / len;
+        s.axis = unitVector(vec3(r["axis"], "rotate.axis", w));
+        if (!(length(s.axis) > 0)) w.fail("rotate.axis is the zero vector");
         s.degrees = number(r["degrees"], "rotate.degrees", w);
     }
     if (h.contains("pivot")) {

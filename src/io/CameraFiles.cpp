@@ -142,6 +142,10 @@ std::vector<Camera> readTransforms(const JsonReader& r, const Json& top, const C
         const double flx = r.optionalNumber(f, top, "fl_x", where), fly = r.optionalNumber(f, top, "fl_y", where);
         const double angleX = r.optionalNumber(f, top, "camera_angle_x", where);
         const double angleY = r.optionalNumber(f, top, "camera_angle_y", where);
+        // tan() of 7 rad (beyond pi) is positive too: such an angle made a camera of 0.72 rad
+        for (const auto& [angle, key] : {std::pair{angleX, "camera_angle_x"}, std::pair{angleY, "camera_angle_y"}})
+            if (!std::isnan(angle) && !(angle > 0 && angle < M_PI))
+                r.fail(where, msg("'", key, "' must be in (0, pi) radians, got ", angle));
         if (!std::isnan(flx))
             cam.fx = flx;
         else if (!std::isnan(angleX))

@@ -34,6 +34,21 @@ const char* kGood = R"({"version":1,"units":"bbox","graph":{"nodes":32,"k":6,"se
 
 } // namespace
 
+// |axis| overflowed for [1e200, 0, 0]: the axis became the zero vector and the rotation a collapse
+// (the same judged numbers as "scale": 1e-300).
+TEST(DeformSpec, RotationAxesOfAnyMagnitudeAreUnitAxes)
+{
+    for (const char* axis : {"[1e200, 0, 0]", "[1e-200, 0, 0]", "[3, 0, 0]"}) {
+        const DeformSpec s = parseDeformSpec(std::string(R"({"version":1,"handles":[{"nodes":[0],"rotate":{"axis":)") + axis +
+                                                 R"(,"degrees":90}}]})",
+                                             "axis.json");
+        EXPECT_NEAR(s.handles[0].axis.x, 1.0, 1e-15) << axis;
+        EXPECT_EQ(s.handles[0].axis.y, 0.0) << axis;
+    }
+    EXPECT_NE(parseError(R"({"version":1,"handles":[{"nodes":[0],"rotate":{"axis":[0,0,0],"degrees":9}}]})").find("zero vector"),
+              std::string::npos);
+}
+
 TEST(DeformSpec, ParsesTheDocumentedShape)
 {
     const DeformSpec s = parseDeformSpec(kGood, "my.json");

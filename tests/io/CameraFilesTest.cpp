@@ -108,6 +108,9 @@ TEST(CameraFilesTest, MalformedFilesNameTheProblem)
     expectError("nofocal.json", R"({"w": 4, "h": 4, "frames": [{"transform_matrix": [[1,0,0,0],[0,1,0,0],[0,0,1,0],[0,0,0,1]]}]})",
                 "needs 'fl_x' or 'camera_angle_x'");
     expectError("other.json", R"({"cameras": []})", "neither");
+    // tan() of 7 rad is positive too: it rendered a camera of 0.72 rad with exit 0.
+    expectError("angle.json", R"({"camera_angle_x": 7, "w": 4, "h": 4, "frames": [{"transform_matrix": [[1,0,0,0],[0,1,0,0],[0,0,1,0],[0,0,0,1]]}]})",
+                "frame 0: 'camera_angle_x' must be in (0, pi) radians, got 7");
     expectError("empty.json", "[]", "no cameras");
     // Found by fuzz_cameras: a number beyond double made nlohmann throw out_of_range, not parse_error.
     expectError("overflow.json", R"({"camera_angle_x": 4.8, "w": 10e2222, "frames": []})", "not valid JSON");
