@@ -658,29 +658,13 @@ int validationDrawsOf(const DeformRest& rest, const DeformJobOptions& o)
     return o.validationDraws > 0 ? o.validationDraws : autoValidationDraws(rest.model.size());
 }
 
-/// Peak bytes per --eval-points point: the judge's and the training lattice's points, and the
-/// validation points of every 10 draws (2 per point at the 20 draws of small models). Measured
-/// (deform bend, 100k against 1M points): lastchance.splat (SH 0) 278 + 347 B a draw-ten;
-/// train-1000 (SH 3, 48 feature floats) 4.64 times that, taken as linear in the floats.
-double bytesPerEvalPoint(int featureFloats, bool judge, int draws)
-{
-    const double grow = 1.0 + (4.64 - 1.0) * double(featureFloats - 3) / 45.0;
-    return grow * ((judge ? 278.0 : 0.0) + 347.0 * double(draws) / 10.0);
-}
-
 /// Refuse held-out and validation points past --max-memory before any is drawn: --eval-points
 /// 4000000 took train-1000's deform to 19.2 GB (8 M validation points at SH 3).
 void checkPointMemory(const DeformRest& rest, const DeformJobOptions& o)
 {
     const int draws = validationDrawsOf(rest, o);
-    if (o.grid.maxMemoryBytes == 0 || (!judges(o) && draws == 0)) return;
-    const double need = double(o.heldOut.points) * bytesPerEvalPoint(rest.model.shStride(), judges(o), draws);
-    const MemoryRoom room = memoryRoom(o.grid.maxMemoryBytes);
-    if (need <= room.left()) return;
-    throw InputError(msg("held-out and validation points: --eval-points ", o.heldOut.points,
-                         draws > 0 ? msg(" with ", draws, " validation draws") : std::string(), " need about ",
-                         formatBytes(need), ", more than ", room.text(), "; lower --eval-points",
-                         draws > 0 ? " or --validation-draws" : "", ", or raise --max-memory"));
+    if (!judges(o) && draws == 0) return;
+    checkEvalPointMemory(o.heldOut.points, rest.model.shStride(), judges(o), draws, o.grid.maxMemoryBytes, "--eval-points");
 }
 
 /// The selector's validation points at rest (the keep's).

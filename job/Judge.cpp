@@ -11,6 +11,7 @@
 #include <mutex>
 
 #include "core/Error.h"
+#include "core/Memory.h"
 #include "core/Polar.h"
 #include "image/Metrics.h"
 #include "render/RenderDevice.h"
@@ -333,6 +334,29 @@ JudgeReport Judge::judge(const GaussianCloud& deformed) const
     }
     r.psnr = ImagePsnr{mse > 0.0 ? -10.0 * std::log10(mse) : std::numeric_limits<double>::infinity(), kViews, kSize};
     return r;
+}
+
+/// Peak bytes per held-out point: the judge's and the training lattice's points, and the
+/// validation points of every 10 draws (2 per point at the 20 draws of small models). Measured
+/// (deform bend, 100k against 1M points): lastchance.splat (SH 0) 278 + 347 B a draw-ten;
+/// train-1000 (SH 3, 48 feature floats) 4.64 times that, taken as linear in the floats.
+double bytesPerEvalPoint(int featureFloats, bool judge, int draws)
+{
+    const double grow = 1.0 + (4.64 - 1.0) * double(featureFloats - 3) / 45.0;
+    return grow * ((judge ? 278.0 : 0.0) + 347.0 * double(draws) / 10.0);
+}
+
+void checkEvalPointMemory(std::size_t points, int featureFloats, bool judge, int draws, std::size_t maxMemoryBytes,
+                          const char* flag)
+{
+    if (maxMemoryBytes == 0) return;
+    const double need = double(points) * bytesPerEvalPoint(featureFloats, judge, draws);
+    const MemoryRoom room = memoryRoom(maxMemoryBytes);
+    if (need <= room.left()) return;
+    throw InputError(msg("held-out", draws > 0 ? " and validation" : "", " points: ", flag, " ", points,
+                         draws > 0 ? msg(" with ", draws, " validation draws") : std::string(), " need about ",
+                         formatBytes(need), ", more than ", room.text(), "; lower ", flag,
+                         draws > 0 ? " or --validation-draws" : "", ", or raise --max-memory"));
 }
 
 } // namespace splatwarp

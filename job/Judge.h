@@ -143,4 +143,11 @@ private:
     std::vector<Image> mTruth;         ///< the rest model from the rest cameras
 };
 
+/// @brief Refuse `points` held-out points (and, with draws > 0, the validation points of that many
+///        draws) past `maxMemoryBytes` (0: no limit) before any is drawn; `flag` names the count
+///        in the message (--eval-points, --points).
+/// @throws InputError
+void checkEvalPointMemory(std::size_t points, int featureFloats, bool judge, int draws, std::size_t maxMemoryBytes,
+                          const char* flag);
+
 } // namespace splatwarp

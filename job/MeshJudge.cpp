@@ -24,12 +24,14 @@ TriangleMesh warpedMesh(const TriangleMesh& mesh, const Deformation& d)
     return out;
 }
 
+constexpr int kMontagePad = 4;
+
 /// Rows of (mesh | splats) for the given views, each labelled with its PSNR.
 Image montage(const std::vector<Image>& truth, const std::vector<Image>& splats, const std::vector<std::size_t>& rows,
               const MeshJudgeReport& r)
 {
     if (rows.empty()) return Image();
-    const int w = truth[rows.front()].width, h = truth[rows.front()].height, pad = 4;
+    const int w = truth[rows.front()].width, h = truth[rows.front()].height, pad = kMontagePad;
     Image sheet(2 * w + 3 * pad, int(rows.size()) * (h + pad) + pad, 3, 0.02f);
     for (std::size_t k = 0; k < rows.size(); ++k) {
         const int top = pad + int(k) * (h + pad);
@@ -53,6 +55,13 @@ TriangleMesh deformMesh(const TriangleMesh& mesh, const GaussianCloud& rest, con
     return warpedMesh(mesh, solveDeformation(rest, spec));
 }
 
+int montageRows(int worst, int w, int h)
+{
+    // 6 rows of 2800x2800 made a 5612x16828 sheet that compare then refused.
+    if (worst <= 0 || 2 * w + 3 * kMontagePad > kMaxImageSide) return 0;
+    return std::min(worst, (kMaxImageSide - kMontagePad) / (h + kMontagePad));
+}
+
 MeshJudgeReport judgeAgainstMesh(const TriangleMesh& restMesh, const GaussianCloud& rest, const GaussianCloud& deformed,
                                  const DeformSpec& spec, const MeshJudgeOptions& o)
 {
@@ -71,7 +80,7 @@ MeshJudgeReport judgeAgainstMesh(const TriangleMesh& restMesh, const GaussianClo
     splatRender.background = o.render.background;
     // Only the montage's views keep their pictures: all of them were held (200 views of 4096^2,
     // mesh and splats: 107 GB).
-    const std::size_t keep = std::size_t(std::max(0, o.worst));
+    const std::size_t keep = std::size_t(montageRows(o.worst, o.views.width, o.views.height));
     const auto worse = [&](std::size_t a, std::size_t b) { return std::make_pair(r.psnr[a], a) < std::make_pair(r.psnr[b], b); };
     std::vector<Image> truth(cameras.size()), splats(cameras.size());
     std::vector<std::size_t> order; // the worst views so far, worst first

@@ -20,6 +20,10 @@ struct MeshJudgeOptions {
     int worst = 6;                 ///< rows of the montage: the views with the lowest PSNR
 };
 
+/// @brief The montage rows (of views of w x h pixels) that fit in a picture our readers read
+///        (kMaxImageSide a side), at most `worst`; 0 when two views side by side are too wide.
+int montageRows(int worst, int w, int h);
+
 /// @brief Per-view and mean image scores; the montage (mesh | splats per row, worst first).
 struct MeshJudgeReport {
     std::vector<std::string> names;

@@ -251,6 +251,7 @@ py::object evaluate(const py::object& restModel, const py::object& deformedModel
     heldOut.seed = seed;
     heldOut.device = resolveDevice(parseDevice(device));
     if (points == 0) throw py::value_error("eval(): points must be positive");
+    checkEvalPointMemory(points, rest.shStride(), true, 0, defaultMemoryBudget(), "points");
     JudgeReport report;
     {
         py::gil_scoped_release release;

@@ -54,7 +54,7 @@ void addMeshOptions(CLI::App* sub, EvalArgs& a)
     sub->add_option("--views", a.meshJudge.views.views, "With --mesh: views")->capture_default_str()->check(inRange(1, kMaxViews));
     sub->add_option_function<int>("--size", [&a](int s) { a.meshJudge.views.width = a.meshJudge.views.height = s; },
                                   "With --mesh: square view size (default 256)")
-        ->check(inRange(8, kMaxImageSide));
+        ->check(inRange(11, kMaxImageSide)); // SSIM's 11x11 window
     sub->add_option("--montage", a.montage, "With --mesh: write the worst views (mesh | splats, lowest PSNR first) to this PNG")
         ->check(CLI::Validator(
             [](std::string& path) {
@@ -66,9 +66,14 @@ void addMeshOptions(CLI::App* sub, EvalArgs& a)
 /// `eval --mesh`: PSNR/SSIM of the deformed splats against the deformed mesh.
 void evalMesh(const EvalArgs& a, const DeformSpec& spec, const GaussianCloud& rest, const GaussianCloud& deformed)
 {
+    MeshJudgeOptions options = a.meshJudge;
+    options.worst = a.montage.empty() ? 0 : options.worst; // no views kept for a montage nobody asked for
+    if (!a.montage.empty() && montageRows(options.worst, options.views.width, options.views.height) == 0)
+        throw UsageError(msg("--montage: two views of ", options.views.width, " pixels side by side are wider than ",
+                             kMaxImageSide, " (the largest picture our readers read); lower --size"));
     OutputSet outputs({a.mesh, a.rest, a.deformed, a.spec});
     if (!a.montage.empty()) outputs.checkTarget(a.montage);
-    const MeshJudgeReport r = judgeAgainstMesh(readMesh(a.mesh, a.meshRead), rest, deformed, spec, a.meshJudge);
+    const MeshJudgeReport r = judgeAgainstMesh(readMesh(a.mesh, a.meshRead), rest, deformed, spec, options);
     if (!a.montage.empty() && !r.montage.empty()) writePng(a.montage, r.montage);
     outputs.commit();
     if (a.json) {
@@ -150,6 +155,9 @@ const CommandRegistrar reg(35, [](CLI::App& app) {
         if (!a->volume.empty()) return evalVolume(*a);
         if (a->rest.empty() || a->deformed.empty() || a->spec.empty())
             throw UsageError("eval needs --rest, --deformed and --spec (or --volume and --model)");
+        if (a->mesh.empty())
+            for (const char* flag : {"--texture", "--procedural-colour", "--views", "--size", "--montage"})
+                if (sub->count(flag) > 0) throw UsageError(msg("eval: ", flag, " is for the image judge: add --mesh MESH"));
         if (!a->lattice)
             for (const char* flag : {"--cells", "--cell-size", "--samples-per-cell", "--cutoff"})
                 if (sub->count(flag) > 0)
@@ -168,6 +176,7 @@ const CommandRegistrar reg(35, [](CLI::App& app) {
         const Deformation deformation = solveDeformation(rest, spec);
         HeldOutOptions heldOut = a->heldOut;
         heldOut.device = device;
+        checkEvalPointMemory(heldOut.points, rest.shStride(), true, 0, a->grid.maxMemoryBytes, "--points");
         if (a->lattice) {
             SampleGridOptions gridOptions = a->grid;
             gridOptions.device = device;

@@ -25,6 +25,9 @@ const CommandRegistrar reg(10, [](CLI::App& app) {
         ->check(CLI::Range(std::size_t(1), std::size_t(1) << 40));
     sub->add_option("--seed", args->options.seed, "Random seed (deterministic output per seed)")->capture_default_str();
     sub->callback([args] {
+        if (outputFormatOf(args->output) != "ply") // it wrote PLY bytes under x.splat
+            throw UsageError(msg("sample writes graphdeco PLY: name the output *.ply, not ", args->output,
+                                 " (convert writes the other formats)"));
         OutputSet outputs;
         outputs.checkTarget(args->output);
         const GaussianCloud g = makeDemoModel(args->name, args->options);

@@ -158,6 +158,8 @@ std::vector<CloudWarning> outlierWarnings(const GaussianCloud& g)
 std::vector<CloudWarning> cloudWarnings(const GaussianCloud& g, const CloudStats& stats)
 {
     std::vector<CloudWarning> out;
+    if (g.empty()) // its statistics are zeros, not measurements
+        return {{"no-gaussians", 0, "the file holds no Gaussians (other commands refuse it; the statistics above are empty)"}};
     const auto add = [&](const char* kind, std::size_t count, const std::string& text) {
         if (count) out.push_back({kind, count, text});
     };

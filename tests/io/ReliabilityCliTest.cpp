@@ -286,3 +286,47 @@ TEST(Reliability, MessagesAreReadableAndNameTheFile)
     const std::string longName = f.dir.file(std::string(245, 'n') + ".ply");
     EXPECT_EQ(runCli("-q convert " + f.model + " " + longName, f.log), 0) << f.text();
 }
+
+// Group 11 (2026-12-07 hostile pass over render, compare, eval, info and sample).
+TEST(Reliability, JudgeAndPictureFlagsOutOfPlaceAreUsageErrors)
+{
+    Fixture f;
+    const std::string spec = std::string(SPLATWARP_SOURCE_DIR) + "/samples/specs/bend.json";
+    const std::string judge = "-q eval --rest " + f.model + " --deformed " + f.model + " --spec " + spec;
+    // Without --mesh the image judge's flags were ignored (exit 0, no montage written).
+    for (const std::string flag : {"--montage " + f.dir.file("m.png"), "--views 3", "--size 64", "--texture nope.png"}) {
+        EXPECT_EQ(runCli(judge + " " + flag, f.log), 2) << flag << ": " << f.text();
+        EXPECT_TRUE(f.has("add --mesh")) << f.text();
+    }
+    EXPECT_FALSE(fs::exists(f.dir.file("m.png")));
+    // Sizes under SSIM's 11x11 window failed only after rendering every view.
+    EXPECT_EQ(runCli(judge + " --mesh any.obj --size 10", f.log), 2) << f.text();
+    // Held-out points past --max-memory: 2e7 points peaked at 6.4 GB under --max-memory 500M.
+    EXPECT_EQ(runCli(judge + " --points 100000000 --max-memory 200M", f.log), 1) << f.text();
+    EXPECT_TRUE(f.has("--points 100000000")) << f.text();
+    // sample wrote PLY bytes under any name.
+    EXPECT_EQ(runCli("-q sample ring --count 50 -o " + f.dir.file("r.splat"), f.log), 2) << f.text();
+    EXPECT_FALSE(fs::exists(f.dir.file("r.splat")));
+}
+
+TEST(Reliability, PicturesNoReaderTakesAreNotWritten)
+{
+    Fixture f;
+    // A splat colour of 1e20 is a finite display value with no finite linear one: render wrote an
+    // EXR of inf (exit 0) that compare then refused.
+    GaussianCloud g = readGaussians(f.model);
+    for (std::size_t i = 0; i < g.size(); ++i) g.shOf(i)[0] = 1e20f;
+    writePly(f.model, g);
+    const std::string exr = f.dir.file("hot.exr");
+    EXPECT_EQ(runCli("-q render " + f.model + " -o " + exr + " --size 16x16", f.log), 1) << f.text();
+    EXPECT_TRUE(f.has("when decoded to linear light")) << f.text();
+    EXPECT_FALSE(fs::exists(exr));
+    EXPECT_TRUE(noTemporaries(f.dir.path()));
+    // info on a model without Gaussians printed zeros as statistics, with no word.
+    const std::string empty = f.dir.file("empty.ply");
+    std::string header = "ply\nformat binary_little_endian 1.0\nelement vertex 0\n";
+    for (const std::string& name : graphdecoPropertyNames(0)) header += "property float " + name + "\n";
+    writeBytes(empty, header + "end_header\n");
+    EXPECT_EQ(runCli("info " + empty, f.log), 0) << f.text();
+    EXPECT_TRUE(f.has("warning:         the file holds no Gaussians")) << f.text();
+}
