@@ -28,6 +28,7 @@ public:
 
     std::uint64_t at() const { return mAt; }
     std::uint64_t left() const { return mLimit - mAt; }
+    std::uint64_t limit() const { return mLimit; }
     void limitTo(std::uint64_t end) { mLimit = end; }
 
     template <typename T>
@@ -89,26 +90,65 @@ private:
     const std::string& mName;
 };
 
+/// One array of a delayed-load value, `count` elements of `size` bytes, stored in `bytes` bytes: raw
+/// when 0, else Blosc-compressed, whose header (uncompressed size at bytes 4..7) sizes OpenVDB's
+/// buffer. OpenVDB pads what it compresses (to at least 128 bytes): a little more is allowed.
+void checkDelayedLoadArray(LayoutReader& r, std::uint32_t bytes, std::uint64_t count, std::uint64_t size,
+                           const std::string& what)
+{
+    constexpr std::uint64_t kPadding = 4096;
+    if (bytes == 0) {
+        r.skip(count * size, what);
+        return;
+    }
+    if (bytes < 16) r.fail(what, " is ", bytes, " bytes, less than a Blosc header");
+    r.skip(4, what + " Blosc header");
+    const std::uint32_t raw = r.value<std::uint32_t>(what + " uncompressed size");
+    if (raw < count * size || raw > count * size + kPadding)
+        r.fail(what, " holds ", raw, " bytes uncompressed for ", count, " leaves of ", size, " bytes");
+    r.skip(bytes - 8, what);
+}
+
+/// OpenVDB's `file_delayed_load` value (type __delayedload): a leaf count, then a mask byte and a
+/// compressed size (8 bytes) per leaf. OpenVDB sizes its arrays by the count and the Blosc headers,
+/// not by the value's length: a flipped bit asked for gigabytes or failed an assertion.
+void checkDelayedLoad(LayoutReader& r, std::uint32_t bytes, std::uint64_t maxLeaves, const std::string& what)
+{
+    if (bytes == 0) return;
+    const std::uint64_t end = r.at() + bytes, limit = r.limit();
+    if (bytes > r.left()) r.skip(bytes, what); // fails, naming the bytes left
+    r.limitTo(end);
+    const std::uint32_t count = r.value<std::uint32_t>(what + " leaf count");
+    if (count > maxLeaves) r.fail(what, " counts ", count, " leaves, more than its grid's ", maxLeaves, " data bytes");
+    checkDelayedLoadArray(r, r.value<std::uint32_t>(what + " masks' size"), count, 1, what + " masks");
+    const std::uint32_t sizes = r.value<std::uint32_t>(what + " sizes' size");
+    if (sizes != 0xffffffffu) checkDelayedLoadArray(r, sizes, count, 8, what + " sizes");
+    r.limitTo(limit);
+    r.seek(end);
+}
+
 /// A MetaMap: a count, then name, type name and a length-prefixed value per entry (OpenVDB reads a
-/// typed value by its type and the rest by the length; each is at most what is left).
-void skipMetadata(LayoutReader& r, const std::string& whose)
+/// typed value by its type and the rest by the length; each is at most what is left). `maxLeaves`
+/// bounds a delayed-load value's leaf count (each leaf takes at least a byte of its grid's data).
+void skipMetadata(LayoutReader& r, const std::string& whose, std::uint64_t maxLeaves)
 {
     const std::uint32_t count = r.value<std::uint32_t>(whose + " metadata count");
     if (count > r.left() / 12) r.fail(whose, " metadata count ", count, " cannot fit in the ", r.left(), " bytes left");
     for (std::uint32_t m = 0; m < count; ++m) {
         const std::string name = r.text(whose + " metadata name");
-        r.text(whose + " metadata '" + name + "' type");
+        const std::string type = r.text(whose + " metadata '" + name + "' type");
         const std::uint32_t bytes = r.value<std::uint32_t>(whose + " metadata '" + name + "' size");
-        r.skip(bytes, whose + " metadata '" + name + "' value");
+        if (type == "__delayedload") checkDelayedLoad(r, bytes, maxLeaves, whose + " metadata '" + name + "'");
+        else r.skip(bytes, whose + " metadata '" + name + "' value");
     }
 }
 
 /// What OpenVDB reads of a grid for its metadata alone, before its voxel data: compression flags,
 /// metadata and the transform's map name.
-void checkGridHeader(LayoutReader& r, const std::string& which)
+void checkGridHeader(LayoutReader& r, const std::string& which, std::uint64_t dataBytes)
 {
     r.value<std::uint32_t>(which + " compression flags");
-    skipMetadata(r, which);
+    skipMetadata(r, which, dataBytes);
     r.text(which + " transform");
 }
 
@@ -140,7 +180,7 @@ void checkGrid(LayoutReader& r, std::uint64_t size, std::int32_t index)
     if (std::uint64_t(at.end) > size) r.fail(which, " ends at byte ", at.end, " of a ", size, "-byte file");
     r.seek(std::uint64_t(at.grid));
     r.limitTo(std::uint64_t(at.block));
-    checkGridHeader(r, which);
+    checkGridHeader(r, which, std::uint64_t(at.end - at.block));
     r.limitTo(size);
     r.seek(std::uint64_t(at.end));
 }
@@ -156,7 +196,7 @@ void checkVdbLayout(std::istream& in, std::uint64_t size, const std::string& nam
     r.skip(8, "library version");
     const auto offsets = r.value<std::uint8_t>("grid offsets flag");
     r.skip(36, "UUID");
-    skipMetadata(r, "file");
+    skipMetadata(r, "file", size);
     const auto grids = r.value<std::int32_t>("grid count");
     if (grids < 0 || std::uint64_t(grids) > r.left() / 36)
         r.fail("grid count ", grids, " cannot fit in the ", r.left(), " bytes left");
@@ -165,13 +205,17 @@ void checkVdbLayout(std::istream& in, std::uint64_t size, const std::string& nam
     } else if (grids > 0) {
         // A stream (io::Stream): each grid's data follows its header unindexed; the first is checked.
         GridOffsets unused;
-        checkGridHeader(r, gridDescriptor(r, 0, unused));
+        checkGridHeader(r, gridDescriptor(r, 0, unused), size);
     }
 }
 
 void checkVdbFileLayout(const std::string& path)
 {
     std::error_code ec;
+    const std::filesystem::file_status st = std::filesystem::status(path, ec);
+    // Opening a FIFO blocks until a writer comes (from-vdb hung forever); a device never ends.
+    if (std::filesystem::exists(st) && !std::filesystem::is_regular_file(st))
+        throw IoError(msg(path, ": is not a regular file (a folder, device, FIFO or socket); cannot read it as a volume"));
     const std::uintmax_t size = std::filesystem::file_size(path, ec);
     std::ifstream in(path, std::ios::binary);
     if (ec || !in) throw IoError(msg(path, ": cannot open"));

@@ -143,11 +143,27 @@ const pts::PointDataGrid* firstPointGrid(const std::string& name, const openvdb:
     throw InputError(msg(name, ": an OpenVDB file without a point grid (PointDataGrid); a volume is read by 'from-vdb'"));
 }
 
+/// The points of a leaf: its voxels' offsets, which index its attribute arrays, checked against them
+/// (a forged offset read out of bounds, or sized the cloud: 1.7 GB for a 12 KB file).
+std::size_t checkedPointCount(const std::string& name, const pts::PointDataGrid& grid,
+                              const pts::PointDataTree::LeafNodeType& leaf)
+{
+    try {
+        leaf.validateOffsets();
+        if (leaf.attributeSet().size() == 0 && leaf.pointCount() > 0)
+            OPENVDB_THROW(openvdb::ValueError, "Points without attribute arrays");
+    } catch (const openvdb::ValueError& e) {
+        throw InputError(msg(name, ": point grid '", printable(grid.getName()), "', leaf at ", leaf.origin(), ": ",
+                             e.what(), " (corrupt point offsets)"));
+    }
+    return std::size_t(leaf.pointCount());
+}
+
 GaussianCloud readGrid(const std::string& name, const pts::PointDataGrid& grid, ReadReport& report)
 {
     const auto leaf0 = grid.tree().cbeginLeaf();
     std::size_t n = 0;
-    for (auto leaf = grid.tree().cbeginLeaf(); leaf; ++leaf) n += std::size_t(leaf->pointCount());
+    for (auto leaf = grid.tree().cbeginLeaf(); leaf; ++leaf) n += checkedPointCount(name, grid, *leaf);
     if (n == 0) throw InputError(msg(name, ": the point grid '", printable(grid.getName()), "' holds no points"));
     GaussianCloud g;
     g.resize(n, shDegreeOf(grid, leaf0 ? &*leaf0 : nullptr));
@@ -210,7 +226,11 @@ GaussianCloud readVdbPoints(const std::string& name, const std::string& data, Re
         checkVdbLayout(is, data.size(), name); // before OpenVDB, which reads garbage sizes from a cut file
         is.clear();
         is.seekg(0);
-        openvdb::io::Stream stream(is);
+        // Read from the bytes themselves, a short read an exception: with delayed loading (the
+        // default) OpenVDB copied them to a file and read pages later, and a cut file failed an
+        // assertion in Page::readHeader (exit 134) on an unread size.
+        is.exceptions(std::ios::failbit | std::ios::badbit | std::ios::eofbit);
+        openvdb::io::Stream stream(is, /*delayLoad=*/false);
         const openvdb::GridPtrVecPtr grids = stream.getGrids();
         GaussianCloud g = readGrid(name, *firstPointGrid(name, *grids), report);
         report.format = "vdb-points";
@@ -221,6 +241,8 @@ GaussianCloud readVdbPoints(const std::string& name, const std::string& data, Re
         throw InputError(msg(name, ": not a readable OpenVDB point file: corrupt sizes (allocation failed)"));
     } catch (const std::length_error& e) {
         throw InputError(msg(name, ": not a readable OpenVDB point file: corrupt sizes (", e.what(), ")"));
+    } catch (const std::ios_base::failure&) {
+        throw InputError(msg(name, ": not a readable OpenVDB point file: it ends inside its data (truncated or corrupt file?)"));
     }
 }
 

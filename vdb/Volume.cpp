@@ -1,6 +1,7 @@
 /// Reading fog volumes (vdb/Volume.h): grid choice, input checks, trilinear lookups, samples.
 #include "vdb/Volume.h"
 
+#include <algorithm>
 #include <cmath>
 #include <fstream>
 #include <random>
@@ -71,6 +72,16 @@ openvdb::GridBase::ConstPtr findGrid(const openvdb::GridPtrVec& grids, const std
     return nullptr;
 }
 
+/// OpenVDB reads the first of several grids of a name (after a warning): which one was meant is
+/// not ours to guess.
+void checkUniqueName(const std::string& path, const openvdb::GridPtrVec& grids, const std::string& name)
+{
+    const auto count = std::count_if(grids.begin(), grids.end(), [&](const auto& g) { return g->getName() == name; });
+    if (count > 1)
+        throw InputError(msg(path, ": ", count, " grids are named '", printable(name),
+                             "' (OpenVDB would read the first); rename all but one"));
+}
+
 /// The density grid's name: the requested one, else `density`, else the only FloatGrid.
 std::string chooseDensityGrid(const std::string& path, const openvdb::GridPtrVec& grids, const std::string& wanted)
 {
@@ -89,22 +100,60 @@ std::string chooseDensityGrid(const std::string& path, const openvdb::GridPtrVec
                          " (choose one with --grid); grids: ", gridList(grids)));
 }
 
-/// Refuse NaN/Inf values (voxels and tiles).
+/// The largest |value| read: the fit squares values and sums the squares over up to ~1e9 samples
+/// in float32 (3e38 gave only "the energy at the start is not finite").
+constexpr double kMaxAbsValue = 1e12;
+/// Voxel sizes the float32 fit can work with: the Gaussians' log-scales, volumes (size^3) and
+/// energies stay finite (1e-200 gave NaN, 1e30 a model no writer takes).
+constexpr double kMinVoxelSize = 1e-6, kMaxVoxelSize = 1e6;
+/// Active voxels' world positions, in voxels: float32 still resolves an eighth of a voxel there
+/// (1e8 voxels from the origin, the training samples of a voxel collapsed onto one point).
+constexpr double kMaxVoxelsFromOrigin = double(1 << 20);
+/// The largest low-pass filter strength of our own files' metadata: a 10-voxel standard deviation.
+constexpr float kMaxLambdaLpf = 100.0f;
+
+template <typename T>
+bool inRange(const T& v)
+{
+    if constexpr (std::is_same_v<T, float>) return std::fabs(double(v)) <= kMaxAbsValue; // false for NaN
+    else return inRange(v[0]) && inRange(v[1]) && inRange(v[2]);
+}
+
+/// Refuse NaN/Inf or overflowing values: every voxel and tile, active or not (trilinear sampling
+/// in the band reads inactive ones), and the background.
 template <typename GridT>
 void checkFinite(const std::string& path, const GridT& grid)
 {
+    const std::string which = msg(path, ": grid '", printable(grid.getName()), "'");
+    if (!inRange(grid.background()))
+        throw InputError(msg(which, " has background ", grid.background(), " (finite, |value| <= ", kMaxAbsValue, ")"));
     std::size_t bad = 0;
     openvdb::Coord first;
-    for (auto it = grid.cbeginValueOn(); it; ++it) {
-        const auto v = *it;
-        bool ok = true;
-        if constexpr (std::is_same_v<typename GridT::ValueType, float>) ok = std::isfinite(v);
-        else ok = std::isfinite(v[0]) && std::isfinite(v[1]) && std::isfinite(v[2]);
-        if (!ok && bad++ == 0) first = it.getCoord();
-    }
+    for (auto it = grid.cbeginValueAll(); it; ++it)
+        if (!inRange(*it) && bad++ == 0) first = it.getCoord();
     if (bad > 0)
-        throw InputError(msg(path, ": grid '", grid.getName(), "' has ", bad, " NaN/Inf values (first at voxel ",
-                             first, ")"));
+        throw InputError(msg(which, " has ", bad, " NaN/Inf values or values beyond +-", kMaxAbsValue,
+                             " (first at voxel ", first, ")"));
+}
+
+/// The voxel size, and the active voxels' world positions, usable in float32 (see the limits).
+void checkWorldScale(const std::string& where, const openvdb::FloatGrid& density)
+{
+    const double voxel = density.transform().voxelSize()[0];
+    if (!(voxel >= kMinVoxelSize && voxel <= kMaxVoxelSize))
+        throw InputError(msg(where, ": voxel size ", voxel, " (the float32 fit needs ", kMinVoxelSize, " to ",
+                             kMaxVoxelSize, " world units)"));
+    const openvdb::CoordBBox box = density.evalActiveVoxelBoundingBox();
+    for (int corner = 0; corner < 8; ++corner) {
+        const openvdb::Coord c((corner & 1 ? box.max() : box.min()).x(), (corner & 2 ? box.max() : box.min()).y(),
+                               (corner & 4 ? box.max() : box.min()).z());
+        const openvdb::Vec3d p = density.indexToWorld(c);
+        for (int a = 0; a < 3; ++a)
+            if (!(std::fabs(p[a]) <= kMaxVoxelsFromOrigin * voxel))
+                throw InputError(msg(where, ": active voxel ", c, " lies at world ", p, ", more than ",
+                                     kMaxVoxelsFromOrigin, " voxels from the origin (float32 positions there do "
+                                     "not resolve a voxel's samples)"));
+    }
 }
 
 template <typename T>
@@ -118,7 +167,9 @@ T metaOr(const openvdb::MetaMap& m, const std::string& key, T fallback)
 void openFile(openvdb::io::File& file, const std::string& path)
 {
     try {
-        file.open();
+        // No delayed loading: it trusts the file's `file_delayed_load` masks and sizes, and a corrupt
+        // one failed an assertion in OpenVDB (exit 134) instead of an error.
+        file.open(/*delayLoad=*/false);
     } catch (const std::exception& e) {
         throw InputError(msg(path, ": not an OpenVDB file (", e.what(), ")"));
     }
@@ -166,6 +217,7 @@ void readFeatures(openvdb::io::File& file, const openvdb::GridPtrVec& grids, con
         info.notes.push_back("no colour grid: white");
         return;
     }
+    checkUniqueName(info.path, grids, name);
     auto base = findGrid(grids, name);
     if (!base || !base->isType<openvdb::Vec3SGrid>())
         throw InputError(msg(info.path, ": no Vec3S colour grid named '", name, "'; grids: ", gridList(grids)));
@@ -179,7 +231,11 @@ void readFeatures(openvdb::io::File& file, const openvdb::GridPtrVec& grids, con
     auto ca = color->getConstAccessor();
     for (auto it = v.density->cbeginValueOn(); it; ++it) {
         const openvdb::Vec3s c = ca.isValueOn(it.getCoord()) ? ca.getValue(it.getCoord()) : openvdb::Vec3s(1.0f);
-        fa.setValue(it.getCoord(), (c - openvdb::Vec3s(0.5f)) * float(*it / kShC0));
+        const openvdb::Vec3s sh = (c - openvdb::Vec3s(0.5f)) * float(*it / kShC0);
+        if (!inRange(sh)) // each factor in range, their product overflowing
+            throw InputError(msg(info.path, ": colour grid '", printable(name), "' at voxel ", it.getCoord(), ": colour ",
+                                 c, " times density ", *it, " is beyond +-", kMaxAbsValue));
+        fa.setValue(it.getCoord(), sh);
     }
     v.features.push_back(f);
     info.colorGrid = name;
@@ -203,6 +259,7 @@ Volume readVolume(const std::string& path, const VolumeReadOptions& o)
     VolumeInfo& info = impl->info;
     info.path = path;
     info.grid = chooseDensityGrid(path, grids, o.grid);
+    checkUniqueName(path, grids, info.grid);
     const std::string where = msg(path, ": grid '", info.grid, "'");
     const auto meta = findGrid(grids, info.grid);
     if (const auto count = meta->getMetadata<openvdb::Int64Metadata>(openvdb::GridBase::META_FILE_VOXEL_COUNT))
@@ -215,10 +272,13 @@ Volume readVolume(const std::string& path, const VolumeReadOptions& o)
     const openvdb::math::Transform& xf = density.transform();
     if (!xf.isLinear() || !xf.hasUniformScale())
         throw InputError(msg(where, ": only linear transforms with cubic voxels are supported"));
+    checkWorldScale(where, density);
     if (density.getGridClass() == openvdb::GRID_LEVEL_SET) {
         openvdb::tools::sdfToFogVolume(density);
         info.levelSet = true;
         info.notes.push_back("level set converted to a fog volume (interior 1, linear across the narrow band)");
+        // The inside became active tiles (a root tile holds 4096^3 voxels): checked before they are voxelized.
+        checkMemory(where, density.activeVoxelCount(), o);
     }
     density.tree().voxelizeActiveTiles();
     // A level set's conversion can leave nothing (a band with no inside); nothing to fit then.
@@ -229,11 +289,18 @@ Volume readVolume(const std::string& path, const VolumeReadOptions& o)
     info.minValue = range.min();
     info.maxValue = range.max();
     if (info.minValue < 0.0f) throw InputError(msg(where, " has negative values (min ", info.minValue, ")"));
+    // Trilinear sampling in the band reads the background as the outside's value.
+    if (!(density.background() >= 0.0f && density.background() <= info.maxValue))
+        throw InputError(msg(where, " has background ", density.background(), " (the value outside: 0 to the largest value, ",
+                             info.maxValue, ")"));
     if (info.maxValue <= 0.0f) throw InputError(msg(where, " holds only zeros: there is nothing to fit or judge"));
     info.ownFile = metaOr<std::string>(*file.getMetadata(), "creator", "") == "splatwarp";
     if (info.ownFile) info.lambdaLpf = metaOr<float>(*file.getMetadata(), "lambda_lpf", 0.0f);
-    if (!(std::isfinite(info.lambdaLpf) && info.lambdaLpf >= 0.0f)) // it sizes the fit's filter and initial Gaussians
-        throw InputError(msg(path, ": metadata lambda_lpf is ", info.lambdaLpf, " (a filter strength: finite and >= 0)"));
+    // It sizes the fit's filter and initial Gaussians: a standard deviation of sqrt(lambda) voxels.
+    // We write 0.2; 1e30 was taken and smeared every Gaussian over the whole volume.
+    if (!(info.lambdaLpf >= 0.0f && info.lambdaLpf <= kMaxLambdaLpf))
+        throw InputError(msg(path, ": metadata lambda_lpf is ", info.lambdaLpf, " (a filter strength: 0 to ",
+                             kMaxLambdaLpf, ")"));
     readFeatures(file, grids, o, *impl);
     file.close();
     return Volume(std::move(impl));

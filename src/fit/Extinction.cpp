@@ -9,12 +9,15 @@ namespace splatwarp {
 
 namespace {
 const double kSqrt2Pi = std::sqrt(2.0 * M_PI);
+/// Duplication steps of the Carlson integrals: finite arguments converge in under 30 (each step
+/// roughly halves the spread's exponent, then quarters it); a NaN never does and spun forever.
+constexpr int kMaxDuplications = 100;
 
 /// Carlson's R_F(x, y, z) by duplication (x, y, z >= 0, at most one zero; relative error ~1e-16).
 double carlsonRF(double x, double y, double z)
 {
-    double a, dx, dy, dz;
-    for (;;) {
+    double a = 0, dx = 0, dy = 0, dz = 0;
+    for (int step = 0; step < kMaxDuplications; ++step) {
         const double sx = std::sqrt(x), sy = std::sqrt(y), sz = std::sqrt(z);
         const double l = sx * (sy + sz) + sy * sz;
         x = 0.25 * (x + l), y = 0.25 * (y + l), z = 0.25 * (z + l);
@@ -30,8 +33,8 @@ double carlsonRF(double x, double y, double z)
 double carlsonRD(double x, double y, double z)
 {
     const double c1 = 3.0 / 14.0, c2 = 1.0 / 6.0, c3 = 9.0 / 22.0, c4 = 3.0 / 26.0;
-    double sum = 0, fac = 1, a, dx, dy, dz;
-    for (;;) {
+    double sum = 0, fac = 1, a = 0, dx = 0, dy = 0, dz = 0;
+    for (int step = 0; step < kMaxDuplications; ++step) {
         const double sx = std::sqrt(x), sy = std::sqrt(y), sz = std::sqrt(z);
         const double l = sx * (sy + sz) + sy * sz;
         sum += fac / (sz * (z + l));

@@ -112,6 +112,27 @@ TEST(VdbLayout, ForgedLengthsAndOffsetsAreRefusedBeforeAnyAllocation)
     EXPECT_NE(e.find(dir.file("cut.vdb") + ": grid 'color' ends at byte"), std::string::npos) << e;
 }
 
+// The delayed-load value (a mask byte and a compressed size per leaf) sizes OpenVDB's arrays by its
+// own counts: a count one off failed an assertion in DelayedLoadMetadata.cc (exit 134), a high bit
+// asked for gigabytes. Both are refused, naming the file; the volume is read without delayed
+// loading anyway, so a sound value's contents are never trusted.
+TEST(VdbLayout, ForgedDelayedLoadCountsAreRefused)
+{
+    test::TempDir dir;
+    const std::string whole = smallVolume(dir);
+    const std::size_t type = whole.find("__delayedload");
+    ASSERT_NE(type, std::string::npos);
+    const std::size_t count = type + 13 + 4; // after the type name and the value's size
+    for (const std::uint32_t forged : {200u, 0x40000000u}) { // 3 leaves hold density's 20 voxels
+        std::string bytes = whole;
+        std::memcpy(&bytes[count], &forged, 4);
+        std::ofstream(dir.file("f.vdb"), std::ios::binary) << bytes;
+        const std::string e = test::inputErrorMessage([&] { readVolume(dir.file("f.vdb"), {}); });
+        EXPECT_NE(e.find(dir.file("f.vdb") + ": grid 'density' metadata 'file_delayed_load'"), std::string::npos)
+            << forged << ": " << e;
+    }
+}
+
 } // namespace
 // OpenVDB writes a fresh random UUID each time; settled, the same grids give the same bytes and
 // the file still reads. The tag follows the content (another file, another tag), sits where

@@ -113,6 +113,41 @@ TEST(VdbPoints, BrokenFilesAreInputErrorsAndVolumesAreNamed)
     EXPECT_NE(m.find("without a point grid"), std::string::npos) << m;
 }
 
+// Voxel offsets past the attribute arrays: an out-of-bounds read (an assertion, exit 134), or the
+// cloud sized by them (a 12 KB file allocated 1.7 GB). Through the CLI: the old code aborted.
+TEST(VdbPoints, LyingVoxelOffsetsAreRefused)
+{
+    TempDir dir;
+    writeVdbPoints(dir.file("m.vdb"), readGaussians(fixture("random200-sh3.ply")));
+    for (const openvdb::Index raise : {200000u, 30000000u}) {
+        const auto grid = firstPointGrid(dir.file("m.vdb"));
+        ASSERT_TRUE(grid);
+        auto leaf = grid->tree().beginLeaf();
+        leaf->setOffsetOnly(511, leaf->getValue(511) + raise);
+        leaf->setValueOn(511);
+        const std::string path = dir.file("lie.vdb");
+        openvdb::io::File(path).write({grid});
+        EXPECT_EQ(runCli("-q info " + path, dir.file("err")), 1) << raise;
+        const std::string err = fileBytes(dir.file("err"));
+        EXPECT_NE(err.find(path + ": point grid 'splats', leaf at "), std::string::npos) << err;
+    }
+}
+
+// A file cut anywhere is an error naming it: OpenVDB's delayed loading read pages later, and a cut
+// inside one failed an assertion in Page::readHeader (exit 134). Through the CLI for that reason.
+TEST(VdbPoints, EveryCutOfAPointFileIsAnError)
+{
+    TempDir dir;
+    writeVdbPoints(dir.file("m.vdb"), readGaussians(fixture("random200-sh3.ply")));
+    const std::string bytes = fileBytes(dir.file("m.vdb"));
+    const std::string path = dir.file("cut.vdb");
+    for (std::size_t k = 1; k < 40; ++k) {
+        const std::size_t cut = bytes.size() - bytes.size() * k / 120; // the last third: attribute pages
+        std::ofstream(path, std::ios::binary) << bytes.substr(0, cut);
+        EXPECT_EQ(runCli("-q info " + path, dir.file("err")), 1) << cut << ": " << fileBytes(dir.file("err"));
+    }
+}
+
 TEST(VdbPoints, NaNInAnAttributeIsNamedWithItsGaussian)
 {
     registerVdbPointFormat();
