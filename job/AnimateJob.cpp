@@ -285,7 +285,9 @@ SequenceResult runAnimateJob(const AnimateJobOptions& options)
         run.owns = [mine = std::set<int>(mine.begin(), mine.end())](int f) { return mine.count(f) > 0; };
     }
     FrameRunner frames(*rest, anim, o, options.warmStart);
-    run.settingsHash = fnv1a64(specText + "\n" + o.input + "\n" + settings.dump());
+    // The model's and recipe's contents, not their paths: another model at the same path is
+    // recomputed (resume) and refused (merge); ./m.ply and m.ply are one input.
+    run.settingsHash = fnv1a64(specText + "\n" + inputsDigest({o.input, o.recipePath}) + "\n" + settings.dump());
     run.header = {{"tool", "splatwarp"}, {"version", SPLATWARP_VERSION_STRING}, {"command", "animate"},
                   {"input", o.input}, {"spec", o.specPath}, {"specHash", fnv1a64(specText)},
                   {"frames", anim.frames}, {"range", {options.first, last}}, {"settings", settings}};

@@ -53,12 +53,23 @@ std::string flagOf(const std::string& word)
     return "";
 }
 
+/// Why a flag has no place in a job's "args" whatever its kind, or "" when it may be there.
+std::string refusedFlag(const std::string& flag)
+{
+    if (flag.rfind("--help", 0) == 0 || flag == "-h") return "help prints and stops; a job must run (see `splatwarp KIND --help`)";
+    if (flag == "--shard" || flag == "--shard-count")
+        return "batch runs each job whole and shards the job list (give --shard to batch itself)";
+    return "";
+}
+
 /// The args checked against the kind's path flags; the read flags' values are added to reads.
 void checkArgs(const JobKind& kind, const std::vector<std::string>& args, const std::string& where, std::vector<std::string>& reads)
 {
     for (std::size_t i = 0; i < args.size(); ++i) {
         const std::string flag = flagOf(args[i]);
         if (flag.empty()) continue;
+        if (const std::string why = refusedFlag(flag); !why.empty())
+            throw InputError(msg(where, "\"args\" may not hold ", args[i], ": ", why));
         auto has = [&](const std::vector<std::string>& list) { return std::find(list.begin(), list.end(), flag) != list.end(); };
         if (has(kind.writeFlags))
             throw InputError(msg(where, "\"args\" may not name an output (", args[i],
@@ -77,6 +88,9 @@ void checkArgs(const JobKind& kind, const std::vector<std::string>& args, const 
 BatchJob parseJob(const json& job, const std::string& where)
 {
     if (!job.is_object()) throw InputError(where + "must be a JSON object");
+    for (auto it = job.begin(); it != job.end(); ++it)
+        if (it.key() != "kind" && it.key() != "input" && it.key() != "output" && it.key() != "args")
+            throw InputError(msg(where, "unknown key \"", it.key(), "\" (a job has \"kind\", \"input\", \"output\" and \"args\")"));
     BatchJob out;
     out.kind = &kindOf(job, where);
     out.input = pathField(job, "input", where);
@@ -116,23 +130,31 @@ std::vector<BatchJob> parseJobList(const std::string& text, const std::string& p
 
 std::vector<std::string> checkJobPaths(const std::vector<BatchJob>& jobs, const std::string& dir, const std::string& jobsPath)
 {
-    std::vector<std::string> outputs;
+    // Each path resolved once (a file-system walk each); the pairs below compare strings only.
+    std::vector<std::string> outputs, placed;
+    const std::string list = resolvedPath(jobsPath);
     for (std::size_t i = 0; i < jobs.size(); ++i) {
         const std::string where = msg(jobsPath, ": job ", i, ": \"output\" ", jobs[i].output);
         outputs.push_back(pathInside(dir, jobs[i].output, where));
+        placed.push_back(resolvedPath(outputs[i]));
         const std::string first = fs::path(jobs[i].output).lexically_normal().begin()->string();
         if (isManifestName(first)) throw InputError(msg(where, ": is the name of a batch manifest"));
-        if (isWithin(outputs[i], jobsPath)) throw InputError(msg(where, ": would overwrite the job list"));
+        if (isWithinResolved(placed[i], list)) throw InputError(msg(where, ": would overwrite the job list"));
         for (std::size_t j = 0; j < i; ++j)
-            if (overlaps(outputs[j], outputs[i]))
+            if (isWithinResolved(placed[j], placed[i]) || isWithinResolved(placed[i], placed[j]))
                 throw InputError(msg(where, ": is also the output of job ", j, " (", jobs[j].output, ") or lies inside it or around it"));
+    }
+    std::vector<std::vector<std::string>> reads;
+    for (const BatchJob& job : jobs) {
+        reads.emplace_back();
+        for (const std::string& in : job.reads) reads.back().push_back(resolvedPath(in));
     }
     for (std::size_t i = 0; i < jobs.size(); ++i)
         for (std::size_t j = 0; j <= i; ++j) // job i's output against the inputs of job i and of every job before it
-            for (const std::string& in : jobs[j].reads)
-                if (isWithin(outputs[i], in))
+            for (std::size_t k = 0; k < reads[j].size(); ++k)
+                if (isWithinResolved(placed[i], reads[j][k]))
                     throw InputError(msg(jobsPath, ": job ", i, ": \"output\" ", jobs[i].output, " would overwrite ",
-                                         j == i ? "its own input " : msg("the input of job ", j, " "), in));
+                                         j == i ? "its own input " : msg("the input of job ", j, " "), jobs[j].reads[k]));
     return outputs;
 }
 

@@ -2,10 +2,17 @@
 
 #include <algorithm>
 #include <cstdint>
-#include <sys/stat.h>
+#include <cerrno>
 #include <cstdio>
+#include <cstring>
+#include <fcntl.h>
 #include <filesystem>
+#include <fstream>
+#include <sys/file.h>
+#include <sys/stat.h>
+#include <unistd.h>
 #include <map>
+#include <optional>
 #include <set>
 
 #include "core/AtomicFile.h"
@@ -75,6 +82,33 @@ void writeManifest(const SequenceRun& run, const std::string& path, const std::m
     writeFileAtomic(path, m.dump(2) + "\n");
 }
 
+/// An exclusive flock on DIR/.NAME.lock for a manifest DIR/NAME while alive: two runs writing one
+/// manifest would each rewrite it without the other's entries. The kernel drops it with the process.
+class ManifestLock {
+public:
+    explicit ManifestLock(const std::string& manifest)
+    {
+        const fs::path m(manifest);
+        const std::string path = (m.parent_path() / ("." + m.filename().string() + ".lock")).string();
+        mFd = ::open(path.c_str(), O_RDWR | O_CREAT | O_CLOEXEC | O_NOFOLLOW, 0644);
+        if (mFd < 0) throw IoError(msg(path, ": cannot open the lock of ", manifest, ": ", std::strerror(errno)));
+        if (::flock(mFd, LOCK_EX | LOCK_NB) != 0) {
+            const int err = errno;
+            ::close(mFd);
+            if (err == EWOULDBLOCK)
+                throw InputError(msg(manifest, ": another run is writing it now (", path,
+                                     " is locked); wait for that run, or give this one another -o or --shard"));
+            throw IoError(msg(path, ": cannot lock: ", std::strerror(err)));
+        }
+    }
+    ~ManifestLock() { ::close(mFd); }
+    ManifestLock(const ManifestLock&) = delete;
+    ManifestLock& operator=(const ManifestLock&) = delete;
+
+private:
+    int mFd = -1;
+};
+
 /// One item, with progress lines of the stages below silenced (one line per item instead).
 json runOne(const SequenceRun& run, int item, const ItemRunner& runItem)
 {
@@ -97,16 +131,58 @@ json runOne(const SequenceRun& run, int item, const ItemRunner& runItem)
 
 } // namespace
 
-std::string fnv1a64(const std::string& bytes)
+namespace {
+
+constexpr std::uint64_t kFnvOffset = 1469598103934665603ull;
+
+std::uint64_t fnvAdd(std::uint64_t h, const char* bytes, std::size_t n)
 {
-    std::uint64_t h = 1469598103934665603ull;
-    for (unsigned char c : bytes) h = (h ^ c) * 1099511628211ull;
+    for (std::size_t i = 0; i < n; ++i) h = (h ^ static_cast<unsigned char>(bytes[i])) * 1099511628211ull;
+    return h;
+}
+
+std::string hex16(std::uint64_t h)
+{
     char out[17];
     std::snprintf(out, sizeof out, "%016llx", static_cast<unsigned long long>(h));
     return out;
 }
 
-std::string fileDigest(const std::string& path) { return fnv1a64(readWholeFile(path, "output file")); }
+} // namespace
+
+std::string fnv1a64(const std::string& bytes) { return hex16(fnvAdd(kFnvOffset, bytes.data(), bytes.size())); }
+
+std::string fileDigest(const std::string& path)
+{
+    std::error_code ec;
+    const fs::file_status st = fs::status(path, ec);
+    if (fs::exists(st) && !fs::is_regular_file(st)) throw IoError(msg(path, ": is not a regular file; cannot take its digest"));
+    std::ifstream in(path, std::ios::binary);
+    if (!in) throw IoError(msg(path, ": cannot open: ", std::strerror(errno)));
+    std::vector<char> buffer(1 << 20); // models can be 100s of MB: one pass, not the whole file in memory
+    std::uint64_t h = kFnvOffset;
+    while (in.read(buffer.data(), std::streamsize(buffer.size())) || in.gcount() > 0) h = fnvAdd(h, buffer.data(), std::size_t(in.gcount()));
+    if (in.bad()) throw IoError(msg(path, ": cannot read"));
+    return hex16(h);
+}
+
+std::string inputsDigest(const std::vector<std::string>& paths)
+{
+    std::string all;
+    for (const std::string& p : paths) {
+        if (p.empty()) continue;
+        std::error_code ec;
+        const fs::file_status st = fs::status(p, ec);
+        all += fs::is_regular_file(st) ? fileDigest(p) : fs::exists(st) ? "not-a-file" : "missing";
+        all += "\n";
+    }
+    return fnv1a64(all);
+}
+
+bool isManifestLock(const std::string& fileName)
+{
+    return fileName.rfind(".manifest", 0) == 0 && fs::path(fileName).extension() == ".lock";
+}
 
 std::string manifestName(const Shard& shard)
 {
@@ -118,6 +194,7 @@ SequenceResult runSequence(const SequenceRun& run, const ItemRunner& runItem, co
     SequenceResult result;
     result.manifest = (fs::path(run.dir) / manifestName(run.shard)).string();
     checkOutputPath(result.manifest); // before the first item: not a symlink, a folder or a device
+    const ManifestLock lock(result.manifest);
     std::vector<int> mine;
     for (int item : run.items)
         if (run.owns ? run.owns(item) : run.shard.contains(item)) mine.push_back(item);
@@ -130,7 +207,11 @@ SequenceResult runSequence(const SequenceRun& run, const ItemRunner& runItem, co
         try {
             const json old = readManifest(result.manifest);
             if (old.value("settingsHash", std::string()) == run.settingsHash) {
-                for (const json& e : old["entries"]) entries[e[run.itemName].get<int>()] = e;
+                for (const json& e : old["entries"]) { // a done entry whose files no longer verify is not carried
+                    const int item = e[run.itemName].get<int>();
+                    if (e["status"] != "done") entries[item] = e;
+                    else if (finished.count(item)) entries[item] = finished.at(item);
+                }
                 for (const json& i : old["items"]) items.insert(i.get<int>());
             }
         } catch (const std::exception&) {
@@ -141,7 +222,8 @@ SequenceResult runSequence(const SequenceRun& run, const ItemRunner& runItem, co
     for (std::size_t i = 0; i < mine.size(); ++i) {
         const int item = mine[i];
         const std::string where = msg(run.itemName, " ", item, " (", i + 1, "/", mine.size(), ")");
-        if (finished.count(item)) {
+        const std::string reads = run.inputsOf ? run.inputsOf(item) : "";
+        if (finished.count(item) && finished.at(item).value("inputs", std::string()) == reads) {
             entries[item] = finished.at(item);
             ++result.resumed;
             progress(msg(where, ": files match the manifest, skipped"));
@@ -149,6 +231,7 @@ SequenceResult runSequence(const SequenceRun& run, const ItemRunner& runItem, co
             continue;
         }
         json entry = runOne(run, item, runItem);
+        if (!reads.empty()) entry["inputs"] = reads;
         computedMs += entry["ms"].get<double>();
         ++computed;
         const double eta = computedMs / computed * double(mine.size() - i - 1) / 1000.0;
@@ -255,36 +338,60 @@ std::vector<json> shardManifests(const std::string& dir)
     return shards;
 }
 
+/// The manifest.json of dir when it was written with the shards' settings (a whole run, an earlier
+/// merge): its done entries count too, so a merge never replaces it by one with fewer.
+std::optional<json> earlierWhole(const fs::path& path, const json& shard)
+{
+    std::error_code ec;
+    if (!fs::is_regular_file(fs::symlink_status(path, ec))) return std::nullopt;
+    try {
+        json m = readManifest(path);
+        if (m["settingsHash"] == shard["settingsHash"] && m["itemName"] == shard["itemName"]) return m;
+    } catch (const Error&) {
+    }
+    return std::nullopt;
+}
+
 } // namespace
+
+json readShardManifest(const std::string& dir) { return shardManifests(dir).front(); }
 
 json mergeManifests(const std::string& dir, const std::function<bool(int, const std::string&)>& fileBelongs)
 {
-    checkOutputPath((fs::path(dir) / "manifest.json").string());
+    const fs::path wholePath = fs::path(dir) / "manifest.json";
+    checkOutputPath(wholePath.string());
+    const ManifestLock lock(wholePath.string());
     std::vector<json> shards = shardManifests(dir);
     json merged = shards.front();
     merged.erase("_path");
     const std::string itemName = merged["itemName"];
-    const std::set<int> runItems = merged["items"].get<std::set<int>>();
+    std::set<int> runItems = merged["items"].get<std::set<int>>();
+    std::set<int> found;
+    for (const json& s : shards) found.insert(s["shard"]["index"].get<int>());
+    const std::optional<json> whole = earlierWhole(wholePath, merged);
+    if (whole)
+        for (const json& i : (*whole)["items"]) runItems.insert(i.get<int>());
     std::map<int, json> entries;
     std::map<std::string, int> owner; // file -> the item whose verified entry lists it
-    std::set<int> found;
-    for (json& s : shards) {
-        found.insert(s["shard"]["index"].get<int>());
-        for (json& e : s["entries"]) {
-            const int item = e[itemName].get<int>();
-            if (!runItems.count(item)) throw InputError(msg(s["_path"].get<std::string>(), ": ", itemName, " ", item, " is not an item of the run"));
-            if (e["status"] == "done") {
-                std::string why = unverifiedFiles(dir, e, itemName, fileBelongs);
-                for (const json& f : e["files"])
-                    if (why.empty() && owner.count(f["path"]) && owner[f["path"]] != item)
-                        why = msg(f["path"].get<std::string>(), ": is listed by ", itemName, " ", owner[f["path"]], " too");
-                if (!why.empty()) e = {{itemName, item}, {"status", "failed"}, {"message", "merge: " + why}};
-                else
-                    for (const json& f : e["files"]) owner[f["path"]] = item;
-            }
-            if (!entries.count(item) || e["status"] == "done") entries[item] = e;
+    auto take = [&](json e, const std::string& from) {
+        const int item = e[itemName].get<int>();
+        if (!runItems.count(item)) throw InputError(msg(from, ": ", itemName, " ", item, " is not an item of the run"));
+        if (e["status"] == "done") {
+            std::string why = unverifiedFiles(dir, e, itemName, fileBelongs);
+            for (const json& f : e["files"])
+                if (why.empty() && owner.count(f["path"]) && owner[f["path"]] != item)
+                    why = msg(f["path"].get<std::string>(), ": is listed by ", itemName, " ", owner[f["path"]], " too");
+            if (!why.empty()) e = {{itemName, item}, {"status", "failed"}, {"message", "merge: " + why}};
+            else
+                for (const json& f : e["files"]) owner[f["path"]] = item;
         }
-    }
+        if (!entries.count(item) || e["status"] == "done") entries[item] = e;
+    };
+    for (const json& s : shards)
+        for (const json& e : s["entries"]) take(e, s["_path"].get<std::string>());
+    if (whole) // fills the items no shard lists: a shard's entry (a forged one too) is never hidden behind it
+        for (const json& e : (*whole)["entries"])
+            if (!entries.count(e[itemName].get<int>())) take(e, wholePath.string());
     json missing = json::array(), failed = json::array();
     for (int i : runItems) {
         const auto it = entries.find(i);
@@ -292,13 +399,14 @@ json mergeManifests(const std::string& dir, const std::function<bool(int, const 
         else if (it->second["status"] != "done") failed.push_back(i);
     }
     const int count = merged["shard"]["count"].get<int>();
+    merged["items"] = runItems;
     merged["shard"] = {{"index", 0}, {"count", 1}, {"source", "merge"}};
     merged["shards"] = {{"count", count}, {"found", found}};
     merged["entries"] = json::array();
     for (const auto& [item, entry] : entries) merged["entries"].push_back(entry);
     merged["missing"] = missing;
     merged["failed"] = failed;
-    writeFileAtomic((fs::path(dir) / "manifest.json").string(), merged.dump(2) + "\n");
+    writeFileAtomic(wholePath.string(), merged.dump(2) + "\n");
     return merged;
 }
 

@@ -27,6 +27,9 @@ struct SequenceRun {
     /// Whether a file (relative to dir) may belong to an item; resume never reuses an entry
     /// listing another (a frame's own numbered files, a job's files under its output).
     std::function<bool(int item, const std::string& rel)> fileBelongs;
+    /// A digest of what an item reads (inputsDigest() of its files), taken just before it runs
+    /// and kept in its entry as "inputs"; resume redoes an item whose digest differs (unset: none).
+    std::function<std::string(int item)> inputsOf;
 };
 
 /// @brief Runs one item; returns its entry: "files" (paths relative to dir, written atomically)
@@ -45,6 +48,8 @@ struct SequenceResult {
 std::string manifestName(const Shard& shard);
 
 /// @brief Run this shard's items (see the file comment); the manifest lists every one of them.
+///        A run holds a lock (flock on DIR/.MANIFEST.lock) on its manifest from start to end.
+/// @throws InputError when another run holds that lock (it would lose the other's entries).
 SequenceResult runSequence(const SequenceRun& run, const ItemRunner& runItem, const ItemSummary& summary);
 
 /// @brief Why a finished entry's files cannot be trusted, or "" when every one verifies: a path
@@ -62,10 +67,16 @@ nlohmann::json parseManifest(const std::string& text, const std::string& path);
 /// @brief Join dir/manifest.shard-*.json into dir/manifest.json with "missing" and "failed" item
 ///        lists (items of the run that no shard finished, or that failed) and "shards" found.
 ///        Every "done" entry is verified (unverifiedFiles(); no file listed by two items): one
-///        that fails counts as failed, its message says why.
+///        that fails counts as failed, its message says why. A manifest.json already there with
+///        the shards' settings (a whole run, an earlier merge) fills the items no shard lists, its
+///        items included, so a merge never loses its done entries. Holds manifest.json's lock (see runSequence()).
 /// @throws InputError when there is no shard manifest, one is malformed, or they disagree on
 ///         the settings hash, the items or the shard count.
 nlohmann::json mergeManifests(const std::string& dir, const std::function<bool(int, const std::string&)>& fileBelongs = nullptr);
+
+/// @brief The first of dir's shard manifests, checked against the others as mergeManifests()
+///        checks them (batch --merge reads which job list they ran). @throws InputError as it.
+nlohmann::json readShardManifest(const std::string& dir);
 
 /// @brief The messages of a merge's failed items (the first five), one indented line each.
 std::string mergeFailures(const nlohmann::json& merged);
@@ -73,7 +84,14 @@ std::string mergeFailures(const nlohmann::json& merged);
 
 /// @brief 64-bit FNV-1a of bytes, as 16 hex digits (spec and settings hashes, file digests).
 std::string fnv1a64(const std::string& bytes);
-/// @brief fnv1a64() of a file's contents. @throws IoError when unreadable.
+/// @brief fnv1a64() of a file's contents, read in one streaming pass. @throws IoError when unreadable.
 std::string fileDigest(const std::string& path);
+/// @brief One digest of the contents of files an item reads (in order; "" entries are skipped),
+///        whatever their paths spell: a missing file or a folder counts as such, not as an error.
+std::string inputsDigest(const std::vector<std::string>& paths);
+
+/// @brief Whether a file name is the lock a run holds on a manifest of its folder (".NAME.lock"):
+///        not an output.
+bool isManifestLock(const std::string& fileName);
 
 } // namespace splatwarp

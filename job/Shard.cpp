@@ -32,12 +32,29 @@ Shard checked(Shard s)
     return s;
 }
 
+/// The task's place in its array: (ID - MIN) / STEP (--array=0-6:2 has tasks 0, 2, 4, 6: shards 0..3).
+int slurmTask(const char* id, const char* lo, const char* step)
+{
+    const int offset = nonNegative(id, "SLURM_ARRAY_TASK_ID") - (lo ? nonNegative(lo, "SLURM_ARRAY_TASK_MIN") : 0);
+    const int by = step ? nonNegative(step, "SLURM_ARRAY_TASK_STEP") : 1;
+    if (by < 1) throw UsageError("SLURM_ARRAY_TASK_STEP must be >= 1 (got 0)");
+    if (offset % by != 0)
+        throw UsageError(msg("SLURM_ARRAY_TASK_ID ", id, " is not SLURM_ARRAY_TASK_MIN plus a multiple of SLURM_ARRAY_TASK_STEP ", by));
+    return offset / by; // negative (MIN above ID) is refused by checked()
+}
+
+thread_local bool tSchedulerIgnored = false;
+
 } // namespace
+
+SchedulerEnvironmentIgnored::SchedulerEnvironmentIgnored() : mWas(tSchedulerIgnored) { tSchedulerIgnored = true; }
+SchedulerEnvironmentIgnored::~SchedulerEnvironmentIgnored() { tSchedulerIgnored = mWas; }
 
 Shard resolveShard(const std::string& flag, int shardCount, const EnvLookup& env)
 {
     Shard s;
     if (!flag.empty()) {
+        if (shardCount > 0) throw UsageError("give --shard I/N or --shard-count N, not both (--shard's N is the count)");
         const std::size_t slash = flag.find('/');
         if (slash == std::string::npos) throw UsageError(msg("--shard must be I/N, e.g. 0/4 (got \"", flag, "\")"));
         s.source = "--shard";
@@ -47,9 +64,8 @@ Shard resolveShard(const std::string& flag, int shardCount, const EnvLookup& env
     }
     if (const char* id = env("SLURM_ARRAY_TASK_ID")) {
         s.source = "SLURM_ARRAY_TASK_ID";
-        const char* lo = env("SLURM_ARRAY_TASK_MIN");
         const char* count = env("SLURM_ARRAY_TASK_COUNT");
-        s.index = nonNegative(id, "SLURM_ARRAY_TASK_ID") - (lo ? nonNegative(lo, "SLURM_ARRAY_TASK_MIN") : 0);
+        s.index = slurmTask(id, env("SLURM_ARRAY_TASK_MIN"), env("SLURM_ARRAY_TASK_STEP"));
         if (shardCount > 0) s.count = shardCount;
         else if (count) s.count = nonNegative(count, "SLURM_ARRAY_TASK_COUNT");
         else throw UsageError("SLURM_ARRAY_TASK_ID is set but SLURM_ARRAY_TASK_COUNT is not: give --shard-count N");
@@ -69,7 +85,8 @@ Shard resolveShard(const std::string& flag, int shardCount, const EnvLookup& env
 
 Shard resolveShard(const std::string& flag, int shardCount)
 {
-    return resolveShard(flag, shardCount, [](const char* name) { return static_cast<const char*>(std::getenv(name)); });
+    return resolveShard(flag, shardCount,
+                        [](const char* name) { return tSchedulerIgnored ? nullptr : static_cast<const char*>(std::getenv(name)); });
 }
 
 } // namespace splatwarp

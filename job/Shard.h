@@ -20,13 +20,27 @@ struct Shard {
 using EnvLookup = std::function<const char*(const char*)>;
 
 /// @brief The shard of this process. `flag` is --shard "I/N" (empty: not given), `shardCount`
-///        is --shard-count (0: not given). Without the flag: SLURM_ARRAY_TASK_ID minus
-///        SLURM_ARRAY_TASK_MIN of SLURM_ARRAY_TASK_COUNT tasks, else JOB_COMPLETION_INDEX of
-///        --shard-count, else the whole run.
-/// @throws UsageError for a malformed I/N, I >= N, N < 1, or JOB_COMPLETION_INDEX without --shard-count.
+///        is --shard-count (0: not given). Without the flag: (SLURM_ARRAY_TASK_ID minus
+///        SLURM_ARRAY_TASK_MIN) / SLURM_ARRAY_TASK_STEP of SLURM_ARRAY_TASK_COUNT tasks, else
+///        JOB_COMPLETION_INDEX of --shard-count, else the whole run.
+/// @throws UsageError for a malformed I/N, I >= N, N < 1, --shard with --shard-count, a task ID
+///         off its array's step, or JOB_COMPLETION_INDEX without --shard-count.
 Shard resolveShard(const std::string& flag, int shardCount, const EnvLookup& env);
 
-/// @brief resolveShard() with the process environment.
+/// @brief While one lives, resolveShard(flag, shardCount) on this thread reads no scheduler
+///        variable: `batch` runs each job whole (it shards the job list, not a job's frames).
+class SchedulerEnvironmentIgnored {
+public:
+    SchedulerEnvironmentIgnored();
+    ~SchedulerEnvironmentIgnored();
+    SchedulerEnvironmentIgnored(const SchedulerEnvironmentIgnored&) = delete;
+    SchedulerEnvironmentIgnored& operator=(const SchedulerEnvironmentIgnored&) = delete;
+
+private:
+    bool mWas;
+};
+
+/// @brief resolveShard() with the process environment (none inside SchedulerEnvironmentIgnored).
 Shard resolveShard(const std::string& flag, int shardCount);
 
 } // namespace splatwarp

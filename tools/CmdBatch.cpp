@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cstdio>
 #include <filesystem>
+#include <functional>
 
 #include "Command.h"
 #include "job/JobList.h"
@@ -40,7 +41,7 @@ json outputFiles(const fs::path& dir, const std::string& output)
     if (fs::is_regular_file(fs::symlink_status(out, ec))) files.push_back(output);
     else if (fs::is_directory(fs::symlink_status(out, ec)))
         for (const fs::directory_entry& e : fs::recursive_directory_iterator(out, ec))
-            if (e.is_regular_file(ec) && !e.is_symlink(ec) && !isStaleTemporary(e.path()))
+            if (e.is_regular_file(ec) && !e.is_symlink(ec) && !isStaleTemporary(e.path()) && !isManifestLock(e.path().filename().string()))
                 files.push_back(fs::relative(e.path(), dir).string());
     std::sort(files.begin(), files.end());
     return files;
@@ -55,6 +56,7 @@ json runJob(const BatchJob& job, const std::string& outputPath, const fs::path& 
     words.push_back(outputPath);
     std::vector<char*> argv;
     for (std::string& w : words) argv.push_back(w.data());
+    const SchedulerEnvironmentIgnored whole; // batch shards the job list: each job runs all of its frames
     CLI::App app;
     app.require_subcommand(1);
     addCommands(app);
@@ -70,6 +72,28 @@ bool underOutput(const std::string& output, const std::string& rel)
     return file == out || file.rfind(out + "/", 0) == 0;
 }
 
+/// Which files (relative to DIR) may be each job's: those under its output.
+std::function<bool(int, const std::string&)> jobFiles(const std::vector<BatchJob>& jobs)
+{
+    return [jobs](int j, const std::string& rel) { return j >= 0 && j < int(jobs.size()) && underOutput(jobs[std::size_t(j)].output, rel); };
+}
+
+/// The job list the shards of dir ran (`jobsPath`, else the one their manifests name), for merge
+/// to check each job's files as resume does. @throws InputError when it is not the one they ran.
+std::vector<BatchJob> mergedJobs(const std::string& dir, const std::string& jobsPath)
+{
+    const json shard = readShardManifest(dir);
+    const std::string path = !jobsPath.empty() ? jobsPath : shard.value("jobs", std::string());
+    std::error_code ec;
+    if (path.empty() || !fs::is_regular_file(path, ec))
+        throw InputError(msg(dir, ": cannot find the job list its shards ran (", path.empty() ? "unnamed" : path,
+                             "), needed to check whose files each job lists: give it, batch JOBS.json --merge ", dir));
+    const std::string text = readWholeFile(path, "job list");
+    if (fnv1a64(text) != shard["settingsHash"])
+        throw InputError(msg(path, ": is not the job list the shards of ", dir, " ran (its hash differs from their settingsHash)"));
+    return parseJobList(text, path);
+}
+
 const CommandRegistrar reg(37, [](CLI::App& app) {
     auto args = std::make_shared<BatchArgs>();
     CLI::App* sub = app.add_subcommand(
@@ -82,7 +106,7 @@ const CommandRegistrar reg(37, [](CLI::App& app) {
     sub->add_option("--merge", args->merge, "Join DIR/manifest.shard-*.json into DIR/manifest.json and list missing or failed jobs");
     sub->callback([args] {
         if (!args->merge.empty()) {
-            const json merged = mergeManifests(args->merge);
+            const json merged = mergeManifests(args->merge, jobFiles(mergedJobs(args->merge, args->jobsPath)));
             std::printf("merged: %zu jobs, missing %s, failed %s\n", merged["entries"].size(), merged["missing"].dump().c_str(),
                         merged["failed"].dump().c_str());
             if (!merged["missing"].empty() || !merged["failed"].empty())
@@ -101,7 +125,8 @@ const CommandRegistrar reg(37, [](CLI::App& app) {
         run.dir = args->outDir;
         run.itemName = "job";
         run.shard = shard;
-        run.fileBelongs = [&](int j, const std::string& rel) { return j < int(jobs.size()) && underOutput(jobs[std::size_t(j)].output, rel); };
+        run.fileBelongs = jobFiles(jobs);
+        run.inputsOf = [&](int j) { return inputsDigest(jobs[std::size_t(j)].reads); }; // an edited model or spec reruns its job
         for (int j = 0; j < int(jobs.size()); ++j) run.items.push_back(j);
         run.settingsHash = fnv1a64(text);
         run.header = {{"tool", "splatwarp"}, {"version", SPLATWARP_VERSION_STRING}, {"command", "batch"},

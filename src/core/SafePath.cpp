@@ -46,17 +46,20 @@ void checkSubfoldersAreFolders(const std::string& dir, std::initializer_list<con
     }
 }
 
-bool isWithin(const std::string& dir, const std::string& path)
+std::string resolvedPath(const std::string& path)
 {
     std::error_code ec;
-    const fs::path d = fs::weakly_canonical(fs::absolute(dir, ec), ec).lexically_normal();
-    const fs::path p = fs::weakly_canonical(fs::absolute(path, ec), ec).lexically_normal();
-    auto di = d.begin(), pi = p.begin();
-    for (; di != d.end(); ++di, ++pi) {
-        if (di->empty() && std::next(di) == d.end()) break; // "a/b/" ends in an empty part
-        if (pi == p.end() || *di != *pi) return false;
-    }
-    return true;
+    std::string s = fs::weakly_canonical(fs::absolute(path, ec), ec).lexically_normal().string();
+    while (s.size() > 1 && s.back() == '/') s.pop_back(); // "a/b/" is a/b
+    return s;
 }
+
+bool isWithinResolved(const std::string& dir, const std::string& path)
+{
+    if (path.compare(0, dir.size(), dir) != 0) return false;
+    return path.size() == dir.size() || dir == "/" || path[dir.size()] == '/';
+}
+
+bool isWithin(const std::string& dir, const std::string& path) { return isWithinResolved(resolvedPath(dir), resolvedPath(path)); }
 
 } // namespace splatwarp

@@ -17,6 +17,13 @@ std::string pathInside(const std::string& root, const std::string& rel, const st
 ///        their existing parts (lexically for the rest).
 bool isWithin(const std::string& dir, const std::string& path);
 
+/// @brief `path` absolute, resolved through symlinks of its existing parts and normalised, without
+///        a trailing "/": what isWithin() compares (resolve many paths once, then compare them).
+std::string resolvedPath(const std::string& path);
+
+/// @brief isWithin() of two resolvedPath() results: a string comparison, no file-system call.
+bool isWithinResolved(const std::string& dir, const std::string& path);
+
 /// @brief Before a command writes into `dir`'s subfolders `subs` (a relative path each): none is
 ///        a symbolic link (a planted one would take the files out of dir) or a file.
 /// @throws IoError "DIR/SUB: is a symbolic link; WHO writes only inside its folder ...".

@@ -53,7 +53,10 @@ MotionKey readKey(int frame, const json& motion, const std::string& where)
             fail(where, "\"rotate\" needs \"axis\" and \"degrees\"");
         const Vec3d axis = vec3(r["axis"], "rotate.axis", where);
         if (!(length(axis) > 1e-12)) fail(where, "rotate.axis is the zero vector");
-        k.rotation = axisAngleQuat(axis, finiteNumber(r["degrees"], "rotate.degrees", where));
+        k.hasRotate = true;
+        k.axis = axis / length(axis);
+        k.degrees = finiteNumber(r["degrees"], "rotate.degrees", where);
+        k.rotation = axisAngleQuat(axis, k.degrees);
     }
     if (motion.contains("translate")) k.translate = vec3(motion["translate"], "translate", where);
     if (motion.contains("scale")) k.scale = finiteNumber(motion["scale"], "scale", where);
@@ -118,6 +121,54 @@ Vec3d lerp(const Vec3d& a, const Vec3d& b, double t) { return a + (b - a) * t; }
 
 json vecJson(const Vec3d& v) { return json::array({v.x, v.y, v.z}); }
 
+/// Keys a and b as turns about one axis (`axis`, angles `da`, `db`): a key without a rotation
+/// turns 0 about the other's axis; an axis written reversed turns the other way. False when the
+/// axes differ.
+bool sharedAxis(const MotionKey& a, const MotionKey& b, Vec3d& axis, double& da, double& db)
+{
+    axis = a.hasRotate ? a.axis : b.hasRotate ? b.axis : Vec3d(0, 0, 1);
+    da = a.degrees;
+    db = b.degrees;
+    if (!a.hasRotate || !b.hasRotate) return true;
+    const double c = dot(a.axis, b.axis);
+    if (c < -1.0 + 1e-12) db = -db;
+    return std::fabs(c) > 1.0 - 1e-12;
+}
+
+/// The rotate field between keys a and b at t (none for no turn).
+void rotateBetween(const MotionKey& a, const MotionKey& b, double t, json& m)
+{
+    Vec3d axis;
+    double da = 0, db = 0;
+    if (sharedAxis(a, b, axis, da, db)) { // the angle as written: 0 -> 720 turns twice, 0 -> 400 turns 400
+        const double degrees = da + (db - da) * t;
+        if (degrees != 0.0) m["rotate"] = {{"axis", vecJson(axis)}, {"degrees", degrees}};
+        return;
+    }
+    const Quatd q = slerp(a.rotation, b.rotation, t);
+    const double sinHalf = std::sqrt(q.x * q.x + q.y * q.y + q.z * q.z);
+    if (sinHalf > 0.0) {
+        m["rotate"] = {{"axis", vecJson(Vec3d(q.x, q.y, q.z) / sinHalf)},
+                       {"degrees", 2.0 * std::atan2(sinHalf, q.w) * 180.0 / M_PI}};
+    }
+}
+
+/// Why keys a and b cannot be interpolated, or "": slerp between different axes follows neither
+/// key's full turns, and is undefined between opposite quaternions.
+std::string unreachableTurn(const MotionKey& a, const MotionKey& b)
+{
+    Vec3d axis;
+    double da = 0, db = 0;
+    if (sharedAxis(a, b, axis, da, db)) return "";
+    if (std::fabs(a.degrees) >= 360.0 || std::fabs(b.degrees) >= 360.0)
+        return "keys about different axes are slerped, which cannot follow a turn of 360 degrees or more "
+               "(give both keys one axis, or add a key in between)";
+    const Quatd &p = a.rotation, &q = b.rotation;
+    if (p.w * q.w + p.x * q.x + p.y * q.y + p.z * q.z < -1.0 + 1e-12)
+        return "its rotation is 360 degrees from the previous key's (add a key in between)";
+    return "";
+}
+
 /// The motion fields of a track at a frame: a key's own fields at (or beyond) it, else interpolated.
 json motionAt(const MotionTrack& track, int frame)
 {
@@ -131,12 +182,7 @@ json motionAt(const MotionTrack& track, int frame)
     double t = double(frame - a.frame) / double(b.frame - a.frame);
     if (track.smooth) t = smoothEase(t);
     json m = json::object();
-    const Quatd q = slerp(a.rotation, b.rotation, t);
-    const double sinHalf = std::sqrt(q.x * q.x + q.y * q.y + q.z * q.z);
-    if (sinHalf > 0.0) {
-        m["rotate"] = {{"axis", vecJson(Vec3d(q.x, q.y, q.z) / sinHalf)},
-                       {"degrees", 2.0 * std::atan2(sinHalf, q.w) * 180.0 / M_PI}};
-    }
+    rotateBetween(a, b, t, m);
     m["translate"] = vecJson(lerp(a.translate, b.translate, t));
     m["scale"] = a.scale + (b.scale - a.scale) * t;
     if (a.hasPivot) m["pivot"] = vecJson(lerp(a.pivot, b.pivot, t));
@@ -191,15 +237,13 @@ AnimSpec parseAnimSpec(const std::string& jsonText, const std::string& sourceNam
     }
     anim.base = std::move(root);
     // Every key as written must be a valid plain spec (same checks and messages as `deform`);
-    // between keys slerp needs two rotations that are not opposite.
+    // between keys the rotation must be one that can be followed (unreachableTurn()).
     for (std::size_t h = 0; h < anim.tracks.size(); ++h) {
         const std::vector<MotionKey>& keys = anim.tracks[h].keys;
         for (std::size_t i = 0; i < keys.size(); ++i) {
             frameSpec(anim, keys[i].frame);
-            const Quatd &a = keys[i > 0 ? i - 1 : 0].rotation, &b = keys[i].rotation;
-            if (a.w * b.w + a.x * b.x + a.y * b.y + a.z * b.z < -1.0 + 1e-12)
-                fail(msg(top, "handle ", h, ": key ", i, ": "),
-                     "its rotation is 360 degrees from the previous key's (add a key in between)");
+            const std::string why = i > 0 ? unreachableTurn(keys[i - 1], keys[i]) : "";
+            if (!why.empty()) fail(msg(top, "handle ", h, ": key ", i, ": "), why);
         }
     }
     return anim;

@@ -3,8 +3,10 @@
 /// @brief A keyframed deformation spec: a function frame -> plain spec (`splatwarp
 ///        animate`). The file is a version-1 spec plus "frames" and optional "ease" at the top and,
 ///        per moving handle, "keys" [{"frame", "rotate", "translate", "scale", "pivot"}]; a handle
-///        without keys ramps from rest (frame 0) to its motion (last frame). Rotations are
-///        slerped, the rest interpolated linearly; key frames reproduce the key exactly.
+///        without keys ramps from rest (frame 0) to its motion (last frame). Between two keys
+///        about one axis (or one key without a rotation) the angle is interpolated as written
+///        (0 -> 720 turns twice); about different axes the rotations are slerped (each below 360
+///        degrees). The rest is interpolated linearly; key frames reproduce the key exactly.
 ///        Format: samples/specs/README.md.
 #include <string>
 #include <vector>
@@ -20,6 +22,9 @@ namespace splatwarp {
 struct MotionKey {
     int frame = 0;
     Quatd rotation;             ///< unit quaternion of the key's rotate (identity when absent)
+    bool hasRotate = false;
+    Vec3d axis;                 ///< the rotate's axis, unit length, and its angle as written
+    double degrees = 0.0;
     Vec3d translate;
     double scale = 1.0;
     bool hasPivot = false;

@@ -138,10 +138,31 @@ TEST(AnimSpec, RefusesBadFramesAndKeys)
     EXPECT_NE(parseError(animText(9, R"([{"frame":1,"spin":3}])")).find("unknown key \"spin\""), std::string::npos);
     EXPECT_NE(parseError(animText(9, R"([{"frame":1,"rotate":{"axis":[0,0,0],"degrees":3}}])")).find("zero vector"),
               std::string::npos);
-    EXPECT_NE(parseError(animText(9, R"([{"frame":0},{"frame":2,"rotate":{"axis":[0,0,1],"degrees":360}}])")).find("360"),
+    // About one axis 0 -> 360 is a full turn (AnimSpec.TurnsAboutOneAxisFollowTheAngleAsWritten); about two it has no arc.
+    EXPECT_NE(parseError(animText(9, R"([{"frame":0,"rotate":{"axis":[1,0,0],"degrees":10}},{"frame":2,"rotate":{"axis":[0,0,1],"degrees":360}}])"))
+                  .find("cannot follow a turn of 360 degrees"),
               std::string::npos);
     EXPECT_NE(parseError(animText(9, R"([{"frame":0,"scale":-1}])")).find("scale must be > 0"), std::string::npos);
     EXPECT_NE(parseError(animText(9, kKeys, R"(,"ease":"bouncy")")).find("\"ease\" must be"), std::string::npos);
     const std::string keysOnFixed = std::string(R"({"version":1,"frames":3,"handles":[{"nodes":[0],"fixed":true,"keys":[{"frame":0}]}]})");
     EXPECT_NE(parseError(keysOnFixed).find("a fixed handle cannot have \"keys\""), std::string::npos);
+}
+
+TEST(AnimSpec, TurnsAboutOneAxisFollowTheAngleAsWritten)
+{
+    // Slerp between the keys' quaternions lost whole turns: 720 did not move, 540 turned -180, 400 the wrong way.
+    for (double d : {720.0, 540.0, 400.0, 270.0, -450.0}) {
+        const std::string keys = R"([{"frame":0},{"frame":4,"rotate":{"axis":[0,0,1],"degrees":)" + std::to_string(d) + "}}]";
+        const AnimSpec a = parseAnimSpec(animText(5, keys), "anim.json");
+        for (int f = 1; f <= 4; ++f) {
+            const json r = moving(a, f)["rotate"];
+            EXPECT_NEAR(r["degrees"].get<double>(), d * f / 4.0, 1e-9) << d << " frame " << f;
+            EXPECT_NEAR(r["axis"][2].get<double>(), 1.0, 1e-12) << d << " frame " << f;
+        }
+    }
+    // An axis written reversed is the same axis turning the other way: 90 about z -> 90 about -z passes 0.
+    const AnimSpec back = parseAnimSpec(
+        animText(5, R"([{"frame":0,"rotate":{"axis":[0,0,1],"degrees":90}},{"frame":4,"rotate":{"axis":[0,0,-2],"degrees":90}}])"), "anim.json");
+    EXPECT_FALSE(moving(back, 2).contains("rotate"));
+    EXPECT_NEAR(moving(back, 3)["rotate"]["degrees"].get<double>(), -45.0, 1e-9);
 }

@@ -2,6 +2,7 @@
 // stay inside the output folder, and merge and resume verify what they take from a manifest.
 #include <gtest/gtest.h>
 
+#include <cstdlib>
 #include <filesystem>
 #include <fstream>
 #include <sstream>
@@ -318,4 +319,39 @@ TEST(AnimateSafety, ADoneEntryListingNoFilesIsRecomputed)
     ASSERT_EQ(fx.animate(out), 0);
     EXPECT_NE(fileBytes(fx.dir.file("animate.log")).find("1 done, 1 resumed"), std::string::npos) << fileBytes(fx.dir.file("animate.log"));
     EXPECT_TRUE(fs::exists(out + "/" + frameFile("baseline", 1)));
+}
+
+TEST(BatchSafety, AnimateJobsRunAllTheirFramesUnderASchedulersArray)
+{
+    Fixture fx;
+    const std::string job = msg(R"({"kind":"animate","input":")", fx.model, R"(","output":"anim0","args":["--spec",")", fx.spec,
+                                R"(","--stage1-only","--nodes","32"]})");
+    // Before, the job took the batch's SLURM variables: shard 0/2 of its own frames, manifest.shard-0.json.
+    ::setenv("SLURM_ARRAY_TASK_ID", "0", 1);
+    ::setenv("SLURM_ARRAY_TASK_COUNT", "2", 1);
+    std::string log;
+    const int rc = fx.batch("{\"jobs\":[" + job + "]}", fx.dir.file("out"), log);
+    ::unsetenv("SLURM_ARRAY_TASK_ID");
+    ::unsetenv("SLURM_ARRAY_TASK_COUNT");
+    ASSERT_EQ(rc, 0) << log;
+    EXPECT_TRUE(fs::exists(fx.dir.file("out/manifest.shard-0.json"))); // the batch is the shard
+    EXPECT_FALSE(fs::exists(fx.dir.file("out/anim0/manifest.shard-0.json")));
+    const json m = json::parse(fileBytes(fx.dir.file("out/anim0/manifest.json")));
+    ASSERT_EQ(m["entries"].size(), 2u);
+    for (const json& e : m["entries"]) EXPECT_EQ(e["status"], "done");
+    // A job may not ask for a shard of its own frames.
+    EXPECT_EQ(fx.batch(R"({"jobs":[{"kind":"animate","input":"a.ply","output":"x","args":["--shard","0/2"]}]})", fx.dir.file("out2"), log), 1);
+    EXPECT_NE(log.find("batch runs each job whole"), std::string::npos) << log;
+}
+
+TEST(BatchSafety, JobListRefusesHelpAndUnknownKeys)
+{
+    auto error = [](const std::string& text) { return inputErrorMessage([&] { parseJobList(text, "jobs.json"); }); };
+    EXPECT_NE(error(R"({"jobs":[{"kind":"deform","input":"a.ply","output":"x","args":["--help"]}]})")
+                  .find("jobs.json: job 0: \"args\" may not hold --help"),
+              std::string::npos);
+    EXPECT_NE(error(R"({"jobs":[{"kind":"deform","input":"a.ply","output":"x","args":["-h"]}]})").find("may not hold -h"), std::string::npos);
+    EXPECT_NE(error(R"({"jobs":[{"kind":"deform","input":"a.ply","output":"x"},{"kind":"deform","input":"a.ply","output":"y","arg":["-q"]}]})")
+                  .find("jobs.json: job 1: unknown key \"arg\""),
+              std::string::npos);
 }

@@ -1,5 +1,6 @@
 #include <gtest/gtest.h>
 
+#include <cstdlib>
 #include <map>
 
 #include "job/Shard.h"
@@ -65,4 +66,34 @@ TEST(Shard, RefusesBadShards)
     EXPECT_NE(usageError("", 0, {{"SLURM_ARRAY_TASK_ID", "1"}, {"SLURM_ARRAY_TASK_MIN", "5"}, {"SLURM_ARRAY_TASK_COUNT", "4"}})
                   .find("shard index -4 is negative"),
               std::string::npos);
+}
+
+TEST(Shard, SlurmStepArraysTakeTheTasksPlaceAndShardCountNeedsNoFlag)
+{
+    // --array=0-6:2: tasks 0, 2, 4, 6 are shards 0..3 of 4 (task 2 ran as 2/4, tasks 4 and 6 failed).
+    for (int id : {0, 2, 4, 6}) {
+        const Shard s = resolveShard("", 0, envOf({{"SLURM_ARRAY_TASK_ID", std::to_string(id)}, {"SLURM_ARRAY_TASK_MIN", "0"},
+                                                   {"SLURM_ARRAY_TASK_STEP", "2"}, {"SLURM_ARRAY_TASK_COUNT", "4"}}));
+        EXPECT_EQ(s.index, id / 2);
+        EXPECT_EQ(s.count, 4);
+    }
+    EXPECT_NE(usageError("", 0, {{"SLURM_ARRAY_TASK_ID", "3"}, {"SLURM_ARRAY_TASK_STEP", "2"}, {"SLURM_ARRAY_TASK_COUNT", "4"}})
+                  .find("multiple of SLURM_ARRAY_TASK_STEP 2"),
+              std::string::npos);
+    // --shard-count beside --shard was silently ignored.
+    EXPECT_NE(usageError("1/3", 4, {}).find("not both"), std::string::npos);
+}
+
+TEST(Shard, JobsOfABatchIgnoreTheSchedulersVariables)
+{
+    ::setenv("SLURM_ARRAY_TASK_ID", "1", 1);
+    ::setenv("SLURM_ARRAY_TASK_COUNT", "2", 1);
+    {
+        const SchedulerEnvironmentIgnored whole;
+        EXPECT_TRUE(resolveShard("", 0).whole());
+        EXPECT_EQ(resolveShard("", 0).source, "none");
+    }
+    EXPECT_EQ(resolveShard("", 0).index, 1);
+    ::unsetenv("SLURM_ARRAY_TASK_ID");
+    ::unsetenv("SLURM_ARRAY_TASK_COUNT");
 }
