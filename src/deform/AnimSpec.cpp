@@ -29,7 +29,7 @@ Vec3d vec3(const json& v, const std::string& what, const std::string& where)
 
 Quatd axisAngleQuat(const Vec3d& axis, double degrees)
 {
-    const double len = length(axis), half = degrees * M_PI / 360.0, s = std::sin(half) / len;
+    const double half = degrees * M_PI / 360.0, s = std::sin(half); // axis: a unit vector
     return {std::cos(half), axis.x * s, axis.y * s, axis.z * s};
 }
 
@@ -51,10 +51,10 @@ MotionKey readKey(int frame, const json& motion, const std::string& where)
         const json& r = motion["rotate"];
         if (!r.is_object() || !r.contains("axis") || !r.contains("degrees"))
             fail(where, "\"rotate\" needs \"axis\" and \"degrees\"");
-        const Vec3d axis = vec3(r["axis"], "rotate.axis", where);
-        if (!(length(axis) > 1e-12)) fail(where, "rotate.axis is the zero vector");
+        const Vec3d axis = unitVector(vec3(r["axis"], "rotate.axis", where)); // as parseDeformSpec
+        if (!(length(axis) > 0)) fail(where, "rotate.axis is the zero vector");
         k.hasRotate = true;
-        k.axis = axis / length(axis);
+        k.axis = axis;
         k.degrees = finiteNumber(r["degrees"], "rotate.degrees", where);
         k.rotation = axisAngleQuat(axis, k.degrees);
     }

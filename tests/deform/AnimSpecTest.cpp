@@ -138,6 +138,11 @@ TEST(AnimSpec, RefusesBadFramesAndKeys)
     EXPECT_NE(parseError(animText(9, R"([{"frame":1,"spin":3}])")).find("unknown key \"spin\""), std::string::npos);
     EXPECT_NE(parseError(animText(9, R"([{"frame":1,"rotate":{"axis":[0,0,0],"degrees":3}}])")).find("zero vector"),
               std::string::npos);
+    // |[1e200, 0, 0]| overflowed: as in a plain spec, any magnitude is a unit axis.
+    const AnimSpec huge = parseAnimSpec(animText(9, R"([{"frame":2,"rotate":{"axis":[1e200,0,0],"degrees":30}}])"), "anim.json");
+    const DeformSpec between = parseDeformSpec(frameSpecJson(huge, 1).dump(), "frame 1");
+    EXPECT_EQ(between.handles[1].axis.x, 1.0);
+    EXPECT_GT(between.handles[1].degrees, 0.0);
     // About one axis 0 -> 360 is a full turn (AnimSpec.TurnsAboutOneAxisFollowTheAngleAsWritten); about two it has no arc.
     EXPECT_NE(parseError(animText(9, R"([{"frame":0,"rotate":{"axis":[1,0,0],"degrees":10}},{"frame":2,"rotate":{"axis":[0,0,1],"degrees":360}}])"))
                   .find("cannot follow a turn of 360 degrees"),
