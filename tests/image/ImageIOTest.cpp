@@ -132,14 +132,15 @@ TEST(ImageIOTest, SixteenBitPngsReadAsTheirValuesUnlessTheySayOtherwise)
     }
     writePng(dir.file("eight.png"), levels);
     EXPECT_TRUE(readPng(dir.file("eight.png")).pixels == levels.pixels);
-    writeBytes(dir.file("untagged16.png"), png16(w, h, wide));
-    writeBytes(dir.file("srgb16.png"), png16(w, h, wide, std::string("sRGB\0", 5)));
+    writeFileAtomic(dir.file("untagged16.png"), png16(w, h, wide));
+    writeFileAtomic(dir.file("srgb16.png"), png16(w, h, wide, std::string("sRGB\0", 5)));
     EXPECT_TRUE(readPng(dir.file("untagged16.png")).pixels == levels.pixels);
     EXPECT_TRUE(readPng(dir.file("srgb16.png")).pixels == levels.pixels);
     // A file that says it is linear (gAMA 1.0) is still sRGB-encoded on the way in.
     std::string gamma1 = std::string("gAMA") + std::string(4, '\0');
     putBig32(gamma1, 4, 100000);
-    const Image linear = readPng((writeBytes(dir.file("linear16.png"), png16(w, h, wide, gamma1)), dir.file("linear16.png")));
+    writeFileAtomic(dir.file("linear16.png"), png16(w, h, wide, gamma1));
+    const Image linear = readPng(dir.file("linear16.png"));
     EXPECT_FALSE(linear.pixels == levels.pixels);
     EXPECT_NEAR(linear.pixels[3], linearToSrgb(levels.pixels[3]), 1.0 / 255);
 }
@@ -156,7 +157,7 @@ TEST(ImageIOTest, ExrValuesBeyondTheEncodingAreRefused)
     EXPECT_FALSE(std::filesystem::exists(dir.file("hot.exr")));
     Image cold(4, 4, 3, 0.0f);
     cold.at(3, 1, 2) = -1e38f;
-    writeExr(dir.file("cold.exr"), cold);
+    writeExr(dir.file("cold.exr"), cold, ExrPixelType::Float);
     try {
         readImage(dir.file("cold.exr"));
         ADD_FAILURE() << "accepted";

@@ -294,7 +294,7 @@ TEST(Reliability, JudgeAndPictureFlagsOutOfPlaceAreUsageErrors)
     const std::string spec = std::string(SPLATWARP_SOURCE_DIR) + "/samples/specs/bend.json";
     const std::string judge = "-q eval --rest " + f.model + " --deformed " + f.model + " --spec " + spec;
     // Without --mesh the image judge's flags were ignored (exit 0, no montage written).
-    for (const std::string flag : {"--montage " + f.dir.file("m.png"), "--views 3", "--size 64", "--texture nope.png"}) {
+    for (const std::string& flag : std::vector<std::string>{"--montage " + f.dir.file("m.png"), "--views 3", "--size 64", "--texture nope.png"}) {
         EXPECT_EQ(runCli(judge + " " + flag, f.log), 2) << flag << ": " << f.text();
         EXPECT_TRUE(f.has("add --mesh")) << f.text();
     }
