@@ -123,7 +123,7 @@ const CommandRegistrar reg(45, [](CLI::App& app) {
         if (a->render) outputs.checkTarget(png);
         const Volume volume = readVolume(a->input, a->read);
         const VolumeInfo& info = volume.info();
-        progress(msg("read '", info.grid, "' from ", a->input, ": ", info.activeVoxels, " active voxels, voxel size ",
+        progress(msg("read '", printableLine(info.grid), "' from ", a->input, ": ", info.activeVoxels, " active voxels, voxel size ",
                      info.voxelSize, ", SH degree ", info.shDegree));
         for (const std::string& note : info.notes) progress("note: " + note);
         const FromVdbResult result = fromVdb(volume, a->job);

@@ -37,7 +37,7 @@ void addAttribute(pts::PointDataGrid& grid, const openvdb::tools::PointIndexGrid
     pts::populateAttribute(grid.tree(), index.tree(), name, pts::PointAttributeVector<T>(values, stride), stride);
 }
 
-pts::PointDataGrid::Ptr buildGrid(const GaussianCloud& g)
+pts::PointDataGrid::Ptr buildGrid(const std::string& path, const GaussianCloud& g)
 {
     const std::size_t n = g.size();
     std::vector<Vec3f> p(n), scale(n), cd(n);
@@ -60,6 +60,13 @@ pts::PointDataGrid::Ptr buildGrid(const GaussianCloud& g)
     }
     const pts::PointAttributeVector<Vec3f> positions(p);
     const float voxel = std::max(pts::computeVoxelSize(positions, 8), 1e-6f); // about 8 points a voxel
+    // OpenVDB's voxel coordinates are int32: centres at 1e12 were written at coordinate -2^31,
+    // which OpenVDB's tools place wrongly (ours read the offsets back).
+    double far = 0;
+    for (const Vec3f& c : p) far = std::max({far, std::abs(double(c.x())), std::abs(double(c.y())), std::abs(double(c.z()))});
+    if (far / voxel > double(1 << 30))
+        throw InputError(msg(path, ": a centre ", far, " from the origin is ", far / voxel, " voxels of ", voxel,
+                             " away, beyond OpenVDB's 32-bit voxel coordinates (convert --drop-outliers drops far centres)"));
     const auto transform = openvdb::math::Transform::createLinearTransform(voxel);
     const auto index = openvdb::tools::createPointIndexGrid<openvdb::tools::PointIndexGrid>(positions, *transform);
     // NullCodec: voxel-relative float32 positions (no quantisation).
@@ -208,7 +215,7 @@ void writeVdbPoints(const std::string& path, const GaussianCloud& g)
     vdb::initialize();
     std::ostringstream os(std::ios::binary);
     try {
-        openvdb::GridPtrVec grids = {buildGrid(g)};
+        openvdb::GridPtrVec grids = {buildGrid(path, g)};
         openvdb::io::Stream(os).write(grids);
     } catch (const openvdb::Exception& e) {
         throw IoError(msg(path, ": cannot write the point grid: ", e.what()));

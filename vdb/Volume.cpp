@@ -61,7 +61,7 @@ void checkMemory(const std::string& where, std::uint64_t voxels, const VolumeRea
 std::string gridList(const openvdb::GridPtrVec& grids)
 {
     std::string s;
-    for (const auto& g : grids) s += (s.empty() ? "" : ", ") + g->getName() + " (" + g->valueType() + ")";
+    for (const auto& g : grids) s += (s.empty() ? "" : ", ") + printableLine(g->getName()) + " (" + g->valueType() + ")";
     return s.empty() ? "none" : s;
 }
 
@@ -78,7 +78,7 @@ void checkUniqueName(const std::string& path, const openvdb::GridPtrVec& grids, 
 {
     const auto count = std::count_if(grids.begin(), grids.end(), [&](const auto& g) { return g->getName() == name; });
     if (count > 1)
-        throw InputError(msg(path, ": ", count, " grids are named '", printable(name),
+        throw InputError(msg(path, ": ", count, " grids are named '", printableLine(name),
                              "' (OpenVDB would read the first); rename all but one"));
 }
 
@@ -88,7 +88,7 @@ std::string chooseDensityGrid(const std::string& path, const openvdb::GridPtrVec
     auto isFloat = [](const openvdb::GridBase::ConstPtr& g) { return g && g->isType<openvdb::FloatGrid>(); };
     if (!wanted.empty()) {
         if (!isFloat(findGrid(grids, wanted)))
-            throw InputError(msg(path, ": no FloatGrid named '", wanted, "'; grids: ", gridList(grids)));
+            throw InputError(msg(path, ": no FloatGrid named '", printableLine(wanted), "'; grids: ", gridList(grids)));
         return wanted;
     }
     if (isFloat(findGrid(grids, "density"))) return "density";
@@ -124,7 +124,7 @@ bool inRange(const T& v)
 template <typename GridT>
 void checkFinite(const std::string& path, const GridT& grid)
 {
-    const std::string which = msg(path, ": grid '", printable(grid.getName()), "'");
+    const std::string which = msg(path, ": grid '", printableLine(grid.getName()), "'");
     if (!inRange(grid.background()))
         throw InputError(msg(which, " has background ", grid.background(), " (finite, |value| <= ", kMaxAbsValue, ")"));
     std::size_t bad = 0;
@@ -182,7 +182,7 @@ openvdb::GridBase::Ptr readGrid(openvdb::io::File& file, const std::string& path
     try {
         return file.readGrid(name);
     } catch (const std::exception& e) {
-        throw InputError(msg(path, ": grid '", name, "' cannot be read (truncated or corrupt file?): ", e.what()));
+        throw InputError(msg(path, ": grid '", printableLine(name), "' cannot be read (truncated or corrupt file?): ", e.what()));
     }
 }
 
@@ -203,7 +203,7 @@ void readFeatures(openvdb::io::File& file, const openvdb::GridPtrVec& grids, con
             auto g = openvdb::gridPtrCast<openvdb::Vec3SGrid>(readGrid(file, info.path, "sh_" + std::to_string(k)));
             if (!g) throw InputError(msg(info.path, ": sh_degree ", degree, " but no Vec3S grid sh_", k));
             if (g->transform() != v.density->transform())
-                throw InputError(msg(info.path, ": grid sh_", k, " has another transform than '", info.grid, "'"));
+                throw InputError(msg(info.path, ": grid sh_", k, " has another transform than '", printableLine(info.grid), "'"));
             checkFinite(info.path, *g);
             v.features.push_back(g);
         }
@@ -220,11 +220,11 @@ void readFeatures(openvdb::io::File& file, const openvdb::GridPtrVec& grids, con
     checkUniqueName(info.path, grids, name);
     auto base = findGrid(grids, name);
     if (!base || !base->isType<openvdb::Vec3SGrid>())
-        throw InputError(msg(info.path, ": no Vec3S colour grid named '", name, "'; grids: ", gridList(grids)));
+        throw InputError(msg(info.path, ": no Vec3S colour grid named '", printableLine(name), "'; grids: ", gridList(grids)));
     auto color = openvdb::gridPtrCast<openvdb::Vec3SGrid>(readGrid(file, info.path, name));
     checkFinite(info.path, *color);
     if (color->transform() != v.density->transform())
-        throw InputError(msg(info.path, ": colour grid '", name, "' has another transform than '", info.grid, "'"));
+        throw InputError(msg(info.path, ": colour grid '", printableLine(name), "' has another transform than '", printableLine(info.grid), "'"));
     auto f = openvdb::Vec3SGrid::create(openvdb::Vec3s(0.0f));
     f->setTransform(v.density->transform().copy());
     auto fa = f->getAccessor();
@@ -233,7 +233,7 @@ void readFeatures(openvdb::io::File& file, const openvdb::GridPtrVec& grids, con
         const openvdb::Vec3s c = ca.isValueOn(it.getCoord()) ? ca.getValue(it.getCoord()) : openvdb::Vec3s(1.0f);
         const openvdb::Vec3s sh = (c - openvdb::Vec3s(0.5f)) * float(*it / kShC0);
         if (!inRange(sh)) // each factor in range, their product overflowing
-            throw InputError(msg(info.path, ": colour grid '", printable(name), "' at voxel ", it.getCoord(), ": colour ",
+            throw InputError(msg(info.path, ": colour grid '", printableLine(name), "' at voxel ", it.getCoord(), ": colour ",
                                  c, " times density ", *it, " is beyond +-", kMaxAbsValue));
         fa.setValue(it.getCoord(), sh);
     }
@@ -260,7 +260,7 @@ Volume readVolume(const std::string& path, const VolumeReadOptions& o)
     info.path = path;
     info.grid = chooseDensityGrid(path, grids, o.grid);
     checkUniqueName(path, grids, info.grid);
-    const std::string where = msg(path, ": grid '", info.grid, "'");
+    const std::string where = msg(path, ": grid '", printableLine(info.grid), "'");
     const auto meta = findGrid(grids, info.grid);
     if (const auto count = meta->getMetadata<openvdb::Int64Metadata>(openvdb::GridBase::META_FILE_VOXEL_COUNT))
         checkMemory(where, std::uint64_t(count->value()), o);

@@ -39,4 +39,11 @@ std::string printable(const std::string& text, std::size_t maxBytes)
     return out;
 }
 
+std::string printableLine(const std::string& text)
+{
+    std::string out;
+    for (const char c : printable(text)) out += c == '\n' ? "\\n" : c == '\t' ? "\\t" : std::string(1, c);
+    return out;
+}
+
 } // namespace splatwarp

@@ -45,4 +45,8 @@ std::string msg(const Args&... args)
 ///        text beyond maxBytes is cut ("..."), so file contents echoed in a message cannot garble it.
 std::string printable(const std::string& text, std::size_t maxBytes = 2000);
 
+/// @brief printable() of a name shown inside one line of a message (a grid's name, a key): newlines
+///        and tabs become \n and \t too.
+std::string printableLine(const std::string& text);
+
 } // namespace splatwarp

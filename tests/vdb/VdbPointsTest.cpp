@@ -7,11 +7,13 @@
 #include <openvdb/points/PointDataGrid.h>
 
 #include <cmath>
+#include <filesystem>
 #include <sstream>
 
 #include "vdb/VdbLibrary.h"
 #include "vdb/VdbPoints.h"
 #include "core/Error.h"
+#include "demo/DemoModels.h"
 #include "io/GaussianIO.h"
 #include "support/TestSupport.h"
 
@@ -146,6 +148,19 @@ TEST(VdbPoints, EveryCutOfAPointFileIsAnError)
         std::ofstream(path, std::ios::binary) << bytes.substr(0, cut);
         EXPECT_EQ(runCli("-q info " + path, dir.file("err")), 1) << cut << ": " << fileBytes(dir.file("err"));
     }
+}
+
+// Centres at 1e12 were written at voxel coordinate -2^31 (int32), where OpenVDB's tools place them wrongly.
+TEST(VdbPoints, CentresBeyondInt32VoxelCoordinatesAreRefused)
+{
+    test::TempDir dir;
+    DemoModelOptions stripes; // a 4x1x1 bar: its points take voxels of 256 beside five at 1e12
+    stripes.count = 500;
+    GaussianCloud g = makeDemoModel("stripes", stripes);
+    for (int i = 0; i < 5; ++i) g.means[3 * std::size_t(i)] = 1e12f;
+    const std::string m = test::inputErrorMessage([&] { writeVdbPoints(dir.file("far.vdb"), g); });
+    EXPECT_NE(m.find("beyond OpenVDB's 32-bit voxel coordinates"), std::string::npos) << m;
+    EXPECT_FALSE(std::filesystem::exists(dir.file("far.vdb")));
 }
 
 TEST(VdbPoints, NaNInAnAttributeIsNamedWithItsGaussian)

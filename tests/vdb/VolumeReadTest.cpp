@@ -158,6 +158,21 @@ TEST(VolumeRead, TwoGridsOfTheNameAskedForAreRefused)
     EXPECT_NE(m.find(path + ": 2 grids are named 'density'"), std::string::npos) << m;
 }
 
+// A grid named "den\x1b[31msity\n" reached the terminal raw in from-vdb's progress line and
+// broke the --grid error over two lines.
+TEST(VolumeRead, GridNamesAreShownOnOneLine)
+{
+    test::TempDir dir;
+    auto g = blob();
+    g->setName("den\x1b[31msity\n");
+    const std::string path = write(dir, "w.vdb", {g, blob()});
+    VolumeReadOptions o;
+    o.grid = "nope\n";
+    const std::string m = readError(path, o);
+    EXPECT_NE(m.find("no FloatGrid named 'nope\\n'; grids: den\\x1b[31msity\\n (float), density (float)"), std::string::npos) << m;
+    EXPECT_EQ(m.find('\n'), std::string::npos) << m;
+}
+
 // OpenVDB's log (log4cplus) wrote a coloured warning to stdout, inside `info --json`'s output.
 TEST(VolumeRead, OpenVdbWarningsGoToStderr)
 {
