@@ -154,9 +154,7 @@ std::string fnv1a64(const std::string& bytes) { return hex16(fnvAdd(kFnvOffset, 
 
 std::string fileDigest(const std::string& path)
 {
-    std::error_code ec;
-    const fs::file_status st = fs::status(path, ec);
-    if (fs::exists(st) && !fs::is_regular_file(st)) throw IoError(msg(path, ": is not a regular file; cannot take its digest"));
+    checkReadableFile(path, "file to digest");
     std::ifstream in(path, std::ios::binary);
     if (!in) throw IoError(msg(path, ": cannot open: ", std::strerror(errno)));
     std::vector<char> buffer(1 << 20); // models can be 100s of MB: one pass, not the whole file in memory

@@ -9,6 +9,7 @@
 #include <vector>
 
 #include "core/Error.h"
+#include "core/SafePath.h"
 #include "core/Hash.h"
 
 namespace splatwarp {
@@ -211,11 +212,8 @@ void checkVdbLayout(std::istream& in, std::uint64_t size, const std::string& nam
 
 void checkVdbFileLayout(const std::string& path)
 {
+    checkReadableFile(path, "volume"); // opening a FIFO hung from-vdb
     std::error_code ec;
-    const std::filesystem::file_status st = std::filesystem::status(path, ec);
-    // Opening a FIFO blocks until a writer comes (from-vdb hung forever); a device never ends.
-    if (std::filesystem::exists(st) && !std::filesystem::is_regular_file(st))
-        throw IoError(msg(path, ": is not a regular file (a folder, device, FIFO or socket); cannot read it as a volume"));
     const std::uintmax_t size = std::filesystem::file_size(path, ec);
     std::ifstream in(path, std::ios::binary);
     if (ec || !in) throw IoError(msg(path, ": cannot open"));

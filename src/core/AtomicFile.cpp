@@ -15,6 +15,7 @@
 #include <unistd.h>
 
 #include "core/Error.h"
+#include "core/SafePath.h"
 
 namespace splatwarp {
 
@@ -169,11 +170,7 @@ void AtomicFile::commit()
 
 std::string readWholeFile(const std::string& path, const std::string& what)
 {
-    std::error_code ec;
-    const std::filesystem::file_status st = std::filesystem::status(path, ec);
-    if (std::filesystem::is_directory(st)) throw IoError(msg(path, ": is a directory, not a ", what));
-    if (std::filesystem::exists(st) && !std::filesystem::is_regular_file(st)) // /dev/zero would be read until memory ran out
-        throw IoError(msg(path, ": is not a regular file (a device, FIFO or socket); cannot read it as a ", what));
+    checkReadableFile(path, what); // /dev/zero would be read until memory ran out
     if (gActive) gActive->addInput(path); // no output of this command may replace it
     std::ifstream in(path, std::ios::binary);
     if (!in) throw IoError(msg(path, ": cannot open ", what, ": ", std::strerror(errno)));

@@ -62,4 +62,13 @@ bool isWithinResolved(const std::string& dir, const std::string& path)
 
 bool isWithin(const std::string& dir, const std::string& path) { return isWithinResolved(resolvedPath(dir), resolvedPath(path)); }
 
+void checkReadableFile(const std::string& path, const std::string& what)
+{
+    std::error_code ec;
+    const std::filesystem::file_status st = std::filesystem::status(path, ec);
+    if (std::filesystem::is_directory(st)) throw IoError(msg(path, ": is a directory, not a ", what));
+    if (std::filesystem::exists(st) && !std::filesystem::is_regular_file(st))
+        throw IoError(msg(path, ": is not a regular file (a device, FIFO or socket); cannot read it as a ", what));
+}
+
 } // namespace splatwarp

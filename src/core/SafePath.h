@@ -24,6 +24,12 @@ std::string resolvedPath(const std::string& path);
 /// @brief isWithin() of two resolvedPath() results: a string comparison, no file-system call.
 bool isWithinResolved(const std::string& dir, const std::string& path);
 
+/// @brief Before a file is opened for reading: a folder, device, FIFO or socket is refused (opening
+///        a FIFO blocks until a writer comes; /dev/zero never ends). A missing path is left to the
+///        open, which names it. `what` names the file's role ("volume", "recipe").
+/// @throws IoError "PATH: is a directory, not a WHAT" or "PATH: is not a regular file (...)".
+void checkReadableFile(const std::string& path, const std::string& what);
+
 /// @brief Before a command writes into `dir`'s subfolders `subs` (a relative path each): none is
 ///        a symbolic link (a planted one would take the files out of dir) or a file.
 /// @throws IoError "DIR/SUB: is a symbolic link; WHO writes only inside its folder ...".
