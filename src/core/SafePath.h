@@ -35,7 +35,4 @@ void checkReadableFile(const std::string& path, const std::string& what);
 /// @throws IoError "DIR/SUB: is a symbolic link; WHO writes only inside its folder ...".
 void checkSubfoldersAreFolders(const std::string& dir, std::initializer_list<const char*> subs, const std::string& who);
 
-/// @brief Whether a and b are the same place or one lies inside the other (outputs that collide).
-inline bool overlaps(const std::string& a, const std::string& b) { return isWithin(a, b) || isWithin(b, a); }
-
 } // namespace splatwarp
